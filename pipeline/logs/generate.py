@@ -1,0 +1,25 @@
+"""Write the benchmark's demonstrations as JSON Lines, one file per environment."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..io import atomic_directory
+from ..sim.scenarios import Scenario, benchmark_scenarios
+from .records import demonstration_record, dumps
+
+
+def write_demonstrations(scenarios: list[Scenario], output: Path | str) -> dict[str, int]:
+    """Replace `output` with one `<env>.jsonl` per environment; returns lines per file."""
+    by_env: dict[str, list[str]] = {}
+    for scenario in scenarios:
+        for index in range(len(scenario.sequences)):
+            by_env.setdefault(scenario.env_id, []).append(dumps(demonstration_record(scenario, index)))
+    with atomic_directory(output) as tmp:
+        for env_id, lines in by_env.items():
+            (tmp / f"{env_id}.jsonl").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return {env_id: len(lines) for env_id, lines in by_env.items()}
+
+
+def generate(seed: int, output: Path | str) -> dict[str, int]:
+    return write_demonstrations(benchmark_scenarios(seed), output)

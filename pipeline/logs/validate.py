@@ -1,0 +1,185 @@
+"""Reading logs strictly: every problem names the file, the line and the field.
+
+A record passes when it matches the JSON Schema, refers only to objects of its
+environment, carries attributes consistent with its boxes, and replays in the
+simulator: every step is feasible, every logged state is the one the
+simulator produces, and the task's goal holds at the end.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from jsonschema import Draft202012Validator
+
+from ..sim.primitives import ARITY, PreconditionError, execute
+from ..sim.state import WorldState
+from ..sim.tasks import TASK_ARITY, goal_reached
+from .records import expected_attributes, load_schema, parse_record, state_from_dict, state_to_dict
+
+TOLERANCE = 1e-6
+
+
+class LogError(ValueError):
+    """One problem in one record of a log file."""
+
+    def __init__(self, path: Path | str, line: int, field: str, message: str) -> None:
+        super().__init__(f"{path}:{line}: {field}: {message}")
+        self.path, self.line, self.field, self.message = str(path), line, field, message
+
+
+@dataclass(frozen=True)
+class LoggedRecord:
+    path: Path
+    line: int
+    record: dict[str, Any]
+
+
+_VALIDATOR = Draft202012Validator(load_schema())
+
+
+def _reject_constant(name: str) -> float:
+    raise ValueError(f"{name} is not a number JSON allows")
+
+
+def log_files(directory: Path) -> list[Path]:
+    files = sorted(Path(directory).glob("*.jsonl"))
+    if not files:
+        raise FileNotFoundError(f"{directory}: no *.jsonl log files")
+    return files
+
+
+def read_records(path: Path) -> Iterator[LoggedRecord]:
+    """Parse a JSON Lines file; NaN and Infinity are refused, blank lines skipped."""
+    with open(path, encoding="utf-8") as fh:
+        for number, text in enumerate(fh, start=1):
+            if not text.strip():
+                continue
+            try:
+                record = json.loads(text, parse_constant=_reject_constant)
+            except ValueError as err:
+                raise LogError(path, number, "(line)", f"not valid JSON: {err}") from None
+            if not isinstance(record, dict):
+                raise LogError(path, number, "(line)", "a record must be a JSON object")
+            yield LoggedRecord(Path(path), number, record)
+
+
+def _field(path: Any) -> str:
+    out = ""
+    for part in path:
+        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
+    return out or "(record)"
+
+
+def check_schema(item: LoggedRecord) -> None:
+    errors = sorted(_VALIDATOR.iter_errors(item.record), key=lambda e: list(e.absolute_path))
+    if errors:
+        err = errors[0]
+        raise LogError(item.path, item.line, _field(err.absolute_path), err.message)
+
+
+def check_references(item: LoggedRecord) -> None:
+    """Ids, arities, attribute consistency and referential integrity."""
+    rec = item.record
+
+    def fail(field: str, message: str) -> None:
+        raise LogError(item.path, item.line, field, message)
+
+    ids: list[str] = [o["id"] for o in rec["objects"]]
+    known = set(ids)
+    for i, obj in enumerate(rec["objects"]):
+        if ids.index(obj["id"]) != i:
+            fail(f"objects[{i}].id", f"object {obj['id']} is listed twice")
+        for name, want in expected_attributes(obj).items():
+            got = obj["attributes"][name]
+            if not math.isclose(got, want, rel_tol=1e-6, abs_tol=1e-9):
+                fail(f"objects[{i}].attributes.{name}", f"{got} does not match the size {obj['size']} ({want:.6g})")
+    task = rec["task"]
+    if len(task["args"]) != TASK_ARITY[task["name"]]:
+        fail("task.args", f"{task['name']} takes {TASK_ARITY[task['name']]} argument(s), got {len(task['args'])}")
+    for j, arg in enumerate(task["args"]):
+        if arg not in known:
+            fail(f"task.args[{j}]", f"unknown object {arg!r}")
+    states = [(f"steps[{k}].state", s["state"]) for k, s in enumerate(rec["steps"])]
+    states.append(("final_state", rec["final_state"]))
+    for k, step in enumerate(rec["steps"]):
+        prim = step["primitive"]
+        if len(step["args"]) != ARITY[prim]:
+            fail(f"steps[{k}].args", f"{prim} takes {ARITY[prim]} argument(s), got {len(step['args'])}")
+        for j, arg in enumerate(step["args"]):
+            if arg not in known:
+                fail(f"steps[{k}].args[{j}]", f"unknown object {arg!r}")
+        if len(step["args"]) == 2 and step["args"][0] == step["args"][1]:
+            fail(f"steps[{k}].args", f"{prim} needs two different objects")
+    for where, state in states:
+        missing = known - set(state["objects"])
+        extra = set(state["objects"]) - known
+        if missing:
+            fail(f"{where}.objects", f"missing objects {sorted(missing)}")
+        if extra:
+            fail(f"{where}.objects", f"unknown objects {sorted(extra)}")
+        for key in ("held", "held_above"):
+            if state[key] is not None and state[key] not in known:
+                fail(f"{where}.{key}", f"unknown object {state[key]!r}")
+        for j, liquid in enumerate(state["stirred"]):
+            if liquid not in known:
+                fail(f"{where}.stirred[{j}]", f"unknown object {liquid!r}")
+        for obj, entry in state["objects"].items():
+            if entry["support"] is not None and entry["support"] not in known:
+                fail(f"{where}.objects.{obj}.support", f"unknown object {entry['support']!r}")
+            if (entry["support"] is None) != (entry["relation"] is None):
+                fail(f"{where}.objects.{obj}.relation", "support and relation must both be set or both be null")
+
+
+def _first_difference(logged: dict[str, Any], simulated: dict[str, Any]) -> tuple[str, Any, Any] | None:
+    for key in ("robot", "held", "held_above", "stirred"):
+        if not _same(logged[key], simulated[key]):
+            return key, logged[key], simulated[key]
+    for obj in simulated["objects"]:
+        for key in ("pose", "support", "relation"):
+            a, b = logged["objects"][obj][key], simulated["objects"][obj][key]
+            if not _same(a, b):
+                return f"objects.{obj}.{key}", a, b
+    return None
+
+
+def _same(a: Any, b: Any) -> bool:
+    if isinstance(a, list) and isinstance(b, list):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
+    if isinstance(a, (int, float)) and isinstance(b, (int, float)):
+        return abs(a - b) <= TOLERANCE
+    return a == b
+
+
+def check_replay(item: LoggedRecord) -> None:
+    """Re-execute the steps from the first logged state and compare every state."""
+    rec = item.record
+    specs, task, actions = parse_record(rec)
+    initial: WorldState = state_from_dict(specs, rec["steps"][0]["state"])
+    state = initial
+    for k, action in enumerate(actions):
+        try:
+            state = execute(state, action)
+        except PreconditionError as err:
+            raise LogError(item.path, item.line, f"steps[{k}]", f"infeasible: {err}") from None
+        where = f"steps[{k + 1}].state" if k + 1 < len(actions) else "final_state"
+        logged = rec["steps"][k + 1]["state"] if k + 1 < len(actions) else rec["final_state"]
+        diff = _first_difference(logged, state_to_dict(state))
+        if diff is not None:
+            field, got, want = diff
+            raise LogError(
+                item.path, item.line, f"{where}.{field}", f"logged {got!r} but replaying {action} gives {want!r}"
+            )
+    if not goal_reached(task, initial, state):
+        raise LogError(item.path, item.line, "final_state", f"the goal of {task} is not reached")
+
+
+def check_record(item: LoggedRecord) -> None:
+    check_schema(item)
+    check_references(item)
+    check_replay(item)

@@ -1,0 +1,133 @@
+"""Scenarios of the benchmark: an environment, a task and its arguments.
+
+Every task instance that makes sense in an environment is a candidate; the
+benchmark draws a fixed number per task with the seed, so each seed gives a
+dataset of the paper's shape (113 scenarios, 127 sequences).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .catalog import ENVIRONMENTS, build_environment
+from .demonstrator import NoDemonstration, demonstrate
+from .objects import POURERS, VESSELS
+from .primitives import Action, PreconditionError
+from .state import WorldState
+from .tasks import Task
+
+MIN_STEPS, MAX_STEPS = 4, 10
+# How many scenarios of each task the benchmark holds, and how many of them
+# have two acceptable sequences (load order free): the paper's 113 and 127.
+QUOTAS = {"stir": 20, "pick_and_place": 32, "pour": 21, "pour_to": 20, "throw_away": 20}
+N_WITH_ALTERNATIVES = 14
+# Of N_DRAWS draws, the benchmark keeps the one whose step count is nearest
+# the paper's 736 primitives.
+TARGET_STEPS = 736
+N_DRAWS = 200
+
+
+@dataclass(frozen=True)
+class Scenario:
+    env_id: str
+    task: Task
+    initial: WorldState
+    sequences: tuple[tuple[Action, ...], ...]
+
+    @property
+    def id(self) -> str:
+        return f"{self.env_id}/{self.task}"
+
+
+def task_candidates(state: WorldState) -> list[Task]:
+    """Every task instance that reads sensibly in this state."""
+    specs = state.specs
+    tasks: list[Task] = []
+    liquids = sorted(o for o, s in specs.items() if s.has("liquid"))
+    vessels = sorted(o for o, s in specs.items() if s.category in VESSELS and not state.liquids_in(o))
+    for liquid in liquids:
+        container = state.container_of(liquid)
+        if container is None:
+            continue
+        if specs[container].category in VESSELS:
+            tasks.append(Task("stir", (liquid,)))
+        if specs[container].category in POURERS:
+            tasks.append(Task("pour", (liquid,)))
+            tasks.extend(Task("pour_to", (liquid, v)) for v in vessels)
+    movable = sorted(
+        o
+        for o, s in specs.items()
+        if s.has("movable") and not s.has("liquid") and not state.liquids_in(o) and s.category != "bin"
+    )
+    for obj in movable:
+        if specs[obj].category in ("item", "can", "carton", "stirrer") and specs[obj].name != "tray":
+            tasks.append(Task("throw_away", (obj,)))
+        surfaces = sorted(
+            o
+            for o, s in specs.items()
+            if s.category in ("floor", "table", "shelf") or (s.has("large_surface") and s.has("movable"))
+        )
+        for surface in surfaces:
+            if surface != obj and state.support.get(obj, ("",))[0] != surface and surface not in state.descendants(obj):
+                tasks.append(Task("pick_and_place", (obj, surface)))
+    return tasks
+
+
+def candidate_scenarios(seed: int) -> list[Scenario]:
+    """All candidates with a valid demonstration, in a fixed order."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for env in ENVIRONMENTS:
+        state = build_environment(env, rng)
+        for task in task_candidates(state):
+            try:
+                seqs = demonstrate(state, task)
+            except (NoDemonstration, PreconditionError):
+                continue
+            if all(MIN_STEPS <= len(s) <= MAX_STEPS for s in seqs):
+                out.append(Scenario(env.id, task, state, tuple(tuple(s) for s in seqs)))
+    return out
+
+
+def benchmark_scenarios(seed: int) -> list[Scenario]:
+    """The benchmark: QUOTAS scenarios per task, N_WITH_ALTERNATIVES of them with two sequences.
+
+    Each draw is spread over environments (round robin over a shuffled order)
+    so that all 13 environments take part.
+    """
+    rng = np.random.default_rng(seed)
+    pool = candidate_scenarios(seed)
+    multi = [s for s in pool if len(s.sequences) == 2]
+    if len(multi) < N_WITH_ALTERNATIVES:
+        raise RuntimeError(f"only {len(multi)} candidate scenarios have two sequences")
+    best: tuple[int, list[Scenario]] | None = None
+    for _ in range(N_DRAWS):
+        chosen = _spread(multi, N_WITH_ALTERNATIVES, rng)
+        for task, quota in QUOTAS.items():
+            have = sum(1 for s in chosen if s.task.name == task)
+            single = [s for s in pool if len(s.sequences) == 1 and s.task.name == task]
+            if len(single) < quota - have:
+                raise RuntimeError(f"only {len(single)} candidate {task} scenarios for a quota of {quota - have}")
+            chosen += _spread(single, quota - have, rng)
+        miss = abs(sum(len(q) for s in chosen for q in s.sequences) - TARGET_STEPS)
+        if best is None or miss < best[0]:
+            best = (miss, chosen)
+    assert best is not None
+    env_order = {e.id: i for i, e in enumerate(ENVIRONMENTS)}
+    return sorted(best[1], key=lambda s: (env_order[s.env_id], s.task.name, s.task.args))
+
+
+def _spread(items: list[Scenario], k: int, rng: np.random.Generator) -> list[Scenario]:
+    by_env: dict[str, list[Scenario]] = {}
+    for s in items:
+        by_env.setdefault(s.env_id, []).append(s)
+    queues = {e: [lst[i] for i in rng.permutation(len(lst))] for e, lst in sorted(by_env.items())}
+    order = [list(queues)[i] for i in rng.permutation(len(queues))]
+    out: list[Scenario] = []
+    while len(out) < k:
+        for env in order:
+            if queues[env] and len(out) < k:
+                out.append(queues[env].pop())
+    return out

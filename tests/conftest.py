@@ -1,0 +1,33 @@
+"""Shared fixtures: small hand-built worlds and the generated benchmark."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from pipeline.logs.generate import generate
+from pipeline.logs.ingest import load_logs
+from pipeline.sim.catalog import EnvironmentSpec, Placement, build_environment
+from pipeline.sim.state import WorldState
+
+
+def world(furniture: dict[int, float], items: list[tuple], robot_x: float = 0.0) -> WorldState:
+    """A hand-built environment from catalog objects: items are (obj, on, level, dx[, back])."""
+    placements = tuple(
+        Placement(f"obj{i[0]:02d}", f"obj{i[1]:02d}", *(i[2:] if len(i) > 2 else ())) for i in items
+    )
+    spec = EnvironmentSpec("test", tuple((f"obj{k:02d}", x) for k, x in furniture.items()), placements, robot_x)
+    return build_environment(spec)
+
+
+@pytest.fixture(scope="session")
+def benchmark_logs(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("bench") / "raw"
+    generate(0, out)
+    return out
+
+
+@pytest.fixture(scope="session")
+def benchmark_tables(benchmark_logs: Path):
+    return load_logs(benchmark_logs)
