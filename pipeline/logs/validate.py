@@ -43,8 +43,16 @@ class LoggedRecord:
 _VALIDATOR = Draft202012Validator(load_schema())
 
 
-def _reject_constant(name: str) -> float:
-    raise ValueError(f"{name} is not a number JSON allows")
+def _nonfinite(value: Any, path: str) -> str | None:
+    """Path of the first NaN or infinity in a parsed record, if any."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return path
+    items = value.items() if isinstance(value, dict) else enumerate(value) if isinstance(value, list) else ()
+    for key, child in items:
+        found = _nonfinite(child, f"{path}[{key}]" if isinstance(key, int) else f"{path}.{key}" if path else key)
+        if found:
+            return found
+    return None
 
 
 def log_files(directory: Path) -> list[Path]:
@@ -55,17 +63,20 @@ def log_files(directory: Path) -> list[Path]:
 
 
 def read_records(path: Path) -> Iterator[LoggedRecord]:
-    """Parse a JSON Lines file; NaN and Infinity are refused, blank lines skipped."""
+    """Parse a JSON Lines file; NaN and infinity are refused by field, blank lines skipped."""
     with open(path, encoding="utf-8") as fh:
         for number, text in enumerate(fh, start=1):
             if not text.strip():
                 continue
             try:
-                record = json.loads(text, parse_constant=_reject_constant)
+                record = json.loads(text)
             except ValueError as err:
                 raise LogError(path, number, "(line)", f"not valid JSON: {err}") from None
             if not isinstance(record, dict):
                 raise LogError(path, number, "(line)", "a record must be a JSON object")
+            bad = _nonfinite(record, "")
+            if bad:
+                raise LogError(path, number, bad, "NaN and infinity are not allowed; every number must be finite")
             yield LoggedRecord(Path(path), number, record)
 
 

@@ -1,0 +1,153 @@
+"""Ingest: the round trip, and a clear error for every kind of bad input."""
+
+import json
+import shutil
+
+import pytest
+
+from pipeline.cli import build_parser, main
+from pipeline.logs.ingest import load_logs, read_tables, records_from_tables, write_tables
+from pipeline.logs.validate import LogError
+
+
+def test_log_to_parquet_to_log_round_trip(benchmark_tables, tmp_path):
+    tables, records = benchmark_tables
+    write_tables(tables, tmp_path / "processed")
+    assert records_from_tables(read_tables(tmp_path / "processed")) == [r.record for r in records]
+
+
+def test_ingest_writes_tables_and_metrics(benchmark_logs, tmp_path):
+    out, metrics = tmp_path / "processed", tmp_path / "reports" / "dataset.json"
+    assert main(["ingest", "--input", str(benchmark_logs), "--output", str(out), "--metrics", str(metrics)]) == 0
+    assert sorted(p.name for p in out.iterdir()) == [
+        "environments.parquet", "objects.parquet", "scenarios.parquet", "sequences.parquet", "states.parquet",
+        "steps.parquet",
+    ]
+    assert json.loads(metrics.read_text())["sequences"] == 127
+
+
+@pytest.fixture
+def one_log(benchmark_logs, tmp_path):
+    """A folder holding a copy of one generated log file; returns (folder, file, records)."""
+    folder = tmp_path / "raw"
+    folder.mkdir()
+    src = sorted(benchmark_logs.glob("*.jsonl"))[0]
+    shutil.copy(src, folder / src.name)
+    lines = (folder / src.name).read_text().splitlines()
+    return folder, folder / src.name, [json.loads(x) for x in lines]
+
+
+def rewrite(path, records, line_text=None, line_no=3):
+    lines = [json.dumps(r) for r in records]
+    if line_text is not None:
+        lines[line_no - 1] = line_text
+    path.write_text("\n".join(lines) + "\n")
+
+
+def _set(rec, path, value):
+    *head, last = path
+    for key in head:
+        rec = rec[key]
+    rec[last] = value
+
+
+def _del(rec, path):
+    *head, last = path
+    for key in head:
+        rec = rec[key]
+    del rec[last]
+
+
+def _first_move(rec):
+    """Make the first step a grasp from far away: infeasible."""
+    rec["steps"][0]["primitive"] = "grasp"
+
+
+def _far_pose(rec):
+    obj = rec["steps"][1]["args"][0] if rec["steps"][1]["args"] else rec["objects"][1]["id"]
+    rec["steps"][1]["state"]["objects"][obj]["pose"][0] += 0.5
+
+
+CASES = {
+    "missing field": (lambda r: _del(r, ["task"]), "(record)", "'task' is a required property"),
+    "mistyped field": (lambda r: _set(r, ["steps", 2, "args"], "obj14"), "steps[2].args", "is not of type 'array'"),
+    "unknown primitive": (lambda r: _set(r, ["steps", 1, "primitive"], "teleport"), "steps[1].primitive", "teleport"),
+    "unknown object": (lambda r: _set(r, ["steps", 1, "args", 0], "obj99"), "steps[1].args[0]", "unknown object"),
+    "negative size": (lambda r: _set(r, ["objects", 3, "size", 1], -0.2), "objects[3].size[1]", "minimum"),
+    "NaN": (lambda r: _set(r, ["objects", 2, "size", 0], float("nan")), "objects[2].size[0]", "finite"),
+    "infeasible step": (_first_move, "steps[0]", "infeasible"),
+    "state differs from replay": (_far_pose, "steps[1].state.objects", "replaying"),
+    "wrong attribute": (lambda r: _set(r, ["objects", 4, "attributes", "volume"], 9.0), "objects[4].attributes.volume",
+                        "does not match"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_bad_record_names_file_line_and_field_and_writes_nothing(case, one_log, tmp_path, capsys):
+    folder, path, records = one_log
+    mutate, field, message = CASES[case]
+    mutate(records[2])
+    rewrite(path, records)
+    with pytest.raises(LogError) as err:
+        load_logs(folder)
+    assert (err.value.path, err.value.line) == (str(path), 3)
+    assert err.value.field.startswith(field), err.value
+    assert message in err.value.message
+    out, metrics = tmp_path / "processed", tmp_path / "dataset.json"
+    code = main(["ingest", "--input", str(folder), "--output", str(out), "--metrics", str(metrics)])
+    assert code == 1
+    stderr = capsys.readouterr().err
+    assert f"{path}:3: {err.value.field}" in stderr and "nothing was written" in stderr
+    assert not out.exists() and not metrics.exists()
+
+
+def test_broken_json_is_reported_with_its_line(one_log, tmp_path):
+    folder, path, records = one_log
+    rewrite(path, records, line_text='{"format": "taskseq.demonstration/1", "demo_id": ', line_no=2)
+    with pytest.raises(LogError, match=rf"{path.name}:2: \(line\): not valid JSON"):
+        load_logs(folder)
+
+
+def test_failed_ingest_leaves_previous_output_untouched(benchmark_logs, one_log, tmp_path):
+    out, metrics = tmp_path / "processed", tmp_path / "dataset.json"
+    assert main(["ingest", "--input", str(benchmark_logs), "--output", str(out), "--metrics", str(metrics)]) == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    folder, path, records = one_log
+    _del(records[0], ["steps"])
+    rewrite(path, records)
+    metrics_before = metrics.read_bytes()
+    assert main(["ingest", "--input", str(folder), "--output", str(out), "--metrics", str(metrics)]) == 1
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert metrics.read_bytes() == metrics_before
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+
+
+def test_duplicate_demo_ids_are_refused(one_log):
+    folder, path, records = one_log
+    records[1]["demo_id"] = records[0]["demo_id"]
+    rewrite(path, records)
+    with pytest.raises(LogError, match=r":2: demo_id: .* already used"):
+        load_logs(folder)
+
+
+def test_replay_reports_every_bad_record(one_log, capsys):
+    folder, path, records = one_log
+    _first_move(records[0])
+    _first_move(records[2])
+    rewrite(path, records)
+    assert main(["replay", str(folder)]) == 1
+    captured = capsys.readouterr()
+    assert f"{path}:1: steps[0]" in captured.err and f"{path}:3: steps[0]" in captured.err
+    assert "with problems" in captured.out and f"{len(records) - 2} demonstrations replay exactly" in captured.out
+
+
+def test_empty_folder_is_a_clear_error(tmp_path, capsys):
+    args = ["ingest", "--input", str(tmp_path), "--output", str(tmp_path / "out"), "--metrics", str(tmp_path / "m")]
+    assert main(args) == 1
+    assert "no *.jsonl log files" in capsys.readouterr().err
+
+
+def test_help_lists_every_subcommand():
+    text = build_parser().format_help()
+    for command in ("generate", "replay", "ingest"):
+        assert command in text
