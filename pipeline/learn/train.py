@@ -1,0 +1,44 @@
+"""Fitting the MRF with the SSVM: the glue a stage calls, with a progress bar."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from tqdm import tqdm
+
+from ..features.context import StepContext
+from .mrf import MRFModel
+from .ssvm import OneSlackSSVM
+
+
+@dataclass
+class Fit:
+    model: MRFModel
+    ssvm: OneSlackSSVM
+    seconds: float
+
+    @property
+    def w(self) -> np.ndarray:
+        return self.ssvm.w_
+
+
+def fit_mrf(contexts: list[StepContext], features: str = "full", C: float = 1.0, tol: float = 1e-3,
+            max_iter: int = 2000, progress: bool = False) -> Fit:
+    model = MRFModel(features)
+    # a bar on a terminal only: logs of CI and DVC stay readable
+    bar = tqdm(total=max_iter, desc=f"ssvm {features}", unit="it", disable=None if progress else True,
+               leave=False, mininterval=0.5)
+
+    def tick(it) -> None:
+        bar.update(1)
+        bar.set_postfix(gap=f"{it.gap:.3g}", constraints=it.n_constraints)
+
+    start = time.perf_counter()
+    ssvm = OneSlackSSVM(model, C=C, tol=tol, max_iter=max_iter, progress=tick)
+    try:
+        ssvm.fit(contexts, [x.gold for x in contexts])
+    finally:
+        bar.close()
+    return Fit(model, ssvm, time.perf_counter() - start)

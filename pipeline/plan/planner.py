@@ -1,0 +1,80 @@
+"""The dynamic planner: score every candidate in the current state, execute the best, repeat.
+
+This is the paper's Program 3: the loop looks at the environment afresh at
+every step, so an object that moved, or a step that did something else than
+expected, changes the next choice.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..features.context import step_context
+from ..learn.mrf import MRFModel
+from ..sim.primitives import Action, PreconditionError, execute
+from ..sim.safety import violations
+from ..sim.state import WorldState
+from ..sim.tasks import Task, goal_reached
+
+DONE = "done"
+STEP_CAP = "step_cap"
+INFEASIBLE = "infeasible"
+
+
+@dataclass
+class PlanStep:
+    action: Action
+    score: float
+    alternatives: list[tuple[Action, float]]  # the next best candidates, best first
+    unsafe: list[str] = field(default_factory=list)  # safety rules the action breaks
+
+
+@dataclass
+class Program:
+    task: Task
+    steps: list[PlanStep]
+    status: str  # DONE, STEP_CAP or INFEASIBLE
+    initial: WorldState
+    final: WorldState
+    error: str | None = None
+
+    @property
+    def actions(self) -> list[Action]:
+        return [s.action for s in self.steps]
+
+    @property
+    def goal_reached(self) -> bool:
+        return goal_reached(self.task, self.initial, self.final)
+
+    @property
+    def safe(self) -> bool:
+        return not any(s.unsafe for s in self.steps)
+
+    @property
+    def success(self) -> bool:
+        """Stopped by choice, goal reached and no safety rule broken."""
+        return self.status == DONE and self.goal_reached and self.safe
+
+
+def plan(model: MRFModel, w: np.ndarray, state: WorldState, task: Task, max_steps: int = 20,
+         top_k: int = 3) -> Program:
+    """Run the loop in the simulator until `done`, an infeasible step, or `max_steps` primitives."""
+    task.check_objects(state)
+    initial, steps = state, []
+    while True:
+        ctx = step_context(state, task, [s.action for s in steps])
+        ranked = model.top_k(ctx, w, top_k)
+        (best, score), rest = ranked[0], ranked[1:]
+        action = ctx.action(best)
+        if action.primitive == DONE:
+            return Program(task, steps, DONE, initial, state)
+        if len(steps) == max_steps:
+            return Program(task, steps, STEP_CAP, initial, state)
+        step = PlanStep(action, score, [(ctx.action(y), s) for y, s in rest], violations(state, action))
+        steps.append(step)
+        try:
+            state = execute(state, action)
+        except PreconditionError as err:
+            return Program(task, steps, INFEASIBLE, initial, state, str(err))
