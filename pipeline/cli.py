@@ -108,7 +108,6 @@ def _train(args: argparse.Namespace) -> int:
         "primal_objective": fit.ssvm.primal_objective_,
         "dual_objective": fit.ssvm.dual_objective_,
         "relative_gap": last.gap / max(1.0, abs(last.best_primal)),
-        "seconds": round(fit.seconds, 1),
     }
     if args.metrics:
         write_json_atomic(args.metrics, metrics)

@@ -31,3 +31,11 @@ def benchmark_logs(tmp_path_factory: pytest.TempPathFactory) -> Path:
 @pytest.fixture(scope="session")
 def benchmark_tables(benchmark_logs: Path):
     return load_logs(benchmark_logs)
+
+
+@pytest.fixture(scope="session")
+def benchmark_steps(benchmark_tables):
+    """Teacher-forced steps (StepContext, StepMeta) of the whole benchmark."""
+    from pipeline.features.dataset import build_steps
+
+    return build_steps([item.record for item in benchmark_tables[1]])

@@ -392,9 +392,10 @@ class MRFModel(_Batched):
         return int(cands[0][k]), int(cands[1][k]), int(cands[2][k])
 
     def top_k(self, x: StepContext, w: np.ndarray, k: int) -> list[tuple[Y, float]]:
-        """The k best candidates, best first; ties keep candidate order."""
+        """The k best candidates, best first; ties go to the earlier candidate, as in `inference`."""
         cands, s = self.scores(x, w)
         k = min(k, len(s))
-        idx = np.argpartition(-s, k - 1)[:k] if k < len(s) else np.arange(len(s))
-        idx = idx[np.lexsort((idx, -s[idx]))]
+        kth = np.partition(s, len(s) - k)[len(s) - k]
+        idx = np.flatnonzero(s >= kth)  # the k best and whatever ties with the k-th
+        idx = idx[np.lexsort((idx, -s[idx]))][:k]
         return [((int(cands[0][i]), int(cands[1][i]), int(cands[2][i])), float(s[i])) for i in idx]

@@ -1,0 +1,109 @@
+"""The MRF model: vectorised scores against a plain reference, families, names, features files."""
+
+import numpy as np
+import pytest
+
+from pipeline.features.dataset import read_features, write_features
+from pipeline.learn.mrf import CLIQUE_FAMILIES, EDGE_FAMILIES, MRFModel, candidate_index
+from pipeline.sim.primitives import ALL_PRIMITIVES, ARITY
+
+
+@pytest.fixture(scope="module")
+def some_steps(benchmark_steps):
+    contexts, _ = benchmark_steps
+    rng = np.random.default_rng(1)
+    return [contexts[i] for i in rng.choice(len(contexts), size=25, replace=False)]
+
+
+def test_candidates_respect_arity():
+    n = 6
+    p, a1, a2 = candidate_index(n)
+    for prim, arity in ARITY.items():
+        k = ALL_PRIMITIVES.index(prim)
+        sel = p == k
+        assert sel.sum() == {0: 1, 1: n, 2: n * (n - 1)}[arity]
+        assert np.all((a1[sel] >= 0) == (arity >= 1)) and np.all((a2[sel] >= 0) == (arity == 2))
+    assert not np.any((a1 == a2) & (a1 >= 0))
+
+
+@pytest.mark.parametrize("features", ["full", "edge", "clique"])
+def test_vectorised_scores_equal_the_per_candidate_reference(some_steps, features):
+    model = MRFModel(features)
+    rng = np.random.default_rng(2)
+    for x in some_steps[:8]:
+        w = rng.normal(size=model.size_joint_feature)
+        (cp, ca1, ca2), scores = model.scores(x, w)
+        slow = np.array([w @ model.joint_feature(x, (p, a, b)) for p, a, b in zip(cp, ca1, ca2, strict=True)])
+        np.testing.assert_allclose(scores, slow, rtol=1e-10, atol=1e-10)
+
+
+def test_batched_inference_and_joint_features_equal_the_per_step_ones(some_steps):
+    model = MRFModel("full")
+    w = np.random.default_rng(3).normal(size=model.size_joint_feature)
+    gold = [x.gold for x in some_steps]
+    assert model.batch_inference(some_steps, w) == [model.inference(x, w) for x in some_steps]
+    assert model.batch_loss_augmented_inference(some_steps, gold, w) == [
+        model.loss_augmented_inference(x, y, w) for x, y in zip(some_steps, gold, strict=True)
+    ]
+    total = sum(model.joint_feature(x, y) for x, y in zip(some_steps, gold, strict=True))
+    np.testing.assert_allclose(model.batch_joint_feature(some_steps, gold), total, atol=1e-12)
+
+
+def test_loss_augmented_inference_maximises_score_plus_hamming(some_steps):
+    model = MRFModel("full")
+    w = np.random.default_rng(4).normal(size=model.size_joint_feature)
+    for x in some_steps[:5]:
+        (cp, ca1, ca2), scores = model.scores(x, w)
+        total = scores + [model.loss(x.gold, y) for y in zip(cp, ca1, ca2, strict=True)]
+        y_hat = model.loss_augmented_inference(x, x.gold, w)
+        k = int(np.argmax(total))
+        assert y_hat == (cp[k], ca1[k], ca2[k])
+
+
+def test_edge_and_clique_use_exactly_their_families(some_steps):
+    full, edge, clique = MRFModel("full"), MRFModel("edge"), MRFModel("clique")
+    assert set(edge.family_of()) == set(EDGE_FAMILIES)
+    assert set(clique.family_of()) == set(CLIQUE_FAMILIES)
+    assert sorted(edge.feature_names() + clique.feature_names()) == sorted(full.feature_names())
+    index = {n: i for i, n in enumerate(full.feature_names())}
+    for x in some_steps[:5]:
+        phi = full.joint_feature(x, x.gold)
+        for sub in (edge, clique):
+            cols = [index[n] for n in sub.feature_names()]
+            np.testing.assert_array_equal(sub.joint_feature(x, x.gold), phi[cols])
+
+
+def test_every_weight_has_a_readable_name():
+    names = MRFModel("full").feature_names()
+    assert len(names) == len(set(names)) == MRFModel("full").size_joint_feature
+    for name in ("ppt1[pour,hold_above->follow_traj_pour]", "pae1[grasp,has_load]", "pt[stir,follow_traj_circle]",
+                 "aet_rel1[pick_and_place,is_task_arg1]", "ae_pair[collide]", "paae2[hold_above,a1_prev1]"):
+        assert name in names
+
+
+def test_unknown_feature_set_is_refused():
+    with pytest.raises(ValueError, match="features must be one of"):
+        MRFModel("nodes")
+
+
+def test_feature_files_round_trip(benchmark_steps, tmp_path):
+    contexts, meta = benchmark_steps
+    write_features(contexts[:60], meta[:60], tmp_path / "features")
+    back, back_meta = read_features(tmp_path / "features")
+    assert back_meta == meta[:60]
+    for a, b in zip(contexts[:60], back, strict=True):
+        assert a.object_ids == b.object_ids and a.gold == b.gold and a.task == b.task
+        assert a.prev_prims == b.prev_prims and a.prev_args == b.prev_args
+        np.testing.assert_array_equal(a.objects, b.objects)
+        np.testing.assert_array_equal(a.task_rel, b.task_rel)
+        np.testing.assert_array_equal(a.collide, b.collide)
+
+
+def test_steps_include_a_final_done(benchmark_steps):
+    contexts, meta = benchmark_steps
+    done = ALL_PRIMITIVES.index("done")
+    last = {}
+    for x, m in zip(contexts, meta, strict=True):
+        last[m.sequence_id] = x
+    assert all(x.gold == (done, -1, -1) for x in last.values())
+    assert sum(x.gold[0] == done for x in contexts) == len(last) == 127

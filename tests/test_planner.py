@@ -1,0 +1,129 @@
+"""Training end to end on a few demonstrations, planning in closed loop, model files, the plan command."""
+
+import json
+
+import numpy as np
+import pytest
+
+from pipeline.cli import main
+from pipeline.features.dataset import build_steps
+from pipeline.learn.persist import load_model, save_model
+from pipeline.learn.train import fit_mrf
+from pipeline.logs.records import parse_record, state_from_dict
+from pipeline.plan.planner import DONE, plan
+
+
+@pytest.fixture(scope="module")
+def small_fit(benchmark_tables):
+    """A model trained on the demonstrations of two environments."""
+    records = [i.record for i in benchmark_tables[1] if i.record["env_id"] in ("env01", "env02")]
+    contexts, _ = build_steps(records)
+    fit = fit_mrf(contexts, "full", C=5.0, tol=1e-3, max_iter=300)
+    return fit, records
+
+
+def scenario(record):
+    specs, task, actions = parse_record(record)
+    return state_from_dict(specs, record["steps"][0]["state"]), task, actions
+
+
+def test_training_fits_its_own_demonstrations(small_fit):
+    fit, records = small_fit
+    contexts, _ = build_steps(records)
+    predicted = fit.ssvm.predict(contexts)
+    accuracy = np.mean([tuple(p) == tuple(x.gold) for p, x in zip(predicted, contexts, strict=True)])
+    assert accuracy > 0.9
+
+
+def test_planner_reproduces_a_training_demonstration_in_closed_loop(small_fit):
+    fit, records = small_fit
+    reproduced = 0
+    for record in records:
+        state, task, actions = scenario(record)
+        program = plan(fit.model, fit.w, state, task)
+        assert program.status in (DONE, "step_cap", "infeasible")
+        if program.actions == actions:
+            reproduced += 1
+            assert program.goal_reached and program.success
+    assert reproduced >= len(records) // 2  # 14 of 20 when this was written
+
+
+def test_plan_records_scores_and_alternatives(small_fit):
+    fit, records = small_fit
+    state, task, _ = scenario(records[0])
+    program = plan(fit.model, fit.w, state, task, top_k=3)
+    for step in program.steps:
+        assert len(step.alternatives) == 2
+        assert all(step.score >= s for _, s in step.alternatives)
+
+
+def test_plan_stops_at_the_step_cap(small_fit):
+    fit, records = small_fit
+    state, task, _ = scenario(records[0])
+    program = plan(fit.model, np.zeros_like(fit.w), state, task, max_steps=3)
+    # with zero weights every score ties and the first candidate (move_close) always wins
+    assert program.status == "step_cap" and len(program.steps) == 3
+
+
+def test_saved_and_loaded_model_plans_identically(small_fit, tmp_path):
+    fit, records = small_fit
+    path = tmp_path / "mrf.npz"
+    save_model(path, fit.model, fit.w, {"C": 1.0})
+    model, w, meta = load_model(path)
+    assert meta["features"] == "full" and meta["C"] == 1.0
+    np.testing.assert_array_equal(w, fit.w)
+    with np.load(path, allow_pickle=False) as z:
+        assert set(z.files) == {"w", "feature_names", "meta"}
+    for record in records[:5]:
+        state, task, _ = scenario(record)
+        a, b = plan(fit.model, fit.w, state, task), plan(model, w, state, task)
+        assert a.actions == b.actions
+        assert [s.score for s in a.steps] == [s.score for s in b.steps]
+
+
+def test_load_refuses_other_files(tmp_path):
+    bad = tmp_path / "bad.npz"
+    np.savez(bad, w=np.zeros(3))
+    with pytest.raises(ValueError, match="not a taskseq model"):
+        load_model(bad)
+    with pytest.raises(FileNotFoundError, match="no such model"):
+        load_model(tmp_path / "missing.npz")
+
+
+@pytest.fixture
+def model_file(small_fit, tmp_path):
+    fit, _ = small_fit
+    path = tmp_path / "mrf.npz"
+    save_model(path, fit.model, fit.w, {})
+    return path
+
+
+def test_plan_command_prints_a_program(model_file, benchmark_logs, capsys):
+    log = benchmark_logs / "env01.jsonl"
+    record = json.loads(log.read_text().splitlines()[0])
+    task = f"{record['task']['name']}({','.join(record['task']['args'])})"
+    code = main(["plan", "--model", str(model_file), "--env", str(log), "--task", task, "--json"])
+    out = json.loads(capsys.readouterr().out)
+    assert out["task"] == task and out["steps"]
+    assert code == (0 if out["status"] == DONE and out["goal_reached"] else 1)
+
+
+def test_plan_command_accepts_an_environment_file(model_file, benchmark_logs, tmp_path, capsys):
+    record = json.loads((benchmark_logs / "env01.jsonl").read_text().splitlines()[0])
+    env = tmp_path / "env.json"
+    env.write_text(json.dumps({"objects": record["objects"], "state": record["steps"][0]["state"]}))
+    liquid = next(o["id"] for o in record["objects"] if o["attributes"]["liquid"] == 1)
+    main(["plan", "--model", str(model_file), "--env", str(env), "--task", f"pour({liquid})"])
+    assert f"program for pour({liquid})" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("task, message", [
+    ("pour(obj99)", "object obj99 is not in this environment"),
+    ("fly(obj27)", "unknown task 'fly'"),
+    ("pour(obj27,obj14)", "takes 1 argument"),
+    ("pour obj27", "cannot parse task"),
+])
+def test_plan_command_fails_clearly(model_file, benchmark_logs, capsys, task, message):
+    code = main(["plan", "--model", str(model_file), "--env", str(benchmark_logs / "env01.jsonl"), "--task", task])
+    assert code == 2
+    assert message in capsys.readouterr().err

@@ -1,0 +1,119 @@
+"""The 1-slack SSVM: the optimum of its QP, the scikit-learn equivalence, convergence."""
+
+import itertools
+
+import cvxpy as cp
+import numpy as np
+import pytest
+from sklearn.svm import LinearSVC
+
+from pipeline.learn.multiclass import MulticlassModel
+from pipeline.learn.ssvm import OneSlackSSVM
+
+
+class PairModel:
+    """A toy two-node MRF: y = (a, b) in 3 x 3, unary features of x for each node, a pairwise table."""
+
+    K = 3
+
+    def __init__(self, d: int) -> None:
+        self.d = d
+        self.size_joint_feature = 2 * d * self.K + self.K * self.K
+
+    def labels(self):
+        return list(itertools.product(range(self.K), repeat=2))
+
+    def joint_feature(self, x, y):
+        a, b = y
+        out = np.zeros(self.size_joint_feature)
+        out[a * self.d : (a + 1) * self.d] = x[: self.d]
+        o = self.K * self.d
+        out[o + b * self.d : o + (b + 1) * self.d] = x[self.d :]
+        out[2 * o + a * self.K + b] = 1.0
+        return out
+
+    def loss(self, y, y_hat):
+        return float((y[0] != y_hat[0]) + (y[1] != y_hat[1]))
+
+    def inference(self, x, w):
+        return max(self.labels(), key=lambda y: w @ self.joint_feature(x, y))
+
+    def loss_augmented_inference(self, x, y, w):
+        return max(self.labels(), key=lambda yh: w @ self.joint_feature(x, yh) + self.loss(y, yh))
+
+
+def brute_force_optimum(model, X, Y, C):
+    """The n-slack QP with one constraint per example and labeling, solved directly."""
+    w = cp.Variable(model.size_joint_feature)
+    xi = cp.Variable(len(X))
+    cons = [xi >= 0]
+    for i, (x, y) in enumerate(zip(X, Y, strict=True)):
+        psi = model.joint_feature(x, y)
+        for yh in model.labels():
+            cons.append(w @ (psi - model.joint_feature(x, yh)) >= model.loss(y, yh) - xi[i])
+    prob = cp.Problem(cp.Minimize(0.5 * cp.sum_squares(w) + C * cp.sum(xi)), cons)
+    prob.solve(solver=cp.CLARABEL)
+    return prob.value
+
+
+@pytest.fixture
+def toy():
+    rng = np.random.default_rng(3)
+    d = 4
+    X = [rng.normal(size=2 * d) for _ in range(12)]
+    Y = [(int(np.argmax(x[:3])), int(np.argmax(x[d : d + 3]))) for x in X]
+    Y[0] = (2, 0)  # one noisy label so that slacks are active
+    return PairModel(d), X, Y
+
+
+def test_reaches_the_optimum_of_the_full_qp(toy):
+    model, X, Y = toy
+    C, tol = 2.0, 1e-5
+    ssvm = OneSlackSSVM(model, C=C, tol=tol, max_iter=500).fit(X, Y)
+    optimum = brute_force_optimum(model, X, Y, C)
+    assert ssvm.converged_
+    assert ssvm.dual_objective_ <= optimum + 1e-6 * abs(optimum)
+    assert ssvm.primal_objective_ >= optimum - 1e-6 * abs(optimum)
+    assert ssvm.primal_objective_ - optimum <= 2 * tol * max(1.0, abs(optimum))
+
+
+def test_bounds_move_monotonically_and_the_gap_closes(toy):
+    model, X, Y = toy
+    ssvm = OneSlackSSVM(model, C=2.0, tol=1e-5, max_iter=500, inactive_window=0).fit(X, Y)
+    hist = ssvm.history_
+    best = [h.best_primal for h in hist]
+    dual = [h.dual for h in hist]
+    scale = max(1.0, abs(best[-1]))
+    assert all(b2 <= b1 for b1, b2 in zip(best, best[1:], strict=False))
+    assert all(d2 >= d1 - 1e-6 * scale for d1, d2 in zip(dual, dual[1:], strict=False))
+    assert hist[-1].gap <= 1e-5 * scale
+    assert all(h.gap >= -1e-6 * scale for h in hist)  # dual never passes primal
+
+
+def test_multiclass_matches_linearsvc_crammer_singer():
+    rng = np.random.default_rng(0)
+    n, d, k = 80, 6, 4
+    centers = rng.normal(scale=2.0, size=(k, d))
+    y = rng.integers(k, size=n)
+    X = centers[y] + rng.normal(size=(n, d))
+    C = 0.3
+    ssvm = OneSlackSSVM(MulticlassModel(d, k), C=C, tol=1e-7, max_iter=5000).fit(list(X), list(y))
+    svc = LinearSVC(multi_class="crammer_singer", fit_intercept=False, C=C, tol=1e-10, max_iter=200000).fit(X, y)
+    w_svc = svc.coef_.ravel()
+
+    def objective(w):
+        scores = X @ w.reshape(k, d).T
+        margins = scores + 1.0 - np.eye(k)[y]
+        return 0.5 * w @ w + C * np.sum(margins.max(axis=1) - scores[np.arange(n), y])
+
+    assert objective(ssvm.w_) == pytest.approx(objective(w_svc), rel=1e-3)
+    assert ssvm.primal_objective_ == pytest.approx(objective(ssvm.w_), rel=1e-9)
+    assert np.linalg.norm(ssvm.w_ - w_svc) <= 1e-3 * np.linalg.norm(w_svc)
+
+
+def test_bad_arguments_are_refused(toy):
+    model, X, Y = toy
+    with pytest.raises(ValueError, match="C must be positive"):
+        OneSlackSSVM(model, C=0).fit(X, Y)
+    with pytest.raises(ValueError, match="examples"):
+        OneSlackSSVM(model).fit(X, Y[:-1])
