@@ -124,6 +124,7 @@ class StepBatch:
     hist: np.ndarray  # (S, N, 4)
     collide: np.ndarray  # (S, N, N)
     valid: np.ndarray  # (S, N) bool
+    pair_valid: np.ndarray  # (S, N, N) bool: both objects present and different
     task: np.ndarray  # (S,)
     prev: np.ndarray  # (S, 2)
 
@@ -139,11 +140,8 @@ class StepBatch:
             valid[s, : x.n] = True
         task = np.array([x.task for x in steps])
         prev = np.array([x.prev_prims for x in steps])
-        return cls(steps, objects, rel, hist, collide, valid, task, prev)
-
-
-def _as_y(a: np.ndarray, none: int) -> np.ndarray:
-    return np.where(a == none, -1, a)
+        pair_valid = valid[:, :, None] & valid[:, None, :] & ~np.eye(N, dtype=bool)[None]
+        return cls(steps, objects, rel, hist, collide, valid, pair_valid, task, prev)
 
 
 class _Batched:
@@ -156,10 +154,12 @@ class _Batched:
             self._batch_cache = cached
         return cached[1]
 
-    def batch_score_tensor(self: MRFModel, b: StepBatch, w: np.ndarray, gold: np.ndarray | None = None) -> np.ndarray:  # type: ignore[misc]
-        """(S, N_PRIM, N+1, N+1) scores; index N means 'no argument', -inf marks non-candidates.
+    def _batch_best(self: MRFModel, b: StepBatch, w: np.ndarray, gold: np.ndarray | None = None) -> list[Y]:  # type: ignore[misc]
+        """The best candidate of every step; with `gold` (S, 3), of score plus Hamming loss.
 
-        With `gold` (S, 3), the Hamming loss against it is added (loss-augmented scores).
+        Each primitive's best candidate is found over its own (a1) or (a1, a2)
+        array, then the best primitive wins; ties go to the earlier primitive,
+        a1 and a2, which is `candidate_index` order, as in `inference`.
         """
         S, N = b.valid.shape
         P = np.zeros((S, N_PRIM))
@@ -175,16 +175,16 @@ class _Batched:
             if (wt := self._w(w, f"ae{s}")) is not None:
                 unary += b.objects[:, :, list(_AE_COLS)] @ wt
             if (wt := self._w(w, f"aet_rel{s}")) is not None:
-                unary += np.einsum("snk,sk->sn", b.task_rel, wt[b.task])
+                unary += np.matmul(b.task_rel, wt[b.task][:, :, None])[:, :, 0]
             if (wt := self._w(w, f"aet_obj{s}")) is not None:
-                unary += np.einsum("snk,sk->sn", b.objects, wt[b.task, np.where(holding, 0, 1)])
+                unary += np.matmul(b.objects, wt[b.task, np.where(holding, 0, 1)][:, :, None])[:, :, 0]
             table = np.repeat(unary[:, None, :], N_PRIM, axis=1)
             if (wt := self._w(w, f"pae{s}")) is not None:
-                table += np.einsum("snk,pk->spn", b.objects, wt)
+                table += np.matmul(b.objects, wt.T).transpose(0, 2, 1)
             if (wt := self._w(w, f"paae{s}")) is not None:
-                table += np.einsum("snk,pk->spn", b.hist, wt)
+                table += np.matmul(b.hist, wt.T).transpose(0, 2, 1)
             U.append(table)
-        pair = np.zeros((S, N, N))
+        pair = None
         if (wt := self._w(w, "ae_pair")) is not None:
             pair = wt[0] * b.collide
         if gold is not None:
@@ -195,34 +195,35 @@ class _Batched:
         else:
             l1 = l2 = np.zeros((S, N))
             none1 = none2 = np.zeros(S)
-        T = np.full((S, N_PRIM, N + 1, N + 1), -np.inf)
-        ok = b.valid
+        rows = np.arange(S)
+        best = np.empty((S, N_PRIM))
+        arg1 = np.full((S, N_PRIM), -1)
+        arg2 = np.full((S, N_PRIM), -1)
         for p, arity in enumerate(ARITIES):
             if arity == 0:
-                T[:, p, N, N] = P[:, p] + none1 + none2
+                best[:, p] = P[:, p] + none1 + none2
             elif arity == 1:
-                T[:, p, :N, N] = np.where(ok, P[:, p, None] + U[0][:, p] + l1 + none2[:, None], -np.inf)
+                sc = P[:, p, None] + U[0][:, p] + l1 + none2[:, None]
+                sc[~b.valid] = -np.inf
+                a = sc.argmax(axis=1)
+                best[:, p], arg1[:, p] = sc[rows, a], a
             else:
-                sc = P[:, p, None, None] + U[0][:, p, :, None] + U[1][:, p, None, :] + pair
-                sc += l1[:, :, None] + l2[:, None, :]
-                mask = ok[:, :, None] & ok[:, None, :] & ~np.eye(N, dtype=bool)[None]
-                T[:, p, :N, :N] = np.where(mask, sc, -np.inf)
-        return T
-
-    def _decode(self: MRFModel, T: np.ndarray) -> list[Y]:  # type: ignore[misc]
-        S, _, M, _ = T.shape
-        flat = T.reshape(S, -1).argmax(axis=1)
-        p, rest = np.divmod(flat, M * M)
-        a1, a2 = np.divmod(rest, M)
-        a1, a2 = _as_y(a1, M - 1), _as_y(a2, M - 1)
-        return [(int(p[s]), int(a1[s]), int(a2[s])) for s in range(S)]
+                sc = P[:, p, None, None] + (U[0][:, p] + l1)[:, :, None] + (U[1][:, p] + l2)[:, None, :]
+                if pair is not None:
+                    sc += pair
+                sc[~b.pair_valid] = -np.inf
+                flat = sc.reshape(S, -1)
+                a = flat.argmax(axis=1)
+                best[:, p] = flat[rows, a]
+                arg1[:, p], arg2[:, p] = np.divmod(a, N)
+        prim = best.argmax(axis=1)
+        return [(int(prim[s]), int(arg1[s, prim[s]]), int(arg2[s, prim[s]])) for s in rows]
 
     def batch_inference(self: MRFModel, X: list[StepContext], w: np.ndarray) -> list[Y]:  # type: ignore[misc]
-        return self._decode(self.batch_score_tensor(self._batch(X), w))
+        return self._batch_best(self._batch(X), w)
 
     def batch_loss_augmented_inference(self: MRFModel, X: list[StepContext], Y_: list[Y], w: np.ndarray) -> list[Y]:  # type: ignore[misc]
-        gold = np.asarray(Y_, dtype=np.int64)
-        return self._decode(self.batch_score_tensor(self._batch(X), w, gold))
+        return self._batch_best(self._batch(X), w, np.asarray(Y_, dtype=np.int64))
 
     def batch_joint_feature(self: MRFModel, X: list[StepContext], Y_: list[Y]) -> np.ndarray:  # type: ignore[misc]
         """Sum of the joint features of (x_i, y_i), computed block by block."""

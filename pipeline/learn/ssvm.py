@@ -118,7 +118,7 @@ class OneSlackSSVM:
                 deltas.append(delta)
                 losses.append(total_loss)
                 last_active.append(it)
-                row = np.array([float(delta @ dk) for dk in deltas])
+                row = np.asarray(deltas) @ delta
                 gram = np.block([[gram, row[:-1, None]], [row[None, :-1], row[-1:, None]]])
                 alpha, dual = self._solve_dual(gram, np.array(losses))
                 w = np.asarray(deltas).T @ alpha
