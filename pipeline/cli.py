@@ -204,6 +204,86 @@ def _bench(args: argparse.Namespace) -> int:
     return 0
 
 
+METHOD_LABELS = {
+    "chance": "chance",
+    "multiclass": "multiclass",
+    "only_edge": "only edge features",
+    "only_clique": "only clique features",
+    "full": "ours - full",
+}
+
+
+def _crossval(args: argparse.Namespace) -> int:
+    import csv
+    import io
+    from functools import partial
+
+    from .evaluate.crossval import cross_validate, scenarios_from_records
+    from .evaluate.methods import ChanceMethod, MRFMethod, MulticlassMethod
+    from .evaluate.metrics import confusion, summarize
+    from .features.dataset import read_features
+    from .io import write_text_atomic
+    from .logs.ingest import read_tables, records_from_tables
+    from .report.tables import confusion_png, table_rows, to_csv, to_latex, to_markdown
+
+    contexts, meta = read_features(args.features)
+    scenarios = scenarios_from_records(records_from_tables(read_tables(args.processed)))
+    mrf = partial(MRFMethod, C=args.C, tol=args.tol, max_iter=args.max_iter)
+    methods = {
+        "chance": partial(ChanceMethod, seed=args.chance_seed),
+        "multiclass": partial(MulticlassMethod, C=args.multiclass_C),
+        "only_edge": partial(mrf, features="edge", name="only_edge"),
+        "only_clique": partial(mrf, features="clique", name="only_clique"),
+        "full": partial(mrf, features="full", name="full"),
+    }
+    unknown = set(args.methods) - set(methods)
+    if unknown:
+        print(f"error: unknown methods {sorted(unknown)}; known: {', '.join(methods)}", file=sys.stderr)
+        return 2
+    methods = {k: v for k, v in methods.items() if k in args.methods}
+    print(f"cross-validating {', '.join(methods)} over {args.folds} folds grouped by {args.group_by} "
+          f"({len(scenarios)} scenarios, {len(contexts)} steps, {args.n_jobs} jobs)")
+    results = cross_validate(methods, contexts, meta, scenarios, n_folds=args.folds, seed=args.seed,
+                             group_by=args.group_by, max_steps=args.max_steps, n_jobs=args.n_jobs, verbose=5)
+    predicts_args = {k: v().predicts_args for k, v in methods.items()}
+    summary = summarize(results, contexts, predicts_args)
+    rows = table_rows(summary, METHOD_LABELS)
+    out = Path(args.output)
+    out.mkdir(parents=True, exist_ok=True)
+    write_text_atomic(out / "table1.csv", to_csv(rows))
+    write_text_atomic(out / "table1.md", to_markdown(rows))
+    caption = (f"{args.folds}-fold cross-validation grouped by {args.group_by} on {len(scenarios)} scenarios: "
+               "percentage of primitives (prim) and of primitives with arguments (arg) right, teacher-forced, "
+               "and of closed-loop sequences equal to a demonstration.")
+    write_text_atomic(out / "table1.tex", to_latex(rows, caption))
+    write_json_atomic(out / "crossval.json", summary)
+    metrics = {}
+    for name, entry in summary.items():
+        m = {"average_prim": entry["steps"].get("average/prim"), "average_arg": entry["steps"].get("average/arg")}
+        for key in ("sequence/prim", "sequence/arg", "success"):
+            if key in entry:
+                m[key.replace("/", "_")] = entry[key]
+        metrics[name] = {k: v for k, v in m.items() if v is not None}
+    write_json_atomic(out / "metrics.json", metrics)
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["method", "fold", "scenario", "task", "status", "prim_correct", "arg_correct", "goal_reached",
+                "safe", "success", "program"])
+    for r in results:
+        for s in r.sequences or []:
+            w.writerow([r.method, r.fold, s.scenario_id, s.task, s.status, int(s.prim_correct), int(s.arg_correct),
+                        int(s.goal_reached), int(s.safe), int(s.success), " ".join(s.actions)])
+    write_text_atomic(out / "crossval_sequences.csv", buf.getvalue())
+    if "full" in methods:
+        full = [r for r in results if r.method == "full"]
+        index = [i for r in full for i in r.step_index]
+        preds = [y for r in full for y in r.step_predictions]
+        confusion_png(confusion([contexts[i] for i in index], preds), str(out / "confusion.png"),
+                      "full model, teacher-forced, cross-validated")
+    print(to_markdown(rows))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="taskseq",
@@ -255,6 +335,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-steps", type=int, default=20, help="stop after this many primitives (default 20)")
     p.add_argument("--top-k", type=int, default=3, help="candidates shown per step (default 3)")
     p.add_argument("--json", action="store_true", help="print the program as JSON")
+
+    p = add("crossval", "cross-validate every method and write Table I, metrics and a confusion matrix", _crossval)
+    p.add_argument("--features", type=Path, default=Path("data/features"), help="feature folder")
+    p.add_argument("--processed", type=Path, default=Path("data/processed"), help="folder of Parquet tables")
+    p.add_argument("--folds", type=int, default=6, help="number of folds (default 6)")
+    p.add_argument("--group-by", choices=("scenario", "environment"), default="scenario",
+                   help="keep whole scenarios, or whole environments (unseen environments), in one fold")
+    p.add_argument("--seed", type=int, default=0, help="seed of the fold assignment")
+    p.add_argument("--methods", nargs="+", default=list(METHOD_LABELS), help="methods to run")
+    p.add_argument("--chance-seed", type=int, default=0, help="seed of the chance baseline")
+    p.add_argument("--multiclass-C", type=float, default=1.0, help="C of the multiclass SVM")
+    training_options(p)
+    p.add_argument("--max-steps", type=int, default=20, help="step cap of closed-loop runs")
+    p.add_argument("--n-jobs", type=int, default=1, help="folds run in parallel (joblib)")
+    p.add_argument("--output", type=Path, default=Path("reports"), help="folder for the tables and metrics")
 
     p = add("bench", "time training, per-step inference (10 to 100 objects) and features memory", _bench)
     p.add_argument("--processed", type=Path, default=Path("data/processed"), help="folder of Parquet tables")

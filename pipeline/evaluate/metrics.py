@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from collections import defaultdict
 
+import numpy as np
+
 from ..features.context import StepContext
 from ..sim.primitives import ALL_PRIMITIVES, PRIMITIVES
 
@@ -29,3 +31,41 @@ def step_accuracy(contexts: list[StepContext], predictions: list[Y]) -> dict[str
         out["average/prim"] = 100.0 * sum(p for p, _ in seven) / len(seven)
         out["average/arg"] = 100.0 * sum(a for _, a in seven) / len(seven)
     return dict(sorted(out.items()))
+
+
+def confusion(contexts: list[StepContext], predictions: list[Y]) -> np.ndarray:
+    """Counts of (demonstrated primitive, predicted primitive), over all primitives and done."""
+    out = np.zeros((len(ALL_PRIMITIVES), len(ALL_PRIMITIVES)), dtype=int)
+    for x, y_hat in zip(contexts, predictions, strict=True):
+        out[x.gold[0], y_hat[0]] += 1
+    return out
+
+
+def summarize(results: list, contexts: list[StepContext], predicts_args: dict[str, bool]) -> dict[str, dict]:
+    """Per method: pooled teacher-forced step metrics and closed-loop sequence metrics, in percent."""
+    out: dict[str, dict] = {}
+    for name in dict.fromkeys(r.method for r in results):
+        rs = [r for r in results if r.method == name]
+        index = [i for r in rs for i in r.step_index]
+        preds = [y for r in rs for y in r.step_predictions]
+        steps = step_accuracy([contexts[i] for i in index], preds)
+        if not predicts_args[name]:
+            steps = {k: (None if k.endswith("/arg") else v) for k, v in steps.items()}
+        entry: dict = {"steps": steps, "n_steps": len(index)}
+        if all(r.sequences is not None for r in rs):
+            seqs = [s for r in rs for s in r.sequences]
+            entry["sequence/prim"] = 100.0 * np.mean([s.prim_correct for s in seqs])
+            entry["sequence/arg"] = 100.0 * np.mean([s.arg_correct for s in seqs])
+            entry["success"] = 100.0 * np.mean([s.success for s in seqs])
+            entry["goal_reached"] = 100.0 * np.mean([s.goal_reached for s in seqs])
+            entry["n_scenarios"] = len(seqs)
+            per_task = defaultdict(list)
+            for s in seqs:
+                per_task[s.task].append(s)
+            entry["per_task"] = {
+                t: {"sequence/arg": 100.0 * np.mean([s.arg_correct for s in v]),
+                    "success": 100.0 * np.mean([s.success for s in v]), "n": len(v)}
+                for t, v in sorted(per_task.items())
+            }
+        out[name] = entry
+    return out

@@ -1,0 +1,116 @@
+"""Cross-validation: grouped folds, teacher-forced steps and closed-loop sequences per method."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from joblib import Parallel, delayed
+
+from ..features.context import StepContext
+from ..features.dataset import StepMeta
+from ..logs.records import parse_record, state_from_dict
+from ..sim.primitives import Action
+from ..sim.state import WorldState
+from ..sim.tasks import Task
+from .folds import grouped_folds
+from .methods import Method
+
+Y = tuple[int, int, int]
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """What closed-loop evaluation needs of a scenario: where to start and what counts as right."""
+
+    id: str
+    env_id: str
+    task: Task
+    initial: WorldState
+    demonstrations: tuple[tuple[Action, ...], ...]
+
+
+@dataclass(frozen=True)
+class SequenceOutcome:
+    scenario_id: str
+    task: str
+    actions: tuple[str, ...]
+    status: str
+    prim_correct: bool  # the primitives equal those of a demonstration
+    arg_correct: bool  # primitives and arguments equal a demonstration
+    goal_reached: bool
+    safe: bool
+    success: bool
+
+
+@dataclass
+class FoldResult:
+    method: str
+    fold: int
+    step_index: list[int]
+    step_predictions: list[Y]
+    sequences: list[SequenceOutcome] | None  # None: the method runs no programs
+
+
+def scenarios_from_records(records: list[dict[str, Any]]) -> dict[str, Scenario]:
+    out: dict[str, Scenario] = {}
+    demos: dict[str, list[tuple[Action, ...]]] = {}
+    for rec in records:
+        specs, task, actions = parse_record(rec)
+        demos.setdefault(rec["scenario_id"], []).append(tuple(actions))
+        if rec["scenario_id"] not in out:
+            initial = state_from_dict(specs, rec["steps"][0]["state"])
+            out[rec["scenario_id"]] = Scenario(rec["scenario_id"], rec["env_id"], task, initial, ())
+    return {k: Scenario(s.id, s.env_id, s.task, s.initial, tuple(demos[k])) for k, s in out.items()}
+
+
+def judge(scenario: Scenario, program) -> SequenceOutcome:
+    actions = tuple(program.actions)
+    prims = tuple(a.primitive for a in actions)
+    return SequenceOutcome(
+        scenario_id=scenario.id,
+        task=scenario.task.name,
+        actions=tuple(str(a) for a in actions),
+        status=program.status,
+        prim_correct=any(prims == tuple(a.primitive for a in d) for d in scenario.demonstrations),
+        arg_correct=any(actions == d for d in scenario.demonstrations),
+        goal_reached=program.goal_reached,
+        safe=program.safe,
+        success=program.success,
+    )
+
+
+def run_fold(make: Callable[[], Method], fold: int, contexts: list[StepContext], meta: list[StepMeta],
+             scenarios: dict[str, Scenario], test_scenarios: set[str], max_steps: int) -> FoldResult:
+    train = [x for x, m in zip(contexts, meta, strict=True) if m.scenario_id not in test_scenarios]
+    test_index = [i for i, m in enumerate(meta) if m.scenario_id in test_scenarios]
+    method = make().fit(train)
+    predictions = method.predict_steps([contexts[i] for i in test_index])
+    outcomes: list[SequenceOutcome] | None = []
+    for sid in sorted(test_scenarios):
+        program = method.run(scenarios[sid].initial, scenarios[sid].task, max_steps)
+        if program is None:
+            outcomes = None
+            break
+        outcomes.append(judge(scenarios[sid], program))
+    return FoldResult(method.name, fold, test_index, predictions, outcomes)
+
+
+def scenario_folds(scenarios: dict[str, Scenario], n_folds: int, seed: int, group_by: str) -> list[set[str]]:
+    """Test scenarios of each fold, grouped by scenario or by environment."""
+    if group_by not in ("scenario", "environment"):
+        raise ValueError(f"group_by must be 'scenario' or 'environment', got {group_by!r}")
+    ids = sorted(scenarios)
+    groups = [s if group_by == "scenario" else scenarios[s].env_id for s in ids]
+    return [{ids[i] for i in idx} for idx in grouped_folds(groups, n_folds, seed)]
+
+
+def cross_validate(methods: dict[str, Callable[[], Method]], contexts: list[StepContext], meta: list[StepMeta],
+                   scenarios: dict[str, Scenario], n_folds: int = 6, seed: int = 0, group_by: str = "scenario",
+                   max_steps: int = 20, n_jobs: int = 1, verbose: int = 0) -> list[FoldResult]:
+    folds = scenario_folds(scenarios, n_folds, seed, group_by)
+    jobs = [(name, k) for name in methods for k in range(n_folds)]
+    return Parallel(n_jobs=n_jobs, verbose=verbose)(
+        delayed(run_fold)(methods[name], k, contexts, meta, scenarios, folds[k], max_steps) for name, k in jobs
+    )

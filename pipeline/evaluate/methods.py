@@ -1,0 +1,138 @@
+"""Every method behind one interface: fit on training steps, predict a step, run a sequence.
+
+A step prediction is (primitive, a1, a2) from the true state and history
+(teacher-forced); -1 for an argument the method does not predict. A sequence
+is run closed-loop in the simulator from a scenario's initial state.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+from sklearn.svm import LinearSVC
+
+from ..features.context import N_PRIM, OBJECT_COLUMNS, StepContext, step_context
+from ..learn.mrf import MRFModel, candidate_index
+from ..learn.train import fit_mrf
+from ..plan.planner import DONE, INFEASIBLE, STEP_CAP, PlanStep, Program, plan
+from ..sim.primitives import PreconditionError, execute
+from ..sim.safety import violations
+from ..sim.state import WorldState
+from ..sim.tasks import TASKS, Task
+
+Y = tuple[int, int, int]
+
+
+class Method(Protocol):
+    name: str
+    predicts_args: bool
+
+    def fit(self, contexts: list[StepContext]) -> Method: ...
+
+    def predict_steps(self, contexts: list[StepContext]) -> list[Y]: ...
+
+    def run(self, state: WorldState, task: Task, max_steps: int) -> Program | None: ...
+
+
+@dataclass
+class ChanceMethod:
+    """A primitive drawn uniformly (the seven and done), then its arguments uniformly among the step's
+    candidates for it: the paper's chance, whose primitive is right 1 time in 7."""
+
+    seed: int = 0
+    name: str = "chance"
+    predicts_args: bool = True
+
+    def fit(self, contexts: list[StepContext]) -> ChanceMethod:
+        return self
+
+    def _draw(self, n: int, rng: np.random.Generator) -> Y:
+        p, a1, a2 = candidate_index(n)
+        prim = int(rng.integers(N_PRIM))
+        options = np.flatnonzero(p == prim)
+        k = int(options[rng.integers(len(options))])
+        return prim, int(a1[k]), int(a2[k])
+
+    def predict_steps(self, contexts: list[StepContext]) -> list[Y]:
+        rng = np.random.default_rng(self.seed)
+        return [self._draw(x.n, rng) for x in contexts]
+
+    def run(self, state: WorldState, task: Task, max_steps: int) -> Program:
+        rng = np.random.default_rng([self.seed, sum(map(ord, str(task)))])
+        initial, steps = state, []
+        while True:
+            ctx = step_context(state, task, [s.action for s in steps])
+            action = ctx.action(self._draw(ctx.n, rng))
+            if action.primitive == DONE:
+                return Program(task, steps, DONE, initial, state)
+            if len(steps) == max_steps:
+                return Program(task, steps, STEP_CAP, initial, state)
+            steps.append(PlanStep(action, 0.0, [], violations(state, action)))
+            try:
+                state = execute(state, action)
+            except PreconditionError as err:
+                return Program(task, steps, INFEASIBLE, initial, state, str(err))
+
+
+def multiclass_features(x: StepContext) -> np.ndarray:
+    """Task, the last two primitives, whether the hand is full, and the rows of the held
+    object and of the task's arguments: what a per-step classifier can see without
+    choosing arguments."""
+    out = [np.eye(len(TASKS))[x.task], np.eye(N_PRIM + 1)[x.prev_prims[0]], np.eye(N_PRIM + 1)[x.prev_prims[1]]]
+    held = np.flatnonzero(x.objects[:, 0] > 0.5)
+    out.append([float(len(held) > 0)])
+    out.append(x.objects[held[0]] if len(held) else np.zeros(len(OBJECT_COLUMNS)))
+    for k in range(2):
+        rows = np.flatnonzero(x.task_rel[:, k] > 0.5)
+        out.append(x.objects[rows[0]] if len(rows) else np.zeros(len(OBJECT_COLUMNS)))
+    return np.concatenate([np.asarray(v, dtype=float) for v in out])
+
+
+@dataclass
+class MulticlassMethod:
+    """A Crammer-Singer linear SVM over the primitive only; it predicts no arguments."""
+
+    C: float = 1.0
+    name: str = "multiclass"
+    predicts_args: bool = False
+
+    def fit(self, contexts: list[StepContext]) -> MulticlassMethod:
+        X = np.array([multiclass_features(x) for x in contexts])
+        y = np.array([x.gold[0] for x in contexts])
+        self.svm_ = LinearSVC(multi_class="crammer_singer", C=self.C, max_iter=200000, random_state=0).fit(X, y)
+        return self
+
+    def predict_steps(self, contexts: list[StepContext]) -> list[Y]:
+        X = np.array([multiclass_features(x) for x in contexts])
+        return [(int(p), -1, -1) for p in self.svm_.predict(X)]
+
+    def run(self, state: WorldState, task: Task, max_steps: int) -> None:
+        return None  # no arguments, no program
+
+
+@dataclass
+class MRFMethod:
+    """The paper's model with a choice of feature families."""
+
+    features: str = "full"
+    C: float = 1.0
+    tol: float = 1e-3
+    max_iter: int = 2000
+    name: str = "full"
+    predicts_args: bool = True
+
+    def fit(self, contexts: list[StepContext]) -> MRFMethod:
+        fit = fit_mrf(contexts, self.features, C=self.C, tol=self.tol, max_iter=self.max_iter)
+        self.model_: MRFModel = fit.model
+        self.w_ = fit.w
+        self.n_iter_ = fit.ssvm.n_iter_
+        return self
+
+    def predict_steps(self, contexts: list[StepContext]) -> list[Y]:
+        return self.model_.batch_inference(contexts, self.w_)
+
+    def run(self, state: WorldState, task: Task, max_steps: int) -> Program:
+        return plan(self.model_, self.w_, state, task, max_steps=max_steps)
+

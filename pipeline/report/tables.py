@@ -1,0 +1,126 @@
+"""Table I of the paper from cross-validation results: long CSV, Markdown, LaTeX (booktabs)."""
+
+from __future__ import annotations
+
+import csv
+import io
+from typing import Any
+
+import numpy as np
+
+from ..sim.primitives import ALL_PRIMITIVES, PRIMITIVES
+
+COLUMNS = (*PRIMITIVES, "average", "sequence")
+SHORT = {"follow_traj_circle": "traj\\_circle", "follow_traj_pour": "traj\\_pour"}
+
+
+def table_rows(summary: dict[str, dict], labels: dict[str, str]) -> list[dict[str, Any]]:
+    """Long form: one row per (method, column) with prim and arg in percent, None where undefined."""
+    rows = []
+    for name, entry in summary.items():
+        for col in COLUMNS:
+            if col == "sequence":
+                prim, arg = entry.get("sequence/prim"), entry.get("sequence/arg")
+            else:
+                prim, arg = entry["steps"].get(f"{col}/prim"), entry["steps"].get(f"{col}/arg")
+            rows.append({"method": labels.get(name, name), "column": col, "prim": prim, "arg": arg})
+    return rows
+
+
+def _fmt(v: float | None) -> str:
+    return "-" if v is None else f"{v:.1f}"
+
+
+def to_csv(rows: list[dict[str, Any]]) -> str:
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["method", "column", "prim", "arg"])
+    for r in rows:
+        w.writerow([r["method"], r["column"], "" if r["prim"] is None else f"{r['prim']:.2f}",
+                    "" if r["arg"] is None else f"{r['arg']:.2f}"])
+    return buf.getvalue()
+
+
+def _grid(rows: list[dict[str, Any]]) -> tuple[list[str], dict[tuple[str, str, str], float | None]]:
+    methods = list(dict.fromkeys(r["method"] for r in rows))
+    cell = {(r["method"], r["column"], k): r[k] for r in rows for k in ("prim", "arg")}
+    return methods, cell
+
+
+def _best(methods: list[str], cell: dict, col: str, k: str) -> float | None:
+    vals = [cell[(m, col, k)] for m in methods if cell[(m, col, k)] is not None]
+    return max(vals) if vals else None
+
+
+def to_markdown(rows: list[dict[str, Any]]) -> str:
+    methods, cell = _grid(rows)
+    head = "| method | " + " | ".join(f"{c} prim | {c} arg" for c in COLUMNS) + " |"
+    sep = "|---|" + "---:|" * (2 * len(COLUMNS))
+    lines = [head, sep]
+    for m in methods:
+        vals = []
+        for c in COLUMNS:
+            for k in ("prim", "arg"):
+                v = cell[(m, c, k)]
+                s = _fmt(v)
+                vals.append(f"**{s}**" if v is not None and v == _best(methods, cell, c, k) else s)
+        lines.append(f"| {m} | " + " | ".join(vals) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def to_latex(rows: list[dict[str, Any]], caption: str) -> str:
+    """A booktabs table laid out like the paper's Table I, the best value of each column in bold."""
+    methods, cell = _grid(rows)
+    spec = "l" + "cc" * len(COLUMNS)
+    names = [SHORT.get(c, c.replace("_", "\\_")) for c in COLUMNS]
+    out = [
+        "\\begin{table*}",
+        "\\centering",
+        f"\\caption{{{caption}}}",
+        "\\resizebox{\\linewidth}{!}{%",
+        f"\\begin{{tabular}}{{@{{}}{spec}@{{}}}}",
+        "\\toprule",
+        " & " + " & ".join(f"\\multicolumn{{2}}{{c}}{{{n}}}" for n in names) + " \\\\",
+        "".join(f"\\cmidrule(lr){{{2 + 2 * i}-{3 + 2 * i}}}" for i in range(len(COLUMNS))),
+        " & " + " & ".join(["prim & arg"] * len(COLUMNS)) + " \\\\",
+        "\\midrule",
+    ]
+    for m in methods:
+        vals = []
+        for c in COLUMNS:
+            for k in ("prim", "arg"):
+                v = cell[(m, c, k)]
+                s = _fmt(v)
+                vals.append(f"\\textbf{{{s}}}" if v is not None and v == _best(methods, cell, c, k) else s)
+        label = m.replace("_", "\\_")
+        out.append(f"\\textit{{{label}}} & " + " & ".join(vals) + " \\\\")
+    out += ["\\bottomrule", "\\end{tabular}}", "\\end{table*}"]
+    return "\n".join(out) + "\n"
+
+
+def confusion_png(matrix: np.ndarray, path: str, title: str) -> None:
+    """Row-normalised confusion matrix of the primitives (and done) as a PNG."""
+    import matplotlib
+
+    matplotlib.use("Agg")  # files only, no screen
+    import matplotlib.pyplot as plt
+
+    matrix = np.asarray(matrix, dtype=float)
+    rates = matrix / np.maximum(matrix.sum(axis=1, keepdims=True), 1)
+    fig, ax = plt.subplots(figsize=(6.4, 5.6), dpi=120)
+    im = ax.imshow(rates, cmap="Blues", vmin=0, vmax=1)
+    labels = list(ALL_PRIMITIVES)
+    ax.set_xticks(range(len(labels)), labels, rotation=45, ha="right", fontsize=8)
+    ax.set_yticks(range(len(labels)), labels, fontsize=8)
+    for i in range(len(labels)):
+        for j in range(len(labels)):
+            if matrix[i, j]:
+                ax.text(j, i, f"{rates[i, j]:.2f}", ha="center", va="center", fontsize=6,
+                        color="white" if rates[i, j] > 0.5 else "black")
+    ax.set_xlabel("predicted")
+    ax.set_ylabel("demonstrated")
+    ax.set_title(title, fontsize=9)
+    fig.colorbar(im, ax=ax, fraction=0.046)
+    fig.tight_layout()
+    fig.savefig(path, metadata={"Software": None})
+    plt.close(fig)
