@@ -192,6 +192,18 @@ def _plan(args: argparse.Namespace) -> int:
     return 0 if program.success else 1
 
 
+def _pddl(args: argparse.Namespace) -> int:
+    from .evaluate.crossval import scenarios_from_records
+    from .logs.ingest import read_tables, records_from_tables
+    from .plan.symbolic.files import write_pddl
+
+    scenarios = scenarios_from_records(records_from_tables(read_tables(args.processed)))
+    counts = write_pddl(scenarios, args.output, horizon=args.horizon)
+    print(f"wrote the domain, {counts['problems']} problems and {counts['plans']} shortest plans to {args.output}"
+          + (f"; {counts['no_plan']} without a plan within horizon {args.horizon}" if counts["no_plan"] else ""))
+    return 0
+
+
 def _bench(args: argparse.Namespace) -> int:
     from .bench import format_bench, run_bench
     from .logs.ingest import read_tables, records_from_tables
@@ -207,6 +219,8 @@ def _bench(args: argparse.Namespace) -> int:
 METHOD_LABELS = {
     "chance": "chance",
     "multiclass": "multiclass",
+    "symb_plan_svm": "symb-plan-svm",
+    "symb_plan_manual": "symb-plan-manual",
     "only_edge": "only edge features",
     "only_clique": "only clique features",
     "full": "ours - full",
@@ -218,8 +232,8 @@ def _crossval(args: argparse.Namespace) -> int:
     import io
     from functools import partial
 
-    from .evaluate.crossval import cross_validate, scenarios_from_records
-    from .evaluate.methods import ChanceMethod, MRFMethod, MulticlassMethod
+    from .evaluate.crossval import Demonstrations, cross_validate, scenarios_from_records
+    from .evaluate.methods import ChanceMethod, MRFMethod, MulticlassMethod, SymbolicMethod
     from .evaluate.metrics import confusion, summarize
     from .features.dataset import read_features
     from .io import write_text_atomic
@@ -227,11 +241,14 @@ def _crossval(args: argparse.Namespace) -> int:
     from .report.tables import confusion_png, table_rows, to_csv, to_latex, to_markdown
 
     contexts, meta = read_features(args.features)
-    scenarios = scenarios_from_records(records_from_tables(read_tables(args.processed)))
+    records = records_from_tables(read_tables(args.processed))
+    scenarios = scenarios_from_records(records)
     mrf = partial(MRFMethod, C=args.C, tol=args.tol, max_iter=args.max_iter)
     methods = {
         "chance": partial(ChanceMethod, seed=args.chance_seed),
         "multiclass": partial(MulticlassMethod, C=args.multiclass_C),
+        "symb_plan_svm": partial(SymbolicMethod, goals="svm", C=args.ranking_C, name="symb_plan_svm"),
+        "symb_plan_manual": partial(SymbolicMethod, goals="manual", name="symb_plan_manual"),
         "only_edge": partial(mrf, features="edge", name="only_edge"),
         "only_clique": partial(mrf, features="clique", name="only_clique"),
         "full": partial(mrf, features="full", name="full"),
@@ -243,7 +260,8 @@ def _crossval(args: argparse.Namespace) -> int:
     methods = {k: v for k, v in methods.items() if k in args.methods}
     print(f"cross-validating {', '.join(methods)} over {args.folds} folds grouped by {args.group_by} "
           f"({len(scenarios)} scenarios, {len(contexts)} steps, {args.n_jobs} jobs)")
-    results = cross_validate(methods, contexts, meta, scenarios, n_folds=args.folds, seed=args.seed,
+    results = cross_validate(methods, contexts, meta, scenarios, Demonstrations.from_records(records),
+                             n_folds=args.folds, seed=args.seed,
                              group_by=args.group_by, max_steps=args.max_steps, n_jobs=args.n_jobs, verbose=5)
     predicts_args = {k: v().predicts_args for k, v in methods.items()}
     summary = summarize(results, contexts, predicts_args)
@@ -346,10 +364,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--methods", nargs="+", default=list(METHOD_LABELS), help="methods to run")
     p.add_argument("--chance-seed", type=int, default=0, help="seed of the chance baseline")
     p.add_argument("--multiclass-C", type=float, default=1.0, help="C of the multiclass SVM")
+    p.add_argument("--ranking-C", type=float, default=1.0, help="C of the role-ranking SVMs (symb-plan-svm)")
     training_options(p)
     p.add_argument("--max-steps", type=int, default=20, help="step cap of closed-loop runs")
     p.add_argument("--n-jobs", type=int, default=1, help="folds run in parallel (joblib)")
     p.add_argument("--output", type=Path, default=Path("reports"), help="folder for the tables and metrics")
+
+    p = add("pddl", "write the PDDL domain, a problem per scenario and its shortest plan (SAT)", _pddl)
+    p.add_argument("--processed", type=Path, default=Path("data/processed"), help="folder of Parquet tables")
+    p.add_argument("--output", type=Path, default=Path("data/pddl"), help="folder to write (replaced)")
+    p.add_argument("--horizon", type=int, default=12, help="longest plan searched (default 12)")
 
     p = add("bench", "time training, per-step inference (10 to 100 objects) and features memory", _bench)
     p.add_argument("--processed", type=Path, default=Path("data/processed"), help="folder of Parquet tables")

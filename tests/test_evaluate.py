@@ -47,15 +47,15 @@ class Recorder:
 
     name, predicts_args = "recorder", True
 
-    def fit(self, contexts):
+    def fit(self, contexts, meta):
         self.trained = contexts
         Recorder.last = self
         return self
 
-    def predict_steps(self, contexts):
+    def predict_steps(self, contexts, meta, demos):
         return [x.gold for x in contexts]
 
-    def run(self, state, task, max_steps):
+    def run(self, scenario, max_steps):
         return None
 
 
@@ -126,7 +126,7 @@ def test_chance_is_deterministic_and_multiclass_predicts_no_arguments(benchmark_
     contexts, _ = benchmark_steps
     a = ChanceMethod(seed=3).predict_steps(contexts[:50])
     assert a == ChanceMethod(seed=3).predict_steps(contexts[:50]) != ChanceMethod(seed=4).predict_steps(contexts[:50])
-    mc = MulticlassMethod().fit(contexts[:300])
+    mc = MulticlassMethod().fit(contexts[:300], None)
     preds = mc.predict_steps(contexts[300:400])
     assert all(a1 == -1 and a2 == -1 for _, a1, a2 in preds)
     assert np.mean([p == x.gold[0] for (p, _, _), x in zip(preds, contexts[300:400], strict=True)]) > 0.5

@@ -31,6 +31,24 @@ class Scenario:
     demonstrations: tuple[tuple[Action, ...], ...]
 
 
+@dataclass
+class Demonstrations:
+    """Every demonstrated world state by (sequence, step), and every sequence's actions."""
+
+    states: dict[tuple[str, int], WorldState]
+    actions: dict[str, tuple[Action, ...]]
+
+    @classmethod
+    def from_records(cls, records: list[dict[str, Any]]) -> Demonstrations:
+        states, actions = {}, {}
+        for rec in records:
+            specs, _, acts = parse_record(rec)
+            actions[rec["demo_id"]] = tuple(acts)
+            for k, st in enumerate([s["state"] for s in rec["steps"]] + [rec["final_state"]]):
+                states[(rec["demo_id"], k)] = state_from_dict(specs, st)
+        return cls(states, actions)
+
+
 @dataclass(frozen=True)
 class SequenceOutcome:
     scenario_id: str
@@ -82,14 +100,15 @@ def judge(scenario: Scenario, program) -> SequenceOutcome:
 
 
 def run_fold(make: Callable[[], Method], fold: int, contexts: list[StepContext], meta: list[StepMeta],
-             scenarios: dict[str, Scenario], test_scenarios: set[str], max_steps: int) -> FoldResult:
-    train = [x for x, m in zip(contexts, meta, strict=True) if m.scenario_id not in test_scenarios]
+             scenarios: dict[str, Scenario], test_scenarios: set[str], max_steps: int,
+             demos: Demonstrations | None = None) -> FoldResult:
+    train_index = [i for i, m in enumerate(meta) if m.scenario_id not in test_scenarios]
     test_index = [i for i, m in enumerate(meta) if m.scenario_id in test_scenarios]
-    method = make().fit(train)
-    predictions = method.predict_steps([contexts[i] for i in test_index])
+    method = make().fit([contexts[i] for i in train_index], [meta[i] for i in train_index])
+    predictions = method.predict_steps([contexts[i] for i in test_index], [meta[i] for i in test_index], demos)
     outcomes: list[SequenceOutcome] | None = []
     for sid in sorted(test_scenarios):
-        program = method.run(scenarios[sid].initial, scenarios[sid].task, max_steps)
+        program = method.run(scenarios[sid], max_steps)
         if program is None:
             outcomes = None
             break
@@ -107,10 +126,12 @@ def scenario_folds(scenarios: dict[str, Scenario], n_folds: int, seed: int, grou
 
 
 def cross_validate(methods: dict[str, Callable[[], Method]], contexts: list[StepContext], meta: list[StepMeta],
-                   scenarios: dict[str, Scenario], n_folds: int = 6, seed: int = 0, group_by: str = "scenario",
-                   max_steps: int = 20, n_jobs: int = 1, verbose: int = 0) -> list[FoldResult]:
+                   scenarios: dict[str, Scenario], demos: Demonstrations, n_folds: int = 6, seed: int = 0,
+                   group_by: str = "scenario", max_steps: int = 20, n_jobs: int = 1,
+                   verbose: int = 0) -> list[FoldResult]:
     folds = scenario_folds(scenarios, n_folds, seed, group_by)
     jobs = [(name, k) for name in methods for k in range(n_folds)]
     return Parallel(n_jobs=n_jobs, verbose=verbose)(
-        delayed(run_fold)(methods[name], k, contexts, meta, scenarios, folds[k], max_steps) for name, k in jobs
+        delayed(run_fold)(methods[name], k, contexts, meta, scenarios, folds[k], max_steps, demos)
+        for name, k in jobs
     )

@@ -8,32 +8,40 @@ is run closed-loop in the simulator from a scenario's initial state.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from sklearn.svm import LinearSVC
 
 from ..features.context import N_PRIM, OBJECT_COLUMNS, StepContext, step_context
+from ..features.dataset import StepMeta
 from ..learn.mrf import MRFModel, candidate_index
 from ..learn.train import fit_mrf
 from ..plan.planner import DONE, INFEASIBLE, STEP_CAP, PlanStep, Program, plan
-from ..sim.primitives import PreconditionError, execute
+from ..plan.symbolic.executor import first_action, run_symbolic
+from ..plan.symbolic.roles import ROLE_OF_TASK, RoleRanker, demonstrated_roles
+from ..sim.primitives import Action, PreconditionError, execute
 from ..sim.safety import violations
 from ..sim.state import WorldState
 from ..sim.tasks import TASKS, Task
+
+if TYPE_CHECKING:
+    from .crossval import Demonstrations, Scenario
 
 Y = tuple[int, int, int]
 
 
 class Method(Protocol):
+    """`meta` says which sequence and step each context is; `demos` holds their world states."""
+
     name: str
     predicts_args: bool
 
-    def fit(self, contexts: list[StepContext]) -> Method: ...
+    def fit(self, contexts: list[StepContext], meta: list[StepMeta]) -> Method: ...
 
-    def predict_steps(self, contexts: list[StepContext]) -> list[Y]: ...
+    def predict_steps(self, contexts: list[StepContext], meta: list[StepMeta], demos: Demonstrations) -> list[Y]: ...
 
-    def run(self, state: WorldState, task: Task, max_steps: int) -> Program | None: ...
+    def run(self, scenario: Scenario, max_steps: int) -> Program | None: ...
 
 
 @dataclass
@@ -45,7 +53,7 @@ class ChanceMethod:
     name: str = "chance"
     predicts_args: bool = True
 
-    def fit(self, contexts: list[StepContext]) -> ChanceMethod:
+    def fit(self, contexts: list[StepContext], meta: list[StepMeta]) -> ChanceMethod:
         return self
 
     def _draw(self, n: int, rng: np.random.Generator) -> Y:
@@ -55,12 +63,13 @@ class ChanceMethod:
         k = int(options[rng.integers(len(options))])
         return prim, int(a1[k]), int(a2[k])
 
-    def predict_steps(self, contexts: list[StepContext]) -> list[Y]:
+    def predict_steps(self, contexts: list[StepContext], meta=None, demos=None) -> list[Y]:
         rng = np.random.default_rng(self.seed)
         return [self._draw(x.n, rng) for x in contexts]
 
-    def run(self, state: WorldState, task: Task, max_steps: int) -> Program:
-        rng = np.random.default_rng([self.seed, sum(map(ord, str(task)))])
+    def run(self, scenario: Scenario, max_steps: int) -> Program:
+        task, state = scenario.task, scenario.initial
+        rng = np.random.default_rng([self.seed, sum(map(ord, scenario.id))])
         initial, steps = state, []
         while True:
             ctx = step_context(state, task, [s.action for s in steps])
@@ -98,17 +107,17 @@ class MulticlassMethod:
     name: str = "multiclass"
     predicts_args: bool = False
 
-    def fit(self, contexts: list[StepContext]) -> MulticlassMethod:
+    def fit(self, contexts: list[StepContext], meta: list[StepMeta]) -> MulticlassMethod:
         X = np.array([multiclass_features(x) for x in contexts])
         y = np.array([x.gold[0] for x in contexts])
         self.svm_ = LinearSVC(multi_class="crammer_singer", C=self.C, max_iter=200000, random_state=0).fit(X, y)
         return self
 
-    def predict_steps(self, contexts: list[StepContext]) -> list[Y]:
+    def predict_steps(self, contexts: list[StepContext], meta=None, demos=None) -> list[Y]:
         X = np.array([multiclass_features(x) for x in contexts])
         return [(int(p), -1, -1) for p in self.svm_.predict(X)]
 
-    def run(self, state: WorldState, task: Task, max_steps: int) -> None:
+    def run(self, scenario: Scenario, max_steps: int) -> None:
         return None  # no arguments, no program
 
 
@@ -123,16 +132,81 @@ class MRFMethod:
     name: str = "full"
     predicts_args: bool = True
 
-    def fit(self, contexts: list[StepContext]) -> MRFMethod:
+    def fit(self, contexts: list[StepContext], meta: list[StepMeta]) -> MRFMethod:
         fit = fit_mrf(contexts, self.features, C=self.C, tol=self.tol, max_iter=self.max_iter)
         self.model_: MRFModel = fit.model
         self.w_ = fit.w
         self.n_iter_ = fit.ssvm.n_iter_
         return self
 
-    def predict_steps(self, contexts: list[StepContext]) -> list[Y]:
+    def predict_steps(self, contexts: list[StepContext], meta=None, demos=None) -> list[Y]:
         return self.model_.batch_inference(contexts, self.w_)
 
-    def run(self, state: WorldState, task: Task, max_steps: int) -> Program:
-        return plan(self.model_, self.w_, state, task, max_steps=max_steps)
+    def run(self, scenario: Scenario, max_steps: int) -> Program:
+        return plan(self.model_, self.w_, scenario.initial, scenario.task, max_steps=max_steps)
 
+
+def _task_args(x: StepContext) -> tuple[str, ...]:
+    args = []
+    for k in range(2):
+        rows = np.flatnonzero(x.task_rel[:, k] > 0.5)
+        if len(rows):
+            args.append(x.object_ids[rows[0]])
+    return tuple(args)
+
+
+def _role_candidates(x: StepContext) -> tuple[np.ndarray, list[str]]:
+    """Rows (state bits, attributes, task relations) of the objects that are not task arguments."""
+    keep = [i for i in range(x.n) if x.task_rel[i, 0] < 0.5 and x.task_rel[i, 1] < 0.5]
+    return np.hstack([x.objects, x.task_rel])[keep], [x.object_ids[i] for i in keep]
+
+
+@dataclass
+class SymbolicMethod:
+    """SATPLAN over the PDDL domain; the goal's open roles from the demonstration or from ranking SVMs."""
+
+    goals: str = "manual"  # manual | svm
+    C: float = 1.0
+    name: str = "symb_plan_manual"
+    predicts_args: bool = True
+
+    def fit(self, contexts: list[StepContext], meta: list[StepMeta]) -> SymbolicMethod:
+        if self.goals == "manual":
+            return self
+        by_sequence: dict[str, list[StepContext]] = {}
+        for x, m in zip(contexts, meta, strict=True):
+            by_sequence.setdefault(m.sequence_id, []).append(x)
+        groups: dict[str, list[tuple[np.ndarray, int]]] = {}
+        for steps in by_sequence.values():
+            first = steps[0]
+            task = Task(TASKS[first.task], _task_args(first))
+            role = ROLE_OF_TASK.get(task.name)
+            if role is None:
+                continue
+            chosen = demonstrated_roles(task, [x.action(x.gold) for x in steps])[role]
+            X, ids = _role_candidates(first)
+            groups.setdefault(role, []).append((X, ids.index(chosen)))
+        self.rankers_ = {role: RoleRanker(self.C).fit(g) for role, g in groups.items()}
+        return self
+
+    def roles(self, task: Task, initial: WorldState, demonstration: tuple[Action, ...]) -> dict[str, str]:
+        role = ROLE_OF_TASK.get(task.name)
+        if role is None:
+            return {}
+        if self.goals == "manual":
+            return demonstrated_roles(task, demonstration)
+        X, ids = _role_candidates(step_context(initial, task, []))
+        return {role: ids[self.rankers_[role].best(X)]}
+
+    def predict_steps(self, contexts: list[StepContext], meta: list[StepMeta], demos: Demonstrations) -> list[Y]:
+        out = []
+        for x, m in zip(contexts, meta, strict=True):
+            task = Task(TASKS[x.task], _task_args(x))
+            roles = self.roles(task, demos.states[(m.sequence_id, 0)], demos.actions[m.sequence_id])
+            action = first_action(demos.states[(m.sequence_id, m.step)], task, roles)
+            out.append(x.encode(action) if action is not None else (-1, -1, -1))
+        return out
+
+    def run(self, scenario: Scenario, max_steps: int) -> Program:
+        roles = self.roles(scenario.task, scenario.initial, scenario.demonstrations[0])
+        return run_symbolic(scenario.initial, scenario.task, roles, max_steps)

@@ -1,0 +1,114 @@
+"""The symbolic baselines: PDDL files, SAT plans (shortest, executable), role rankers."""
+
+from collections import deque
+
+import pytest
+from pddl import parse_domain, parse_problem
+
+from pipeline.evaluate.crossval import scenarios_from_records
+from pipeline.evaluate.methods import SymbolicMethod
+from pipeline.plan.symbolic.executor import run_symbolic
+from pipeline.plan.symbolic.files import file_stem, write_pddl
+from pipeline.plan.symbolic.problem import build_problem, ground_actions
+from pipeline.plan.symbolic.roles import demonstrated_roles
+from pipeline.plan.symbolic.sat import apply, solve
+from pipeline.sim.primitives import execute
+from pipeline.sim.tasks import Task, goal_reached
+from tests.conftest import world
+
+
+@pytest.fixture(scope="module")
+def scenarios(benchmark_tables):
+    return scenarios_from_records([i.record for i in benchmark_tables[1]])
+
+
+def test_pddl_files_parse_with_a_standard_parser(scenarios, tmp_path):
+    some = dict(sorted(scenarios.items())[::15])
+    counts = write_pddl(some, tmp_path / "pddl")
+    assert counts["problems"] == len(some) == counts["plans"]
+    domain = parse_domain(tmp_path / "pddl" / "domain.pddl")
+    assert {a.name for a in domain.actions} == {
+        "move_close", "grasp", "place_above", "release", "hold_above", "drop", "follow_traj_circle",
+        "follow_traj_pour",
+    }
+    for sid in some:
+        problem = parse_problem(tmp_path / "pddl" / "problems" / f"{file_stem(sid)}.pddl")
+        assert problem.domain_name == "kitchen" and problem.goal is not None
+        plan = (tmp_path / "pddl" / "plans" / f"{file_stem(sid)}.plan").read_text().splitlines()
+        assert plan[-1].startswith(";") and all(line.startswith("(") for line in plan[:-1])
+
+
+def test_every_benchmark_plan_executes_in_the_simulator(scenarios):
+    for sc in scenarios.values():
+        problem = build_problem("p", sc.initial, sc.task, demonstrated_roles(sc.task, sc.demonstrations[0]))
+        result = solve(problem)
+        assert result.found, sc.id
+        state = sc.initial
+        for action in result.plan:
+            state = execute(state, action.primitive())
+        assert goal_reached(sc.task, sc.initial, state), sc.id
+
+
+def bfs_length(problem, limit=8):
+    actions = ground_actions(problem)
+    start = frozenset(problem.init)
+    seen, queue = {start}, deque([(start, 0)])
+    while queue:
+        state, depth = queue.popleft()
+        if problem.goal <= state:
+            return depth
+        if depth == limit:
+            continue
+        for a in actions:
+            nxt = apply(state, a)
+            if nxt is not None and nxt not in seen:
+                seen.add(nxt)
+                queue.append((nxt, depth + 1))
+    return None
+
+
+SMALL = [
+    ({2: 0.0}, [(14, 2, 0, 0.3), (20, 2, 0, -0.3), (27, 20)], Task("pour_to", ("obj27", "obj14")), {}),
+    ({2: 0.0, 4: 1.9}, [(40, 2, 0, 0.0), (43, 40)], Task("pick_and_place", ("obj40", "obj04")), {}),
+    ({2: 0.0, 10: -1.4}, [(43, 2, 0, 0.3)], Task("throw_away", ("obj43",)), {"bin": "obj10"}),
+    ({2: 0.0}, [(13, 2, 0, 0.3), (31, 13), (34, 2, 0, -0.2)], Task("stir", ("obj31",)), {"stirrer": "obj34"}),
+]
+
+
+@pytest.mark.parametrize("case", range(len(SMALL)))
+def test_sat_plans_are_as_short_as_breadth_first_search(case):
+    furniture, items, task, roles = SMALL[case]
+    state = world(furniture, items)
+    problem = build_problem("small", state, task, roles)
+    result = solve(problem, horizon=8)
+    assert result.found
+    assert len(result.plan) == bfs_length(problem)
+    program = run_symbolic(state, task, roles)
+    assert program.status == "done" and program.goal_reached
+
+
+def test_an_unreachable_goal_says_so_within_the_horizon():
+    state = world({2: 0.0}, [(20, 2, 0, -0.3), (27, 20), (34, 2, 0, 0.2)])
+    task = Task("pour_to", ("obj27", "obj34"))  # a spoon holds no liquid
+    result = solve(build_problem("p", state, task, {}), horizon=6)
+    assert not result.found and result.message() == "no plan within horizon 6"
+    program = run_symbolic(state, task, {}, horizon=6)
+    assert program.status == "infeasible" and program.error == "no plan within horizon 6"
+    assert program.steps == []
+
+
+@pytest.fixture(scope="module")
+def svm_method(benchmark_steps):
+    contexts, meta = benchmark_steps
+    return SymbolicMethod(goals="svm", name="symb_plan_svm").fit(contexts, meta)
+
+
+def test_rankers_pick_the_bin_the_vessel_and_the_stirrer(svm_method):
+    # a trash can, a bucket-like pot, a cup, a bottle of water, a mug of tea, a teaspoon, a book, tables
+    state = world({2: 0.0, 10: -1.4, 4: 2.0},
+                  [(18, 2, 0, -0.5), (14, 2, 0, 0.5), (20, 2, 0, -0.2), (27, 20), (39, 4, 0, 0.2),
+                   (13, 4, 0, -0.2), (31, 13), (34, 2, 0, 0.2), (43, 4, 0, 0.0)])
+    assert svm_method.roles(Task("throw_away", ("obj43",)), state, ())["bin"] == "obj10"
+    assert svm_method.roles(Task("stir", ("obj31",)), state, ())["stirrer"] == "obj34"
+    vessel = svm_method.roles(Task("pour", ("obj27",)), state, ())["vessel"]
+    assert vessel in ("obj14", "obj18")  # an empty vessel, not the bottle, the mug of tea or a table
