@@ -52,19 +52,21 @@ def _best(methods: list[str], cell: dict, col: str, k: str) -> float | None:
     return max(vals) if vals else None
 
 
+def _row(methods: list[str], cell: dict, m: str, bold: str) -> list[str]:
+    """Formatted prim and arg cells of method m; `bold` is a format with {} for the best of a column."""
+    vals = []
+    for c in COLUMNS:
+        for k in ("prim", "arg"):
+            v = cell[(m, c, k)]
+            vals.append(bold.format(_fmt(v)) if v is not None and v == _best(methods, cell, c, k) else _fmt(v))
+    return vals
+
+
 def to_markdown(rows: list[dict[str, Any]]) -> str:
     methods, cell = _grid(rows)
     head = "| method | " + " | ".join(f"{c} prim | {c} arg" for c in COLUMNS) + " |"
     sep = "|---|" + "---:|" * (2 * len(COLUMNS))
-    lines = [head, sep]
-    for m in methods:
-        vals = []
-        for c in COLUMNS:
-            for k in ("prim", "arg"):
-                v = cell[(m, c, k)]
-                s = _fmt(v)
-                vals.append(f"**{s}**" if v is not None and v == _best(methods, cell, c, k) else s)
-        lines.append(f"| {m} | " + " | ".join(vals) + " |")
+    lines = [head, sep] + [f"| {m} | " + " | ".join(_row(methods, cell, m, "**{}**")) + " |" for m in methods]
     return "\n".join(lines) + "\n"
 
 
@@ -86,14 +88,8 @@ def to_latex(rows: list[dict[str, Any]], caption: str) -> str:
         "\\midrule",
     ]
     for m in methods:
-        vals = []
-        for c in COLUMNS:
-            for k in ("prim", "arg"):
-                v = cell[(m, c, k)]
-                s = _fmt(v)
-                vals.append(f"\\textbf{{{s}}}" if v is not None and v == _best(methods, cell, c, k) else s)
         label = m.replace("_", "\\_")
-        out.append(f"\\textit{{{label}}} & " + " & ".join(vals) + " \\\\")
+        out.append(f"\\textit{{{label}}} & " + " & ".join(_row(methods, cell, m, "\\textbf{{{}}}")) + " \\\\")
     out += ["\\bottomrule", "\\end{tabular}}", "\\end{table*}"]
     return "\n".join(out) + "\n"
 
