@@ -192,6 +192,92 @@ def _plan(args: argparse.Namespace) -> int:
     return 0 if program.success else 1
 
 
+def _conditions_run(args: argparse.Namespace, conditions: list) -> list:
+    from functools import partial
+
+    from .evaluate.crossval import scenarios_from_records
+    from .evaluate.methods import MRFMethod
+    from .evaluate.robustness import evaluate_conditions
+    from .features.dataset import read_features
+    from .logs.ingest import read_tables, records_from_tables
+
+    contexts, meta = read_features(args.features)
+    scenarios = scenarios_from_records(records_from_tables(read_tables(args.processed)))
+    make = partial(MRFMethod, features="full", C=args.C, tol=args.tol, max_iter=args.max_iter)
+    return evaluate_conditions(make, contexts, meta, scenarios, conditions, n_folds=args.folds,
+                               fold_seed=args.fold_seed, group_by=args.group_by, max_steps=args.max_steps,
+                               seed=args.seed, n_jobs=args.n_jobs)
+
+
+def _rates(outcomes: list) -> dict[str, float]:
+    import numpy as np
+
+    return {
+        "sequence_arg": 100.0 * float(np.mean([o.arg_correct for o in outcomes])),
+        "sequence_prim": 100.0 * float(np.mean([o.prim_correct for o in outcomes])),
+        "success": 100.0 * float(np.mean([o.success for o in outcomes])),
+    }
+
+
+def _noise(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from .evaluate.robustness import Condition
+    from .io import write_text_atomic
+    from .report.tables import line_plot_png
+
+    conditions = [Condition("noise", r, s) for r in args.rates for s in range(args.seeds)]
+    results = _conditions_run(args, conditions)
+    runs = []
+    for c in conditions:
+        runs.append({"rate": c.a, "seed": c.b, **_rates([o for cc, o in results if cc == c])})
+    lines = ["rate,seed,sequence_arg,sequence_prim,success"]
+    lines += [f"{r['rate']},{r['seed']},{r['sequence_arg']:.2f},{r['sequence_prim']:.2f},{r['success']:.2f}"
+              for r in runs]
+    write_text_atomic(args.output / "noise_runs.csv", "\n".join(lines) + "\n")
+    summary = ["rate,sequence_arg,sequence_arg_std,sequence_prim,success"]
+    means, stds = [], []
+    for r in args.rates:
+        arg = [x["sequence_arg"] for x in runs if x["rate"] == r]
+        prim = [x["sequence_prim"] for x in runs if x["rate"] == r]
+        succ = [x["success"] for x in runs if x["rate"] == r]
+        means.append(float(np.mean(arg)))
+        stds.append(float(np.std(arg)))
+        summary.append(f"{r},{np.mean(arg):.2f},{np.std(arg):.2f},{np.mean(prim):.2f},{np.mean(succ):.2f}")
+    write_text_atomic(args.output / "noise.csv", "\n".join(summary) + "\n")
+    line_plot_png({"ours - full (mean, std over seeds)": (list(args.rates), means, stds)},
+                  str(args.output / "noise.png"), "Sequence accuracy (arg) with binary attributes flipped",
+                  "probability of flipping each binary attribute", "% sequences correct",
+                  reference={"paper": ([0.0, 0.1, 0.4], [69.7, 55.8, 38.1])})
+    print("\n".join(summary))
+    return 0
+
+
+def _feedback(args: argparse.Namespace) -> int:
+    from .evaluate.robustness import Condition
+    from .io import write_text_atomic
+    from .report.tables import line_plot_png
+
+    ns = [args.max_steps if n == "all" else int(n) for n in args.n]
+    conditions = [Condition("feedback", k, n) for k in args.k for n in ns]
+    results = _conditions_run(args, conditions)
+    lines = ["k,n,sequence_arg,sequence_prim,success"]
+    series = {}
+    for k in args.k:
+        ys = []
+        for n in ns:
+            r = _rates([o for cc, o in results if cc == Condition("feedback", k, n)])
+            ys.append(r["sequence_arg"])
+            lines.append(f"{k},{n},{r['sequence_arg']:.2f},{r['sequence_prim']:.2f},{r['success']:.2f}")
+        series[f"top {k}"] = (list(range(len(ns))), ys, None)
+    write_text_atomic(args.output / "feedback.csv", "\n".join(lines) + "\n")
+    labels = ["all" if n == args.max_steps else str(n) for n in ns]
+    line_plot_png(series, str(args.output / "feedback.png"), "Sequence accuracy (arg) with an observer's feedback",
+                  "steps with feedback", "% sequences correct", xticks=list(range(len(ns))), xticklabels=labels)
+    print("\n".join(lines))
+    return 0
+
+
 def _pddl(args: argparse.Namespace) -> int:
     from .evaluate.crossval import scenarios_from_records
     from .logs.ingest import read_tables, records_from_tables
@@ -369,6 +455,31 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-steps", type=int, default=20, help="step cap of closed-loop runs")
     p.add_argument("--n-jobs", type=int, default=1, help="folds run in parallel (joblib)")
     p.add_argument("--output", type=Path, default=Path("reports"), help="folder for the tables and metrics")
+
+    def robustness_options(p: argparse.ArgumentParser) -> None:
+        p.add_argument("--features", type=Path, default=Path("data/features"), help="feature folder")
+        p.add_argument("--processed", type=Path, default=Path("data/processed"), help="folder of Parquet tables")
+        p.add_argument("--folds", type=int, default=6, help="number of folds (default 6)")
+        p.add_argument("--group-by", choices=("scenario", "environment"), default="scenario")
+        p.add_argument("--fold-seed", type=int, default=0, help="seed of the fold assignment")
+        training_options(p)
+        p.add_argument("--max-steps", type=int, default=20, help="step cap of closed-loop runs")
+        p.add_argument("--n-jobs", type=int, default=1, help="folds run in parallel (joblib)")
+        p.add_argument("--output", type=Path, default=Path("reports"), help="folder for CSV and PNG")
+
+    p = add("noise", "sequence accuracy of the full model with binary attributes flipped at test time", _noise)
+    robustness_options(p)
+    p.add_argument("--rates", type=float, nargs="+", default=[0.0, 0.1, 0.2, 0.3, 0.4],
+                   help="flip probabilities")
+    p.add_argument("--seeds", type=int, default=3, help="noise draws per rate")
+    p.add_argument("--seed", type=int, default=0, help="seed of the noise draws")
+
+    p = add("feedback", "sequence accuracy when an observer picks among the top k at the first n steps", _feedback)
+    robustness_options(p)
+    p.add_argument("--k", type=int, nargs="+", default=[2, 3], help="candidates offered to the observer")
+    p.add_argument("--n", nargs="+", default=["0", "1", "2", "3", "5", "all"],
+                   help="steps with feedback (a number or 'all')")
+    p.set_defaults(seed=0)
 
     p = add("pddl", "write the PDDL domain, a problem per scenario and its shortest plan (SAT)", _pddl)
     p.add_argument("--processed", type=Path, default=Path("data/processed"), help="folder of Parquet tables")

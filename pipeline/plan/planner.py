@@ -7,11 +7,12 @@ expected, changes the next choice.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..features.context import step_context
+from ..features.context import StepContext, step_context
 from ..learn.mrf import MRFModel
 from ..sim.primitives import Action, PreconditionError, execute
 from ..sim.safety import violations
@@ -58,14 +59,28 @@ class Program:
         return self.status == DONE and self.goal_reached and self.safe
 
 
+Perceive = Callable[[StepContext], StepContext]
+Choose = Callable[[list[Action], list[Action]], int]
+
+
 def plan(model: MRFModel, w: np.ndarray, state: WorldState, task: Task, max_steps: int = 20,
-         top_k: int = 3) -> Program:
-    """Run the loop in the simulator until `done`, an infeasible step, or `max_steps` primitives."""
+         top_k: int = 3, perceive: Perceive | None = None, choose: Choose | None = None) -> Program:
+    """Run the loop in the simulator until `done`, an infeasible step, or `max_steps` primitives.
+
+    `perceive` changes what the model sees of each step (attribute noise);
+    `choose(history, ranked actions)` lets an observer pick among the top
+    `top_k` candidates (human feedback); by default the best one is taken.
+    """
     task.check_objects(state)
     initial, steps = state, []
     while True:
         ctx = step_context(state, task, [s.action for s in steps])
+        if perceive is not None:
+            ctx = perceive(ctx)
         ranked = model.top_k(ctx, w, top_k)
+        if choose is not None:
+            pick = choose([s.action for s in steps], [ctx.action(y) for y, _ in ranked])
+            ranked = [ranked[pick]] + ranked[:pick] + ranked[pick + 1 :]
         (best, score), rest = ranked[0], ranked[1:]
         action = ctx.action(best)
         if action.primitive == DONE:

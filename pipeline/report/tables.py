@@ -120,3 +120,30 @@ def confusion_png(matrix: np.ndarray, path: str, title: str) -> None:
     fig.tight_layout()
     fig.savefig(path, metadata={"Software": None})
     plt.close(fig)
+
+
+def line_plot_png(series: dict[str, tuple[list[float], list[float], list[float] | None]], path: str, title: str,
+                  xlabel: str, ylabel: str, xticks: list[float] | None = None, xticklabels: list[str] | None = None,
+                  reference: dict[str, tuple[list[float], list[float]]] | None = None) -> None:
+    """Lines with optional error bars (x, y, spread per series), and dashed reference lines (the paper's)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(5.6, 3.8), dpi=120)
+    for label, (x, y, err) in series.items():
+        ax.errorbar(x, y, yerr=err, marker="o", capsize=3, label=label)
+    for label, (x, y) in (reference or {}).items():
+        ax.plot(x, y, linestyle="--", marker="x", alpha=0.7, label=label)
+    if xticks is not None:
+        ax.set_xticks(xticks, xticklabels)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_ylim(0, 100)
+    ax.set_title(title, fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, metadata={"Software": None})
+    plt.close(fig)

@@ -1,0 +1,101 @@
+"""Closed-loop sequence accuracy of the full model under attribute noise and with an observer's feedback.
+
+Both train the full model once per cross-validation fold and replay the test
+scenarios of that fold under each condition, so every condition is judged on
+the same 113 scenarios with the same models.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from joblib import Parallel, delayed
+
+from ..features.context import OBJECT_COLUMNS, StepContext
+from ..features.dataset import StepMeta
+from ..plan.planner import plan
+from ..sim.objects import BINARY_ATTRIBUTES
+from ..sim.primitives import Action
+from .crossval import Scenario, judge, scenario_folds
+from .methods import MRFMethod
+
+BINARY_COLUMNS = np.array([OBJECT_COLUMNS.index(a) for a in BINARY_ATTRIBUTES])
+
+
+def flip_masks(object_ids: list[str], rate: float, rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """For each object, which binary attributes the robot perceives wrongly in this run."""
+    return {o: rng.random(len(BINARY_COLUMNS)) < rate for o in object_ids}
+
+
+def noisy_perception(masks: dict[str, np.ndarray]):
+    """A `perceive` hook that flips the masked binary attributes of every object, every step alike."""
+
+    def perceive(ctx: StepContext) -> StepContext:
+        objects = ctx.objects.copy()
+        for i, o in enumerate(ctx.object_ids):
+            cols = BINARY_COLUMNS[masks[o]]
+            objects[i, cols] = 1.0 - objects[i, cols]
+        return replace(ctx, objects=objects)
+
+    return perceive
+
+
+def observer(demonstrations: tuple[tuple[Action, ...], ...], n_feedback: int):
+    """A `choose` hook: at each of the first `n_feedback` steps, the observer picks the first
+    offered candidate that continues one of the demonstrations; otherwise the robot's best."""
+
+    def choose(history: list[Action], offered: list[Action]) -> int:
+        if len(history) >= n_feedback:
+            return 0
+        for k, action in enumerate(offered):
+            for demo in demonstrations:
+                if tuple(history) == demo[: len(history)]:
+                    expected = demo[len(history)] if len(history) < len(demo) else Action("done")
+                    if action == expected:
+                        return k
+        return 0
+
+    return choose
+
+
+@dataclass(frozen=True)
+class Condition:
+    """One way of running the test scenarios: noise rate and seed, or feedback k and n."""
+
+    kind: str  # "noise" or "feedback"
+    a: float  # rate, or k
+    b: int  # seed, or n
+
+
+def _fold(make, fold: int, contexts, meta, scenarios, test, conditions, max_steps, seed):
+    train = [i for i, m in enumerate(meta) if m.scenario_id not in test]
+    method: MRFMethod = make().fit([contexts[i] for i in train], [meta[i] for i in train])
+    out = []
+    for c in conditions:
+        for sid in sorted(test):
+            sc = scenarios[sid]
+            perceive = choose = None
+            top_k = 3
+            if c.kind == "noise":
+                # one draw per (seed, scenario): the same scenario sees the same errors in every fold layout
+                rng = np.random.default_rng([seed, c.b, sorted(scenarios).index(sid)])
+                perceive = noisy_perception(flip_masks(sorted(sc.initial.specs), c.a, rng))
+            else:
+                top_k = int(c.a)
+                choose = observer(sc.demonstrations, c.b)
+            program = plan(method.model_, method.w_, sc.initial, sc.task, max_steps=max_steps, top_k=top_k,
+                           perceive=perceive, choose=choose)
+            out.append((c, judge(sc, program)))
+    return out
+
+
+def evaluate_conditions(make, contexts: list[StepContext], meta: list[StepMeta], scenarios: dict[str, Scenario],
+                        conditions: list[Condition], n_folds: int, fold_seed: int, group_by: str, max_steps: int,
+                        seed: int, n_jobs: int) -> list[tuple[Condition, object]]:
+    folds = scenario_folds(scenarios, n_folds, fold_seed, group_by)
+    parts = Parallel(n_jobs=n_jobs)(
+        delayed(_fold)(make, k, contexts, meta, scenarios, folds[k], conditions, max_steps, seed)
+        for k in range(n_folds)
+    )
+    return [item for part in parts for item in part]
