@@ -20,6 +20,8 @@ def _generate(args: argparse.Namespace) -> int:
     from .logs.generate import generate
 
     counts = generate(args.seed, args.output)
+    if args.run:
+        args.run.metrics({"demonstrations": sum(counts.values()), "files": len(counts)})
     print(f"wrote {sum(counts.values())} demonstrations in {len(counts)} files to {args.output}")
     return 0
 
@@ -63,6 +65,10 @@ def _ingest(args: argparse.Namespace) -> int:
     write_tables(tables, args.output)
     if args.metrics:
         write_json_atomic(args.metrics, summary)
+    if args.run:
+        from .track.mlflow_runs import flatten
+
+        args.run.metrics({k: v for k, v in flatten(summary).items() if isinstance(v, (int, float))})
     print(
         f"ingested {summary['sequences']} sequences ({summary['steps']} steps, {summary['scenarios']} scenarios, "
         f"{summary['environments']} environments) into {args.output}"
@@ -79,6 +85,8 @@ def _features(args: argparse.Namespace) -> int:
     contexts, meta = build_steps(records)
     write_features(contexts, meta, args.output)
     n_cand = sum(len(candidate_index(c.n)[0]) for c in contexts)
+    if args.run:
+        args.run.metrics({"steps": len(contexts), "candidates": n_cand, "sequences": len(records)})
     print(f"wrote {len(contexts)} steps ({n_cand} candidates) from {len(records)} sequences to {args.output}")
     return 0
 
@@ -119,6 +127,10 @@ def _train(args: argparse.Namespace) -> int:
             writer.writerow([it.iteration, f"{it.primal:.8g}", f"{it.best_primal:.8g}", f"{it.dual:.8g}",
                              f"{it.gap:.8g}", it.n_constraints])
         write_text_atomic(args.curve, buf.getvalue())
+    if args.run:
+        args.run.metrics({**{k: float(v) for k, v in metrics.items()}, "seconds": fit.seconds})
+        for path in (args.curve, args.model):
+            args.run.artifact(path)
     state = "converged" if fit.ssvm.converged_ else "stopped at max_iter"
     print(f"trained {args.feature_set} model on {len(contexts)} steps: {fit.ssvm.n_iter_} iterations ({state}), "
           f"{fit.seconds:.1f} s; teacher-forced training accuracy prim {acc['average/prim']:.1f}% "
@@ -245,10 +257,17 @@ def _noise(args: argparse.Namespace) -> int:
         stds.append(float(np.std(arg)))
         summary.append(f"{r},{np.mean(arg):.2f},{np.std(arg):.2f},{np.mean(prim):.2f},{np.mean(succ):.2f}")
     write_text_atomic(args.output / "noise.csv", "\n".join(summary) + "\n")
+    if args.run:
+        for r, mean, std in zip(args.rates, means, stds, strict=True):
+            with args.run.child(f"noise r={r}", {"rate": r}) as child:
+                child.metrics({"sequence_arg": mean, "sequence_arg_std": std})
     line_plot_png({"ours - full (mean, std over seeds)": (list(args.rates), means, stds)},
                   str(args.output / "noise.png"), "Sequence accuracy (arg) with binary attributes flipped",
                   "probability of flipping each binary attribute", "% sequences correct",
                   reference={"paper": ([0.0, 0.1, 0.4], [69.7, 55.8, 38.1])})
+    if args.run:
+        for f in ("noise.csv", "noise_runs.csv", "noise.png"):
+            args.run.artifact(args.output / f)
     print("\n".join(summary))
     return 0
 
@@ -269,11 +288,17 @@ def _feedback(args: argparse.Namespace) -> int:
             r = _rates([o for cc, o in results if cc == Condition("feedback", k, n)])
             ys.append(r["sequence_arg"])
             lines.append(f"{k},{n},{r['sequence_arg']:.2f},{r['sequence_prim']:.2f},{r['success']:.2f}")
+            if args.run:
+                with args.run.child(f"feedback k={k} n={n}", {"k": k, "n": n}) as child:
+                    child.metrics(r)
         series[f"top {k}"] = (list(range(len(ns))), ys, None)
     write_text_atomic(args.output / "feedback.csv", "\n".join(lines) + "\n")
     labels = ["all" if n == args.max_steps else str(n) for n in ns]
     line_plot_png(series, str(args.output / "feedback.png"), "Sequence accuracy (arg) with an observer's feedback",
                   "steps with feedback", "% sequences correct", xticks=list(range(len(ns))), xticklabels=labels)
+    if args.run:
+        for f in ("feedback.csv", "feedback.png"):
+            args.run.artifact(args.output / f)
     print("\n".join(lines))
     return 0
 
@@ -285,6 +310,9 @@ def _pddl(args: argparse.Namespace) -> int:
 
     scenarios = scenarios_from_records(records_from_tables(read_tables(args.processed)))
     counts = write_pddl(scenarios, args.output, horizon=args.horizon)
+    if args.run:
+        args.run.metrics(counts)
+        args.run.artifact(Path(args.output) / "domain.pddl")
     print(f"wrote the domain, {counts['problems']} problems and {counts['plans']} shortest plans to {args.output}"
           + (f"; {counts['no_plan']} without a plan within horizon {args.horizon}" if counts["no_plan"] else ""))
     return 0
@@ -378,12 +406,21 @@ def _crossval(args: argparse.Namespace) -> int:
             w.writerow([r.method, r.fold, s.scenario_id, s.task, s.status, int(s.prim_correct), int(s.arg_correct),
                         int(s.goal_reached), int(s.safe), int(s.success), " ".join(s.actions)])
     write_text_atomic(out / "crossval_sequences.csv", buf.getvalue())
+    if args.run:
+        for name, entry in summary.items():
+            with args.run.child(name, {"method": name}) as child:
+                child.metrics({k.replace("/", "_"): v for k, v in entry["steps"].items()})
+                child.metrics({k: v for k, v in entry.items() if k in ("sequence/prim", "sequence/arg", "success",
+                                                                        "goal_reached")})
     if "full" in methods:
         full = [r for r in results if r.method == "full"]
         index = [i for r in full for i in r.step_index]
         preds = [y for r in full for y in r.step_predictions]
         confusion_png(confusion([contexts[i] for i in index], preds), str(out / "confusion.png"),
                       "full model, teacher-forced, cross-validated")
+    if args.run:
+        for f in ("table1.csv", "table1.md", "table1.tex", "metrics.json", "confusion.png"):
+            args.run.artifact(out / f)
     print(to_markdown(rows))
     return 0
 
@@ -393,6 +430,8 @@ def build_parser() -> argparse.ArgumentParser:
         prog="taskseq",
         description="Learn to sequence manipulation primitives for under-specified tasks (unrolled MRF + SSVM).",
     )
+    parser.add_argument("--no-mlflow", action="store_true",
+                        help="do not record pipeline stages in MLflow (default: record, see README)")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     def add(name: str, help_: str, handler: Handler) -> argparse.ArgumentParser:
@@ -494,9 +533,34 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+# Pipeline stages: each opens one MLflow run (see pipeline/track/mlflow_runs.py).
+STAGES = ("generate", "ingest", "features", "train", "pddl", "crossval", "noise", "feedback")
+
+
+class _StageFailed(Exception):
+    def __init__(self, code: int) -> None:
+        super().__init__(f"stage ended with exit code {code}")
+        self.code = code
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    return args.handler(args)
+    args.run = None
+    if args.command not in STAGES or args.no_mlflow:
+        return args.handler(args)
+    from .track.mlflow_runs import stage_run
+
+    params = {k: v for k, v in vars(args).items() if k not in ("handler", "run", "command", "no_mlflow")}
+    inputs = [Path(getattr(args, k)) for k in ("input", "features", "processed") if getattr(args, k, None)]
+    try:
+        with stage_run(args.command, params, inputs) as run:
+            args.run = run
+            code = args.handler(args)
+            if code:
+                raise _StageFailed(code)  # the run is marked FAILED on the way out
+    except _StageFailed as failed:
+        return failed.code
+    return 0
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -21,6 +21,21 @@ def world(furniture: dict[int, float], items: list[tuple], robot_x: float = 0.0)
     return build_environment(spec)
 
 
+@pytest.fixture(scope="session", autouse=True)
+def mlflow_store(tmp_path_factory: pytest.TempPathFactory):
+    """Stages run by tests record into a throwaway MLflow store, never the repository's."""
+    import os
+
+    store = tmp_path_factory.mktemp("mlflow") / "mlflow.db"
+    old = os.environ.get("MLFLOW_TRACKING_URI")
+    os.environ["MLFLOW_TRACKING_URI"] = f"sqlite:///{store}"
+    yield os.environ["MLFLOW_TRACKING_URI"]
+    if old is None:
+        del os.environ["MLFLOW_TRACKING_URI"]
+    else:
+        os.environ["MLFLOW_TRACKING_URI"] = old
+
+
 @pytest.fixture(scope="session")
 def benchmark_logs(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("bench") / "raw"

@@ -1,0 +1,71 @@
+"""Stages record into MLflow: runs, parameters, metrics, children and artifacts read back."""
+
+import json
+import os
+
+import pytest
+from mlflow.tracking import MlflowClient
+
+from pipeline.cli import main
+from pipeline.features.dataset import write_features
+from pipeline.logs.ingest import write_tables
+from pipeline.track.mlflow_runs import EXPERIMENT
+
+
+@pytest.fixture
+def store(tmp_path, monkeypatch):
+    uri = f"sqlite:///{tmp_path / 'mlflow.db'}"
+    monkeypatch.setenv("MLFLOW_TRACKING_URI", uri)
+    return MlflowClient(tracking_uri=uri)
+
+
+def runs(client, stage=None):
+    exp = client.get_experiment_by_name(EXPERIMENT)
+    query = f"tags.`dvc.stage` = '{stage}'" if stage else ""
+    return client.search_runs([exp.experiment_id], filter_string=query)
+
+
+def test_a_stage_opens_one_run_with_params_tags_and_metrics(store, benchmark_logs, tmp_path):
+    out, metrics = tmp_path / "processed", tmp_path / "dataset.json"
+    assert main(["ingest", "--input", str(benchmark_logs), "--output", str(out), "--metrics", str(metrics)]) == 0
+    (run,) = runs(store, "ingest")
+    assert run.info.status == "FINISHED" and run.info.run_name == "ingest"
+    assert run.data.tags["dvc.stage"] == "ingest" and len(run.data.tags["data.hash"]) == 32
+    assert run.data.tags["git.commit"]
+    assert run.data.params["cli.input"] == str(benchmark_logs)
+    assert run.data.metrics["sequences"] == json.loads(metrics.read_text())["sequences"] == 127
+
+
+def test_a_failed_stage_leaves_its_run_failed(store, tmp_path):
+    bad = tmp_path / "raw"
+    bad.mkdir()
+    (bad / "x.jsonl").write_text("{broken\n")
+    assert main(["ingest", "--input", str(bad), "--output", str(tmp_path / "o"), "--metrics", str(tmp_path / "m")]) == 1
+    (run,) = runs(store, "ingest")
+    assert run.info.status == "FAILED"
+
+
+def test_crossval_has_a_child_run_per_method_with_the_same_keys(store, benchmark_tables, benchmark_steps, tmp_path):
+    write_tables(benchmark_tables[0], tmp_path / "processed")
+    write_features(*benchmark_steps, tmp_path / "features")
+    code = main(["crossval", "--features", str(tmp_path / "features"), "--processed", str(tmp_path / "processed"),
+                 "--folds", "2", "--methods", "chance", "multiclass", "--output", str(tmp_path / "reports")])
+    assert code == 0
+    (parent,) = runs(store, "crossval")
+    children = [r for r in runs(store) if r.data.tags.get("mlflow.parentRunId") == parent.info.run_id]
+    assert sorted(c.info.run_name for c in children) == ["chance", "multiclass"]
+    keys = [set(c.data.metrics) for c in children]
+    assert "average_prim" in keys[0] & keys[1] and "move_close_prim" in keys[0] & keys[1]
+    artifacts = {a.path for a in store.list_artifacts(parent.info.run_id)}
+    assert {"table1.csv", "table1.tex", "metrics.json"} <= artifacts
+    local = store.download_artifacts(parent.info.run_id, "table1.csv", str(tmp_path / "dl"))
+    with open(local) as fh:
+        assert fh.read() == (tmp_path / "reports" / "table1.csv").read_text()
+
+
+def test_no_mlflow_flag_records_nothing(store, benchmark_logs, tmp_path):
+    out = tmp_path / "processed"
+    assert main(["--no-mlflow", "ingest", "--input", str(benchmark_logs), "--output", str(out),
+                 "--metrics", str(tmp_path / "m.json")]) == 0
+    assert store.get_experiment_by_name(EXPERIMENT) is None
+    assert os.environ["MLFLOW_TRACKING_URI"].startswith("sqlite:///")
