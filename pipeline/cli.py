@@ -374,9 +374,11 @@ def _crossval(args: argparse.Namespace) -> int:
     methods = {k: v for k, v in methods.items() if k in args.methods}
     print(f"cross-validating {', '.join(methods)} over {args.folds} folds grouped by {args.group_by} "
           f"({len(scenarios)} scenarios, {len(contexts)} steps, {args.n_jobs} jobs)")
+    recorded = frozenset(sorted(scenarios)[:: max(1, len(scenarios) // args.recordings)][: args.recordings]
+                         if args.recordings else [])
     results = cross_validate(methods, contexts, meta, scenarios, Demonstrations.from_records(records),
-                             n_folds=args.folds, seed=args.seed,
-                             group_by=args.group_by, max_steps=args.max_steps, n_jobs=args.n_jobs, verbose=5)
+                             n_folds=args.folds, seed=args.seed, group_by=args.group_by, max_steps=args.max_steps,
+                             n_jobs=args.n_jobs, verbose=5, keep_programs={"full": recorded})
     predicts_args = {k: v().predicts_args for k, v in methods.items()}
     summary = summarize(results, contexts, predicts_args)
     rows = table_rows(summary, METHOD_LABELS)
@@ -418,6 +420,17 @@ def _crossval(args: argparse.Namespace) -> int:
         preds = [y for r in full for y in r.step_predictions]
         confusion_png(confusion([contexts[i] for i in index], preds), str(out / "confusion.png"),
                       "full model, teacher-forced, cross-validated")
+    if recorded:
+        from .plan.symbolic.files import file_stem
+        from .track.recordings import record_program
+
+        for r in results:
+            for sid, (steps, status) in r.programs.items():
+                path = out / "recordings" / f"{file_stem(sid)}.rrd"
+                record_program(path, sid, scenarios[sid].initial, scenarios[sid].task, steps, status,
+                               scenarios[sid].demonstrations[0])
+                if args.run:
+                    args.run.artifact(path, "recordings")
     if args.run:
         for f in ("table1.csv", "table1.md", "table1.tex", "metrics.json", "confusion.png"):
             args.run.artifact(out / f)
@@ -493,6 +506,8 @@ def build_parser() -> argparse.ArgumentParser:
     training_options(p)
     p.add_argument("--max-steps", type=int, default=20, help="step cap of closed-loop runs")
     p.add_argument("--n-jobs", type=int, default=1, help="folds run in parallel (joblib)")
+    p.add_argument("--recordings", type=int, default=0,
+                   help="Rerun recordings of the full model's programs, spread over the scenarios (default 0)")
     p.add_argument("--output", type=Path, default=Path("reports"), help="folder for the tables and metrics")
 
     def robustness_options(p: argparse.ArgumentParser) -> None:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from joblib import Parallel, delayed
@@ -69,6 +69,7 @@ class FoldResult:
     step_index: list[int]
     step_predictions: list[Y]
     sequences: list[SequenceOutcome] | None  # None: the method runs no programs
+    programs: dict[str, tuple[list, str]] = field(default_factory=dict)  # kept for recordings: steps, status
 
 
 def scenarios_from_records(records: list[dict[str, Any]]) -> dict[str, Scenario]:
@@ -101,19 +102,22 @@ def judge(scenario: Scenario, program) -> SequenceOutcome:
 
 def run_fold(make: Callable[[], Method], fold: int, contexts: list[StepContext], meta: list[StepMeta],
              scenarios: dict[str, Scenario], test_scenarios: set[str], max_steps: int,
-             demos: Demonstrations | None = None) -> FoldResult:
+             demos: Demonstrations | None = None, keep_programs: frozenset[str] = frozenset()) -> FoldResult:
     train_index = [i for i, m in enumerate(meta) if m.scenario_id not in test_scenarios]
     test_index = [i for i, m in enumerate(meta) if m.scenario_id in test_scenarios]
     method = make().fit([contexts[i] for i in train_index], [meta[i] for i in train_index])
     predictions = method.predict_steps([contexts[i] for i in test_index], [meta[i] for i in test_index], demos)
     outcomes: list[SequenceOutcome] | None = []
+    programs = {}
     for sid in sorted(test_scenarios):
         program = method.run(scenarios[sid], max_steps)
         if program is None:
             outcomes = None
             break
         outcomes.append(judge(scenarios[sid], program))
-    return FoldResult(method.name, fold, test_index, predictions, outcomes)
+        if sid in keep_programs:
+            programs[sid] = (program.steps, program.status)
+    return FoldResult(method.name, fold, test_index, predictions, outcomes, programs)
 
 
 def scenario_folds(scenarios: dict[str, Scenario], n_folds: int, seed: int, group_by: str) -> list[set[str]]:
@@ -128,10 +132,13 @@ def scenario_folds(scenarios: dict[str, Scenario], n_folds: int, seed: int, grou
 def cross_validate(methods: dict[str, Callable[[], Method]], contexts: list[StepContext], meta: list[StepMeta],
                    scenarios: dict[str, Scenario], demos: Demonstrations, n_folds: int = 6, seed: int = 0,
                    group_by: str = "scenario", max_steps: int = 20, n_jobs: int = 1,
-                   verbose: int = 0) -> list[FoldResult]:
+                   verbose: int = 0, keep_programs: dict[str, frozenset[str]] | None = None) -> list[FoldResult]:
+    """`keep_programs` names, per method, the scenarios whose programs come back (for recordings)."""
     folds = scenario_folds(scenarios, n_folds, seed, group_by)
     jobs = [(name, k) for name in methods for k in range(n_folds)]
+    keep = keep_programs or {}
     return Parallel(n_jobs=n_jobs, verbose=verbose)(
-        delayed(run_fold)(methods[name], k, contexts, meta, scenarios, folds[k], max_steps, demos)
+        delayed(run_fold)(methods[name], k, contexts, meta, scenarios, folds[k], max_steps, demos,
+                          keep.get(name, frozenset()))
         for name, k in jobs
     )

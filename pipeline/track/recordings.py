@@ -1,0 +1,79 @@
+"""Rerun recordings of programs being executed: boxes over a `step` timeline, the robot, the
+gripper, the chosen primitive with its score and alternatives, and the demonstration beside it.
+
+Recordings are execution records, like MLflow runs: Rerun stamps chunks with
+fresh ids, so the bytes differ between runs and DVC does not track them.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import rerun as rr
+
+from ..plan.planner import PlanStep
+from ..sim.primitives import Action, PreconditionError, execute
+from ..sim.state import WorldState
+from ..sim.tasks import Task
+
+COLORS = {
+    "floor": (200, 200, 200), "table": (160, 120, 80), "shelf": (120, 90, 60), "bin": (90, 90, 90),
+    "liquid": (60, 140, 230), "stirrer": (230, 180, 40),
+}
+ROBOT_SIZE = (0.5, 0.5, 1.3)
+
+
+def _color(state: WorldState, obj: str) -> tuple[int, int, int]:
+    cat = state.specs[obj].category
+    return COLORS.get(cat, (220, 90, 90) if state.specs[obj].has("container") else (120, 200, 120))
+
+
+def _log_state(rec: rr.RecordingStream, state: WorldState) -> None:
+    for o in sorted(state.specs):
+        x0, y0, z0, x1, y1, z1 = state.box(o)
+        rec.log(f"world/objects/{o}", rr.Boxes3D(
+            centers=[[(x0 + x1) / 2, (y0 + y1) / 2, (z0 + z1) / 2]],
+            half_sizes=[[(x1 - x0) / 2, (y1 - y0) / 2, (z1 - z0) / 2]],
+            labels=[f"{o} {state.specs[o].name}"], colors=[_color(state, o)]))
+    rx, ry = state.robot
+    rec.log("world/robot", rr.Boxes3D(centers=[[rx, ry, ROBOT_SIZE[2] / 2]], half_sizes=[np.array(ROBOT_SIZE) / 2],
+                                      labels=["robot"], colors=[(80, 80, 200)]))
+    if state.held is not None:
+        x0, y0, z0, x1, y1, z1 = state.box(state.held)
+        gripper = [[(x0 + x1) / 2, (y0 + y1) / 2, z1]]
+    else:
+        gripper = [[rx, ry, ROBOT_SIZE[2]]]
+    rec.log("world/gripper", rr.Points3D(gripper, radii=[0.04], labels=[f"holds {state.held or 'nothing'}"]))
+
+
+def record_program(path: Path | str, recording_id: str, initial: WorldState, task: Task, steps: list[PlanStep],
+                   status: str, demonstration: tuple[Action, ...] = ()) -> None:
+    """Write one .rrd: the world before every step and after the last, with the plan's choices."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    rec = rr.RecordingStream("taskseq", recording_id=recording_id, send_properties=False)
+    rec.save(path)
+    rec.log("task", rr.TextDocument(f"{task}\nstatus: {status}\ndemonstration: "
+                                    + " ".join(str(a) for a in demonstration)), static=True)
+    state = initial
+    for k in range(len(steps) + 1):
+        rec.set_time("step", sequence=k)
+        _log_state(rec, state)
+        if k < len(demonstration):
+            rec.log("demonstration/step", rr.TextLog(str(demonstration[k])))
+        if k == len(steps):
+            rec.log("plan/chosen", rr.TextLog(f"end: {status}"))
+            break
+        step = steps[k]
+        alternatives = "; ".join(f"{a} {s:.2f}" for a, s in step.alternatives)
+        warn = f" UNSAFE: {', '.join(step.unsafe)}" if step.unsafe else ""
+        rec.log("plan/chosen", rr.TextLog(f"{step.action} score {step.score:.2f}{warn}"))
+        rec.log("plan/alternatives", rr.TextLog(alternatives or "-"))
+        try:
+            state = execute(state, step.action)
+        except PreconditionError as err:
+            rec.log("plan/chosen", rr.TextLog(f"infeasible: {err}", level=rr.TextLogLevel.ERROR))
+            break
+    rec.flush()
+    del rec
