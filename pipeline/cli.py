@@ -303,6 +303,53 @@ def _feedback(args: argparse.Namespace) -> int:
     return 0
 
 
+def _recipes(args: argparse.Namespace) -> int:
+    from functools import partial
+
+    from .evaluate.methods import MRFMethod
+    from .evaluate.recipes import RECIPES, evaluate_recipes
+    from .features.dataset import read_features
+
+    contexts, meta = read_features(args.features)
+    make = partial(MRFMethod, features="full", C=args.C, tol=args.tol, max_iter=args.max_iter)
+    outcomes = evaluate_recipes(make, contexts, meta, max_steps=args.max_steps)
+    descriptions = {(r.name, r.env_id): r.description for r in RECIPES}
+    rows = []
+    for o in outcomes:
+        rows.append({"recipe": o.recipe, "env_id": o.env_id, "description": descriptions[(o.recipe, o.env_id)],
+                     "feedback": o.feedback, "success": o.success,
+                     "programs": [{"task": t, "status": st, "success": ok} for t, st, ok in o.programs]})
+    totals = {"no_feedback": sum(o.success for o in outcomes if not o.feedback),
+              "feedback_first_step": sum(o.success for o in outcomes if o.feedback), "recipes": len(RECIPES)}
+    write_json_atomic(args.output / "recipes.json", {"totals": totals, "runs": rows})
+    if args.run:
+        for name in dict.fromkeys(o.recipe for o in outcomes):
+            mine = [o for o in outcomes if o.recipe == name]
+            with args.run.child(name, {"recipe": name}) as child:
+                child.metrics({"success_no_feedback": sum(o.success for o in mine if not o.feedback),
+                               "success_feedback": sum(o.success for o in mine if o.feedback)})
+        args.run.metrics({k: float(v) for k, v in totals.items()})
+        args.run.artifact(args.output / "recipes.json")
+    for o in outcomes:
+        print(f"{o.recipe:24s} {o.env_id} feedback={'yes' if o.feedback else 'no ':3s} "
+              f"{'SUCCESS' if o.success else 'failed '}  " + " -> ".join(f"{t} [{st}]" for t, st, _ in o.programs))
+    print(f"success: {totals['no_feedback']}/{totals['recipes']} without feedback, "
+          f"{totals['feedback_first_step']}/{totals['recipes']} with one feedback at the start of each program")
+    return 0
+
+
+def _report(args: argparse.Namespace) -> int:
+    from .io import write_text_atomic
+    from .report.summary import build_summary
+
+    text = build_summary(args.reports, METHOD_LABELS)
+    write_text_atomic(args.output, text + "\n")
+    if args.run:
+        args.run.artifact(args.output)
+    print(f"wrote {args.output}")
+    return 0
+
+
 def _pddl(args: argparse.Namespace) -> int:
     from .evaluate.crossval import scenarios_from_records
     from .logs.ingest import read_tables, records_from_tables
@@ -535,6 +582,16 @@ def build_parser() -> argparse.ArgumentParser:
                    help="steps with feedback (a number or 'all')")
     p.set_defaults(seed=0)
 
+    p = add("recipes", "chain programs into recipes in environments held out from training", _recipes)
+    p.add_argument("--features", type=Path, default=Path("data/features"), help="feature folder")
+    training_options(p)
+    p.add_argument("--max-steps", type=int, default=20, help="step cap of each program")
+    p.add_argument("--output", type=Path, default=Path("reports"), help="folder for recipes.json")
+
+    p = add("report", "write reports/summary.md: every result next to the paper's figures", _report)
+    p.add_argument("--reports", type=Path, default=Path("reports"), help="folder of the stages' results")
+    p.add_argument("--output", type=Path, default=Path("reports/summary.md"), help="Markdown file to write")
+
     p = add("pddl", "write the PDDL domain, a problem per scenario and its shortest plan (SAT)", _pddl)
     p.add_argument("--processed", type=Path, default=Path("data/processed"), help="folder of Parquet tables")
     p.add_argument("--output", type=Path, default=Path("data/pddl"), help="folder to write (replaced)")
@@ -549,7 +606,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 # Pipeline stages: each opens one MLflow run (see pipeline/track/mlflow_runs.py).
-STAGES = ("generate", "ingest", "features", "train", "pddl", "crossval", "noise", "feedback")
+STAGES = ("generate", "ingest", "features", "train", "pddl", "crossval", "noise", "feedback", "recipes", "report")
 
 
 class _StageFailed(Exception):

@@ -87,7 +87,14 @@ class _Recorder:
             self.do("move_close", obj)
 
     def fetch(self, obj: str) -> None:
-        """Go to `obj`, clear whatever rests on it, grasp it."""
+        """Go to `obj`, clear whatever rests on it, grasp it (setting down first what is in hand)."""
+        if self.state.held == obj:
+            if obj in self.state.support:
+                self.do("release", obj)
+                self.do("grasp", obj)
+            return
+        if self.state.held is not None:
+            self.set_down(self.state.held)
         self.reach(obj)
         loads = self.state.loads(obj)
         if len(loads) > 1 and self.choose():
@@ -116,6 +123,13 @@ class _Recorder:
         if not tables:
             raise NoDemonstration(f"no table has room for {obj}")
         return min(tables, key=lambda t: (self.state.reach_distance(t), t))
+
+    def set_down(self, obj: str) -> None:
+        """Put the held `obj` on the nearest table with room (chained tasks start with a full hand)."""
+        table = self.nearest_table(obj)
+        self.reach(table)
+        self.do("place_above", obj, table)
+        self.do("release", obj)
 
     def set_down_near(self, obj: str, anchor: str) -> None:
         """Carry the held `obj` off a shelf to the table where `anchor` is (else the nearest)."""
