@@ -17,11 +17,10 @@ from ..features.context import N_PRIM, OBJECT_COLUMNS, StepContext, step_context
 from ..features.dataset import StepMeta
 from ..learn.mrf import MRFModel, candidate_index
 from ..learn.train import fit_mrf
-from ..plan.planner import DONE, INFEASIBLE, STEP_CAP, PlanStep, Program, plan
+from ..plan.planner import Program, plan, run_loop
 from ..plan.symbolic.executor import first_action, run_symbolic
 from ..plan.symbolic.roles import ROLE_OF_TASK, RoleRanker, demonstrated_roles
-from ..sim.primitives import Action, PreconditionError, execute
-from ..sim.safety import violations
+from ..sim.primitives import Action
 from ..sim.state import WorldState
 from ..sim.tasks import TASKS, Task
 
@@ -68,21 +67,8 @@ class ChanceMethod:
         return [self._draw(x.n, rng) for x in contexts]
 
     def run(self, scenario: Scenario, max_steps: int) -> Program:
-        task, state = scenario.task, scenario.initial
         rng = np.random.default_rng([self.seed, sum(map(ord, scenario.id))])
-        initial, steps = state, []
-        while True:
-            ctx = step_context(state, task, [s.action for s in steps])
-            action = ctx.action(self._draw(ctx.n, rng))
-            if action.primitive == DONE:
-                return Program(task, steps, DONE, initial, state)
-            if len(steps) == max_steps:
-                return Program(task, steps, STEP_CAP, initial, state)
-            steps.append(PlanStep(action, 0.0, [], violations(state, action)))
-            try:
-                state = execute(state, action)
-            except PreconditionError as err:
-                return Program(task, steps, INFEASIBLE, initial, state, str(err))
+        return run_loop(lambda ctx: [(self._draw(ctx.n, rng), 0.0)], scenario.initial, scenario.task, max_steps)
 
 
 def multiclass_features(x: StepContext) -> np.ndarray:

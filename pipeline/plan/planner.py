@@ -63,6 +63,9 @@ Perceive = Callable[[StepContext], StepContext]
 Choose = Callable[[list[Action], list[Action]], int]
 
 
+Rank = Callable[[StepContext], list[tuple[tuple[int, int, int], float]]]
+
+
 def plan(model: MRFModel, w: np.ndarray, state: WorldState, task: Task, max_steps: int = 20,
          top_k: int = 3, perceive: Perceive | None = None, choose: Choose | None = None) -> Program:
     """Run the loop in the simulator until `done`, an infeasible step, or `max_steps` primitives.
@@ -71,13 +74,19 @@ def plan(model: MRFModel, w: np.ndarray, state: WorldState, task: Task, max_step
     `choose(history, ranked actions)` lets an observer pick among the top
     `top_k` candidates (human feedback); by default the best one is taken.
     """
+    return run_loop(lambda ctx: model.top_k(ctx, w, top_k), state, task, max_steps, perceive, choose)
+
+
+def run_loop(rank: Rank, state: WorldState, task: Task, max_steps: int = 20, perceive: Perceive | None = None,
+             choose: Choose | None = None) -> Program:
+    """The dynamic-planning loop for any ranking of a step's candidates, best first."""
     task.check_objects(state)
     initial, steps = state, []
     while True:
         ctx = step_context(state, task, [s.action for s in steps])
         if perceive is not None:
             ctx = perceive(ctx)
-        ranked = model.top_k(ctx, w, top_k)
+        ranked = rank(ctx)
         if choose is not None:
             pick = choose([s.action for s in steps], [ctx.action(y) for y, _ in ranked])
             ranked = [ranked[pick]] + ranked[:pick] + ranked[pick + 1 :]
