@@ -485,6 +485,13 @@ def _crossval(args: argparse.Namespace) -> int:
     return 0
 
 
+def _feedback_steps(value: str) -> str:
+    """A number of steps with feedback, or 'all'."""
+    if value != "all" and not value.isdigit():
+        raise argparse.ArgumentTypeError(f"expected a whole number of steps or 'all', got {value!r}")
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="taskseq",
@@ -578,7 +585,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = add("feedback", "sequence accuracy when an observer picks among the top k at the first n steps", _feedback)
     robustness_options(p)
     p.add_argument("--k", type=int, nargs="+", default=[2, 3], help="candidates offered to the observer")
-    p.add_argument("--n", nargs="+", default=["0", "1", "2", "3", "5", "all"],
+    p.add_argument("--n", nargs="+", type=_feedback_steps, default=["0", "1", "2", "3", "5", "all"],
                    help="steps with feedback (a number or 'all')")
     p.set_defaults(seed=0)
 

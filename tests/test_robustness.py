@@ -60,3 +60,11 @@ def test_full_feedback_never_does_worse(fitted):
         guided = plan(method.model_, method.w_, sc.initial, sc.task, top_k=3, choose=observer(sc.demonstrations, 20))
         if free.actions in [list(d) for d in sc.demonstrations]:
             assert guided.actions in [list(d) for d in sc.demonstrations]
+
+
+def test_feedback_command_refuses_a_bad_step_count(capsys):
+    from pipeline.cli import main
+
+    with pytest.raises(SystemExit):
+        main(["feedback", "--n", "1", "two"])
+    assert "expected a whole number of steps or 'all', got 'two'" in capsys.readouterr().err
