@@ -7,6 +7,7 @@ Stages take their settings as options; `dvc.yaml` passes them from
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -102,8 +103,10 @@ def _train(args: argparse.Namespace) -> int:
     from .learn.train import fit_mrf
 
     contexts, _ = read_features(args.features)
-    fit = fit_mrf(contexts, args.feature_set, C=args.C, tol=args.tol, max_iter=args.max_iter, progress=True)
-    params = {"C": args.C, "tol": args.tol, "max_iter": args.max_iter, "n_steps": len(contexts)}
+    fit = fit_mrf(contexts, args.feature_set, C=args.C, tol=args.tol, max_iter=args.max_iter,
+                  n_slacks=args.n_slacks, progress=True)
+    params = {"C": args.C, "tol": args.tol, "max_iter": args.max_iter, "n_slacks": args.n_slacks,
+              "n_steps": len(contexts)}
     save_model(args.model, fit.model, fit.w, params)
     acc = step_accuracy(contexts, fit.ssvm.predict(contexts))
     last = fit.ssvm.history_[-1]
@@ -215,7 +218,8 @@ def _conditions_run(args: argparse.Namespace, conditions: list) -> list:
 
     contexts, meta = read_features(args.features)
     scenarios = scenarios_from_records(records_from_tables(read_tables(args.processed)))
-    make = partial(MRFMethod, features="full", C=args.C, tol=args.tol, max_iter=args.max_iter)
+    make = partial(MRFMethod, features="full", C=args.C, tol=args.tol, max_iter=args.max_iter,
+                   n_slacks=args.n_slacks, store=_store(args))
     return evaluate_conditions(make, contexts, meta, scenarios, conditions, n_folds=args.folds,
                                fold_seed=args.fold_seed, group_by=args.group_by, max_steps=args.max_steps,
                                seed=args.seed, n_jobs=args.n_jobs)
@@ -311,7 +315,8 @@ def _recipes(args: argparse.Namespace) -> int:
     from .features.dataset import read_features
 
     contexts, meta = read_features(args.features)
-    make = partial(MRFMethod, features="full", C=args.C, tol=args.tol, max_iter=args.max_iter)
+    make = partial(MRFMethod, features="full", C=args.C, tol=args.tol, max_iter=args.max_iter,
+                   n_slacks=args.n_slacks, store=_store(args))
     outcomes = evaluate_recipes(make, contexts, meta, max_steps=args.max_steps)
     descriptions = {(r.name, r.env_id): r.description for r in RECIPES}
     rows = []
@@ -335,6 +340,49 @@ def _recipes(args: argparse.Namespace) -> int:
               f"{'SUCCESS' if o.success else 'failed '}  " + " -> ".join(f"{t} [{st}]" for t, st, _ in o.programs))
     print(f"success: {totals['no_feedback']}/{totals['recipes']} without feedback, "
           f"{totals['feedback_first_step']}/{totals['recipes']} with one feedback at the start of each program")
+    return 0
+
+
+def _store(args: argparse.Namespace) -> str | None:
+    """The fold-model store to load from, if one was named and exists."""
+    store = getattr(args, "model_store", None)
+    if store is not None and not Path(store).is_dir():
+        print(f"warning: model store {store} does not exist; models will be trained", file=sys.stderr)
+        return None
+    return None if store is None else str(store)
+
+
+def _folds(args: argparse.Namespace) -> int:
+    import time
+    from functools import partial
+
+    from .evaluate.crossval import scenarios_from_records
+    from .evaluate.fold_models import train_fold_models, training_jobs
+    from .evaluate.methods import MRFMethod
+    from .features.dataset import read_features
+    from .logs.ingest import read_tables, records_from_tables
+
+    contexts, meta = read_features(args.features)
+    scenarios = scenarios_from_records(records_from_tables(read_tables(args.processed)))
+    jobs = training_jobs(meta, scenarios, args.folds, args.seed, args.group_by)
+    make = partial(MRFMethod, C=args.C, tol=args.tol, max_iter=args.max_iter, n_slacks=args.n_slacks)
+    print(f"training {len(jobs)} fold models ({args.folds} folds grouped by {args.group_by}, recipes) "
+          f"with {args.n_jobs} jobs")
+    start = time.perf_counter()
+    records = train_fold_models(make, contexts, meta, jobs, args.output, n_jobs=args.n_jobs, verbose=5)
+    wall = time.perf_counter() - start
+    metrics = {"models": len(records), "wall_seconds": wall,
+               "fit_seconds": sum(r["seconds"] for r in records),
+               "iterations": sum(r["iterations"] for r in records),
+               "all_converged": all(r["converged"] for r in records)}
+    if args.metrics:
+        write_json_atomic(args.metrics, {**metrics, "per_model": [
+            {k: r[k] for k in ("features", "uses", "steps", "iterations", "converged", "seconds",
+                               "primal_objective", "dual_objective")} for r in records]})
+    if args.run:
+        args.run.metrics({k: float(v) for k, v in metrics.items()})
+    print(f"trained {len(records)} models in {wall:.1f} s ({metrics['fit_seconds']:.1f} s of fitting, "
+          f"{metrics['iterations']} iterations); written to {args.output}")
     return 0
 
 
@@ -370,7 +418,8 @@ def _bench(args: argparse.Namespace) -> int:
     from .logs.ingest import read_tables, records_from_tables
 
     records = records_from_tables(read_tables(args.processed))
-    result = run_bench(records, C=args.C, tol=args.tol, max_iter=args.max_iter, repeats=args.repeats)
+    result = run_bench(records, C=args.C, tol=args.tol, max_iter=args.max_iter, n_slacks=args.n_slacks,
+                       repeats=args.repeats)
     write_json_atomic(args.output, result)
     print(format_bench(result))
     print(f"written to {args.output}")
@@ -404,7 +453,8 @@ def _crossval(args: argparse.Namespace) -> int:
     contexts, meta = read_features(args.features)
     records = records_from_tables(read_tables(args.processed))
     scenarios = scenarios_from_records(records)
-    mrf = partial(MRFMethod, C=args.C, tol=args.tol, max_iter=args.max_iter)
+    mrf = partial(MRFMethod, C=args.C, tol=args.tol, max_iter=args.max_iter, n_slacks=args.n_slacks,
+                  store=_store(args))
     methods = {
         "chance": partial(ChanceMethod, seed=args.chance_seed),
         "multiclass": partial(MulticlassMethod, C=args.multiclass_C),
@@ -523,9 +573,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--output", type=Path, default=Path("data/features"), help="feature folder (replaced)")
 
     def training_options(p: argparse.ArgumentParser) -> None:
-        p.add_argument("--C", type=float, default=1.0, help="slack weight, C * sum of slacks (default 1.0)")
+        p.add_argument("--C", type=float, default=3.0, help="slack weight, C * sum of slacks (default 3.0)")
         p.add_argument("--tol", type=float, default=1e-3, help="relative primal-dual gap to stop at (default 1e-3)")
         p.add_argument("--max-iter", type=int, default=2000, help="cutting-plane iterations at most (default 2000)")
+        p.add_argument("--n-slacks", type=int, default=4,
+                       help="slack groups of the cutting plane, one cut each per iteration; 1 is the classic "
+                            "1-slack algorithm, the optimum is the same for every value (default 4)")
+
+    def store_option(p: argparse.ArgumentParser) -> None:
+        p.add_argument("--model-store", type=Path, default=None,
+                       help="folder written by `taskseq folds`: models trained on the same steps with the same "
+                            "settings are loaded from it instead of trained again (default: train)")
 
     p = add("train", "fit the MRF weights with the 1-slack structural SVM on every step", _train)
     p.add_argument("--features", type=Path, default=Path("data/features"), help="feature folder")
@@ -558,6 +616,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--multiclass-C", type=float, default=1.0, help="C of the multiclass SVM")
     p.add_argument("--ranking-C", type=float, default=1.0, help="C of the role-ranking SVMs (symb-plan-svm)")
     training_options(p)
+    store_option(p)
     p.add_argument("--max-steps", type=int, default=20, help="step cap of closed-loop runs")
     p.add_argument("--n-jobs", type=int, default=1, help="folds run in parallel (joblib)")
     p.add_argument("--recordings", type=int, default=0,
@@ -571,6 +630,7 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--group-by", choices=("scenario", "environment"), default="scenario")
         p.add_argument("--fold-seed", type=int, default=0, help="seed of the fold assignment")
         training_options(p)
+        store_option(p)
         p.add_argument("--max-steps", type=int, default=20, help="step cap of closed-loop runs")
         p.add_argument("--n-jobs", type=int, default=1, help="folds run in parallel (joblib)")
         p.add_argument("--output", type=Path, default=Path("reports"), help="folder for CSV and PNG")
@@ -592,8 +652,22 @@ def build_parser() -> argparse.ArgumentParser:
     p = add("recipes", "chain programs into recipes in environments held out from training", _recipes)
     p.add_argument("--features", type=Path, default=Path("data/features"), help="feature folder")
     training_options(p)
+    store_option(p)
     p.add_argument("--max-steps", type=int, default=20, help="step cap of each program")
     p.add_argument("--output", type=Path, default=Path("reports"), help="folder for recipes.json")
+
+    p = add("folds", "train every MRF model the evaluation stages use, once, into a model store", _folds)
+    p.add_argument("--features", type=Path, default=Path("data/features"), help="feature folder")
+    p.add_argument("--processed", type=Path, default=Path("data/processed"), help="folder of Parquet tables")
+    p.add_argument("--folds", type=int, default=6, help="number of cross-validation folds (default 6)")
+    p.add_argument("--group-by", choices=("scenario", "environment"), default="scenario",
+                   help="keep whole scenarios, or whole environments, in one fold")
+    p.add_argument("--seed", type=int, default=0, help="seed of the fold assignment")
+    training_options(p)
+    p.add_argument("--n-jobs", type=int, default=os.cpu_count() or 1,
+                   help="models trained in parallel (joblib; default: one per CPU)")
+    p.add_argument("--output", type=Path, required=True, help="model store folder to write (replaced)")
+    p.add_argument("--metrics", type=Path, default=None, help="training times and objectives (JSON)")
 
     p = add("report", "write reports/summary.md: every result next to the paper's figures", _report)
     p.add_argument("--reports", type=Path, default=Path("reports"), help="folder of the stages' results")
@@ -613,7 +687,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 # Pipeline stages: each opens one MLflow run (see pipeline/track/mlflow_runs.py).
-STAGES = ("generate", "ingest", "features", "train", "pddl", "crossval", "noise", "feedback", "recipes", "report")
+STAGES = ("generate", "ingest", "features", "train", "pddl", "folds", "crossval", "noise", "feedback", "recipes",
+          "report")
 
 
 class _StageFailed(Exception):

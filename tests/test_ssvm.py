@@ -1,4 +1,5 @@
-"""The 1-slack SSVM: the optimum of its QP, the scikit-learn equivalence, convergence."""
+"""The cutting-plane SSVM: the optimum of the full QP for every slack grouping, the working-set QP,
+the scikit-learn equivalence, convergence."""
 
 import itertools
 
@@ -8,7 +9,7 @@ import pytest
 from sklearn.svm import LinearSVC
 
 from pipeline.learn.multiclass import MulticlassModel
-from pipeline.learn.ssvm import OneSlackSSVM
+from pipeline.learn.ssvm import CuttingPlaneSSVM
 
 
 class PairModel:
@@ -69,7 +70,7 @@ def toy():
 def test_reaches_the_optimum_of_the_full_qp(toy):
     model, X, Y = toy
     C, tol = 2.0, 1e-5
-    ssvm = OneSlackSSVM(model, C=C, tol=tol, max_iter=500).fit(X, Y)
+    ssvm = CuttingPlaneSSVM(model, C=C, tol=tol, max_iter=500).fit(X, Y)
     optimum = brute_force_optimum(model, X, Y, C)
     assert ssvm.converged_
     assert ssvm.dual_objective_ <= optimum + 1e-6 * abs(optimum)
@@ -77,9 +78,44 @@ def test_reaches_the_optimum_of_the_full_qp(toy):
     assert ssvm.primal_objective_ - optimum <= 2 * tol * max(1.0, abs(optimum))
 
 
+@pytest.mark.parametrize("n_slacks", [1, 3, 12])
+def test_every_slack_grouping_reaches_the_same_optimum(toy, n_slacks):
+    model, X, Y = toy
+    C = 2.0
+    optimum = brute_force_optimum(model, X, Y, C)
+    ssvm = CuttingPlaneSSVM(model, C=C, tol=1e-9, max_iter=2000, n_slacks=n_slacks).fit(X, Y)
+    assert ssvm.converged_
+    assert ssvm.primal_objective_ == pytest.approx(optimum, rel=1e-6)
+    assert ssvm.dual_objective_ <= optimum + 1e-6 * abs(optimum)
+
+
+def test_working_set_dual_matches_a_direct_cvxpy_solve():
+    """The pairwise solver of the working-set QP against the same QP stated in cvxpy."""
+    from pipeline.learn.working_set import WorkingSet
+
+    rng = np.random.default_rng(7)
+    K, d, B, C = 40, 15, 3, 2.5
+    base = rng.normal(size=(5, d))
+    deltas = rng.normal(size=(K, 5)) @ base + 0.1 * rng.normal(size=(K, d))  # nearly parallel cuts, as in training
+    losses = rng.uniform(1.0, 20.0, size=K)
+    groups = rng.integers(B, size=K)
+    ws = WorkingSet(d, B, C)
+    ws.add(deltas[:25], losses[:25], groups[:25], iteration=1)
+    ws.solve(1e-10)
+    ws.add(deltas[25:], losses[25:], groups[25:], iteration=2)  # warm start from the previous optimum
+    ws.solve(1e-10)
+    a = cp.Variable(K)
+    cons = [a >= 0] + [cp.sum(a[groups == g]) <= C for g in range(B)]
+    prob = cp.Problem(cp.Maximize(losses @ a - 0.5 * cp.sum_squares(deltas.T @ a)), cons)
+    prob.solve(solver=cp.CLARABEL)
+    assert ws.dual() == pytest.approx(prob.value, rel=1e-7)
+    assert np.all(ws.alpha >= 0)
+    assert all(ws.alpha[groups == g].sum() <= C * (1 + 1e-12) for g in range(B))
+
+
 def test_bounds_move_monotonically_and_the_gap_closes(toy):
     model, X, Y = toy
-    ssvm = OneSlackSSVM(model, C=2.0, tol=1e-5, max_iter=500, inactive_window=0).fit(X, Y)
+    ssvm = CuttingPlaneSSVM(model, C=2.0, tol=1e-5, max_iter=500, inactive_window=0).fit(X, Y)
     hist = ssvm.history_
     best = [h.best_primal for h in hist]
     dual = [h.dual for h in hist]
@@ -97,7 +133,7 @@ def test_multiclass_matches_linearsvc_crammer_singer():
     y = rng.integers(k, size=n)
     X = centers[y] + rng.normal(size=(n, d))
     C = 0.3
-    ssvm = OneSlackSSVM(MulticlassModel(d, k), C=C, tol=1e-7, max_iter=5000).fit(list(X), list(y))
+    ssvm = CuttingPlaneSSVM(MulticlassModel(d, k), C=C, tol=1e-7, max_iter=5000).fit(list(X), list(y))
     svc = LinearSVC(multi_class="crammer_singer", fit_intercept=False, C=C, tol=1e-10, max_iter=200000).fit(X, y)
     w_svc = svc.coef_.ravel()
 
@@ -114,6 +150,8 @@ def test_multiclass_matches_linearsvc_crammer_singer():
 def test_bad_arguments_are_refused(toy):
     model, X, Y = toy
     with pytest.raises(ValueError, match="C must be positive"):
-        OneSlackSSVM(model, C=0).fit(X, Y)
+        CuttingPlaneSSVM(model, C=0).fit(X, Y)
     with pytest.raises(ValueError, match="examples"):
-        OneSlackSSVM(model).fit(X, Y[:-1])
+        CuttingPlaneSSVM(model).fit(X, Y[:-1])
+    with pytest.raises(ValueError, match="n_slacks"):
+        CuttingPlaneSSVM(model, n_slacks=0).fit(X, Y)

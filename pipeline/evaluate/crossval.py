@@ -103,7 +103,7 @@ def judge(scenario: Scenario, program) -> SequenceOutcome:
 def run_fold(make: Callable[[], Method], fold: int, contexts: list[StepContext], meta: list[StepMeta],
              scenarios: dict[str, Scenario], test_scenarios: set[str], max_steps: int,
              demos: Demonstrations | None = None, keep_programs: frozenset[str] = frozenset()) -> FoldResult:
-    train_index = [i for i, m in enumerate(meta) if m.scenario_id not in test_scenarios]
+    train_index = training_index(meta, test_scenarios)
     test_index = [i for i, m in enumerate(meta) if m.scenario_id in test_scenarios]
     method = make().fit([contexts[i] for i in train_index], [meta[i] for i in train_index])
     predictions = method.predict_steps([contexts[i] for i in test_index], [meta[i] for i in test_index], demos)
@@ -118,6 +118,11 @@ def run_fold(make: Callable[[], Method], fold: int, contexts: list[StepContext],
         if sid in keep_programs:
             programs[sid] = (program.steps, program.status)
     return FoldResult(method.name, fold, test_index, predictions, outcomes, programs)
+
+
+def training_index(meta: list[StepMeta], test_scenarios: set[str]) -> list[int]:
+    """The steps a fold trains on: every step of a scenario outside its test set."""
+    return [i for i, m in enumerate(meta) if m.scenario_id not in test_scenarios]
 
 
 def scenario_folds(scenarios: dict[str, Scenario], n_folds: int, seed: int, group_by: str) -> list[set[str]]:

@@ -16,6 +16,7 @@ from sklearn.svm import LinearSVC
 from ..features.context import N_PRIM, OBJECT_COLUMNS, StepContext, step_context
 from ..features.dataset import StepMeta
 from ..learn.mrf import MRFModel, candidate_index
+from ..learn.store import ModelStore, training_key
 from ..learn.train import fit_mrf
 from ..plan.planner import Program, plan, run_loop
 from ..plan.symbolic.executor import first_action, run_symbolic
@@ -109,20 +110,39 @@ class MulticlassMethod:
 
 @dataclass
 class MRFMethod:
-    """The paper's model with a choice of feature families."""
+    """The paper's model with a choice of feature families.
+
+    With a `store` folder (written by the `folds` stage), a model already
+    trained on the same steps with the same settings is loaded, not retrained.
+    """
 
     features: str = "full"
-    C: float = 1.0
+    C: float = 3.0
     tol: float = 1e-3
     max_iter: int = 2000
+    n_slacks: int = 4
     name: str = "full"
     predicts_args: bool = True
+    store: str | None = None
+
+    def learner_params(self) -> dict[str, float | int]:
+        """The settings that change the weights (and so address a stored model)."""
+        return {"C": self.C, "tol": self.tol, "max_iter": self.max_iter, "n_slacks": self.n_slacks}
+
+    def key(self, contexts: list[StepContext]) -> str:
+        return training_key(self.features, self.learner_params(), contexts)
 
     def fit(self, contexts: list[StepContext], meta: list[StepMeta]) -> MRFMethod:
-        fit = fit_mrf(contexts, self.features, C=self.C, tol=self.tol, max_iter=self.max_iter)
+        stored = ModelStore(self.store).load(self.key(contexts)) if self.store else None
+        if stored is not None:
+            self.model_, self.w_ = stored
+            self.fit_ = None
+            return self
+        fit = fit_mrf(contexts, self.features, C=self.C, tol=self.tol, max_iter=self.max_iter,
+                      n_slacks=self.n_slacks)
         self.model_: MRFModel = fit.model
         self.w_ = fit.w
-        self.n_iter_ = fit.ssvm.n_iter_
+        self.fit_ = fit
         return self
 
     def predict_steps(self, contexts: list[StepContext], meta=None, demos=None) -> list[Y]:

@@ -110,16 +110,22 @@ def run_recipe(method: MRFMethod, recipe: Recipe, feedback: bool, max_steps: int
     return RecipeOutcome(recipe.name, recipe.env_id, feedback, ok, programs)
 
 
+def recipe_training_sets(meta: list[StepMeta]) -> dict[str, list[int]]:
+    """Per recipe kind, the training steps: every step outside the kind's environments."""
+    out = {}
+    for name in dict.fromkeys(r.name for r in RECIPES):
+        held_out = {r.env_id for r in RECIPES if r.name == name}
+        out[name] = [i for i, m in enumerate(meta) if m.scenario_id.split("/")[0] not in held_out]
+    return out
+
+
 def evaluate_recipes(make: Callable[[], MRFMethod], contexts: list[StepContext], meta: list[StepMeta],
                      max_steps: int = 20) -> list[RecipeOutcome]:
-    """Train once per recipe kind, without the kind's three environments, and run each recipe."""
+    """Train (or load) once per recipe kind, without the kind's three environments, and run each recipe."""
     out = []
-    for name in dict.fromkeys(r.name for r in RECIPES):
-        recipes = [r for r in RECIPES if r.name == name]
-        held_out = {r.env_id for r in recipes}
-        train = [i for i, m in enumerate(meta) if m.scenario_id.split("/")[0] not in held_out]
+    for name, train in recipe_training_sets(meta).items():
         method = make().fit([contexts[i] for i in train], [meta[i] for i in train])
-        for recipe in recipes:
+        for recipe in (r for r in RECIPES if r.name == name):
             for feedback in (False, True):
                 out.append(run_recipe(method, recipe, feedback, max_steps))
     return out

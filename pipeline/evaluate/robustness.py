@@ -17,7 +17,7 @@ from ..features.dataset import StepMeta
 from ..plan.planner import plan
 from ..sim.objects import BINARY_ATTRIBUTES
 from ..sim.primitives import Action
-from .crossval import Scenario, judge, scenario_folds
+from .crossval import Scenario, judge, scenario_folds, training_index
 from .methods import MRFMethod
 
 BINARY_COLUMNS = np.array([OBJECT_COLUMNS.index(a) for a in BINARY_ATTRIBUTES])
@@ -69,7 +69,7 @@ class Condition:
 
 
 def _fold(make, fold: int, contexts, meta, scenarios, test, conditions, max_steps, seed):
-    train = [i for i, m in enumerate(meta) if m.scenario_id not in test]
+    train = training_index(meta, test)
     method: MRFMethod = make().fit([contexts[i] for i in train], [meta[i] for i in train])
     out = []
     for c in conditions:

@@ -125,6 +125,8 @@ class StepBatch:
     collide: np.ndarray  # (S, N, N)
     valid: np.ndarray  # (S, N) bool
     pair_valid: np.ndarray  # (S, N, N) bool: both objects present and different
+    valid_neg: np.ndarray  # (S, N): 0 where an object is present, -inf in the padding
+    pair_neg: np.ndarray  # (S, N, N): 0 where `pair_valid`, else -inf
     task: np.ndarray  # (S,)
     prev: np.ndarray  # (S, 2)
 
@@ -141,7 +143,9 @@ class StepBatch:
         task = np.array([x.task for x in steps])
         prev = np.array([x.prev_prims for x in steps])
         pair_valid = valid[:, :, None] & valid[:, None, :] & ~np.eye(N, dtype=bool)[None]
-        return cls(steps, objects, rel, hist, collide, valid, pair_valid, task, prev)
+        valid_neg = np.where(valid, 0.0, -np.inf)
+        pair_neg = np.where(pair_valid, 0.0, -np.inf)
+        return cls(steps, objects, rel, hist, collide, valid, pair_valid, valid_neg, pair_neg, task, prev)
 
 
 class _Batched:
@@ -169,7 +173,9 @@ class _Batched:
             if (wt := self._w(w, name)) is not None:
                 P += wt[b.task, b.prev[:, k]]
         holding = (b.objects[:, :, 0] > 0.5).any(axis=1)
-        U = []
+        K = b.objects.shape[2]
+        flat_objects, flat_hist = b.objects.reshape(S * N, K), b.hist.reshape(S * N, -1)
+        U = []  # per slot, (S, N_PRIM, N) as views of (S, N, N_PRIM) tables
         for s in (1, 2):
             unary = np.zeros((S, N))
             if (wt := self._w(w, f"ae{s}")) is not None:
@@ -178,12 +184,12 @@ class _Batched:
                 unary += np.matmul(b.task_rel, wt[b.task][:, :, None])[:, :, 0]
             if (wt := self._w(w, f"aet_obj{s}")) is not None:
                 unary += np.matmul(b.objects, wt[b.task, np.where(holding, 0, 1)][:, :, None])[:, :, 0]
-            table = np.repeat(unary[:, None, :], N_PRIM, axis=1)
+            table = np.repeat(unary[:, :, None], N_PRIM, axis=2)
             if (wt := self._w(w, f"pae{s}")) is not None:
-                table += np.matmul(b.objects, wt.T).transpose(0, 2, 1)
+                table += (flat_objects @ wt.T).reshape(S, N, N_PRIM)
             if (wt := self._w(w, f"paae{s}")) is not None:
-                table += np.matmul(b.hist, wt.T).transpose(0, 2, 1)
-            U.append(table)
+                table += (flat_hist @ wt.T).reshape(S, N, N_PRIM)
+            U.append(table.transpose(0, 2, 1))
         pair = None
         if (wt := self._w(w, "ae_pair")) is not None:
             pair = wt[0] * b.collide
@@ -199,22 +205,22 @@ class _Batched:
         best = np.empty((S, N_PRIM))
         arg1 = np.full((S, N_PRIM), -1)
         arg2 = np.full((S, N_PRIM), -1)
+        # a step's primitive term does not move its argmax over arguments: it is added to the maximum only
+        base = b.pair_neg if pair is None else pair + b.pair_neg
+        buf = np.empty((S, N, N))
         for p, arity in enumerate(ARITIES):
             if arity == 0:
                 best[:, p] = P[:, p] + none1 + none2
             elif arity == 1:
-                sc = P[:, p, None] + U[0][:, p] + l1 + none2[:, None]
-                sc[~b.valid] = -np.inf
+                sc = U[0][:, p] + l1 + b.valid_neg
                 a = sc.argmax(axis=1)
-                best[:, p], arg1[:, p] = sc[rows, a], a
+                best[:, p], arg1[:, p] = P[:, p] + sc[rows, a] + none2, a
             else:
-                sc = P[:, p, None, None] + (U[0][:, p] + l1)[:, :, None] + (U[1][:, p] + l2)[:, None, :]
-                if pair is not None:
-                    sc += pair
-                sc[~b.pair_valid] = -np.inf
-                flat = sc.reshape(S, -1)
+                np.add(base, (U[1][:, p] + l2)[:, None, :], out=buf)
+                buf += (U[0][:, p] + l1)[:, :, None]
+                flat = buf.reshape(S, -1)
                 a = flat.argmax(axis=1)
-                best[:, p] = flat[rows, a]
+                best[:, p] = P[:, p] + flat[rows, a]
                 arg1[:, p], arg2[:, p] = np.divmod(a, N)
         prim = best.argmax(axis=1)
         return [(int(prim[s]), int(arg1[s, prim[s]]), int(arg2[s, prim[s]])) for s in rows]
@@ -225,48 +231,50 @@ class _Batched:
     def batch_loss_augmented_inference(self: MRFModel, X: list[StepContext], Y_: list[Y], w: np.ndarray) -> list[Y]:  # type: ignore[misc]
         return self._batch_best(self._batch(X), w, np.asarray(Y_, dtype=np.int64))
 
-    def batch_joint_feature(self: MRFModel, X: list[StepContext], Y_: list[Y]) -> np.ndarray:  # type: ignore[misc]
-        """Sum of the joint features of (x_i, y_i), computed block by block."""
+    def batch_joint_feature(self: MRFModel, X: list[StepContext], Y_: list[Y], groups: np.ndarray | None = None,  # type: ignore[misc]
+                            n_groups: int = 1) -> np.ndarray:
+        """Joint features of (x_i, y_i) summed block by block: (d,), or (n_groups, d) summed within `groups`."""
         b = self._batch(X)
         y = np.asarray(Y_, dtype=np.int64)
-        out = np.zeros(self.size_joint_feature)
         S = len(y)
+        grp = np.zeros(S, dtype=np.int64) if groups is None else np.asarray(groups, dtype=np.int64)
+        out = np.zeros((n_groups, self.size_joint_feature))
         rows = np.arange(S)
         p = y[:, 0]
 
         def view(name: str) -> np.ndarray | None:
             sl = self._slices.get(name)
-            return None if sl is None else out[sl[0] : sl[1]].reshape(sl[2])
+            return None if sl is None else out[:, sl[0] : sl[1]].reshape((n_groups, *sl[2]))
 
         if (v := view("pt")) is not None:
-            np.add.at(v, (b.task, p), 1.0)
+            np.add.at(v, (grp, b.task, p), 1.0)
         for k, name in enumerate(("ppt1", "ppt2")):
             if (v := view(name)) is not None:
-                np.add.at(v, (b.task, b.prev[:, k], p), 1.0)
+                np.add.at(v, (grp, b.task, b.prev[:, k], p), 1.0)
+        holding = (b.objects[:, :, 0] > 0.5).any(axis=1)
         for s in (1, 2):
             a = y[:, s]
             sel = a >= 0
-            r, a_sel, t_sel, p_sel = rows[sel], a[sel], b.task[sel], p[sel]
+            r, a_sel, t_sel, p_sel, g_sel = rows[sel], a[sel], b.task[sel], p[sel], grp[sel]
             obj = b.objects[r, a_sel]
             if (v := view(f"ae{s}")) is not None:
-                v += obj[:, list(_AE_COLS)].sum(axis=0)
+                np.add.at(v, g_sel, obj[:, list(_AE_COLS)])
             if (v := view(f"aet_rel{s}")) is not None:
-                np.add.at(v, t_sel, b.task_rel[r, a_sel])
+                np.add.at(v, (g_sel, t_sel), b.task_rel[r, a_sel])
             if (v := view(f"aet_obj{s}")) is not None:
-                holding = (b.objects[r, :, 0] > 0.5).any(axis=1)
-                np.add.at(v, (t_sel, np.where(holding, 0, 1)), obj)
+                np.add.at(v, (g_sel, t_sel, np.where(holding[r], 0, 1)), obj)
             if (v := view(f"pae{s}")) is not None:
-                np.add.at(v, p_sel, obj)
+                np.add.at(v, (g_sel, p_sel), obj)
             if (v := view(f"paae{s}")) is not None:
-                np.add.at(v, p_sel, b.hist[r, a_sel])
+                np.add.at(v, (g_sel, p_sel), b.hist[r, a_sel])
         if (v := view("ae_pair")) is not None:
             both = (y[:, 1] >= 0) & (y[:, 2] >= 0)
-            v[0] += b.collide[rows[both], y[both, 1], y[both, 2]].sum()
-        return out
+            np.add.at(v[:, 0], grp[both], b.collide[rows[both], y[both, 1], y[both, 2]].astype(float))
+        return out[0] if groups is None else out
 
 
 class MRFModel(_Batched):
-    """Structured model of one step for `OneSlackSSVM`; x is a `StepContext`, y is (p, a1, a2).
+    """Structured model of one step for `CuttingPlaneSSVM`; x is a `StepContext`, y is (p, a1, a2).
 
     `features` picks the families: "full", "edge" (ae, pt) or "clique" (aet, pae, ppt, paae).
     """

@@ -1,6 +1,8 @@
 """Model files: NumPy .npz holding only arrays and JSON text, loadable with allow_pickle=False.
 
-A model file from someone else cannot run code when it is loaded.
+A model file from someone else cannot run code when it is loaded. The zip
+entries carry a fixed date, so the same weights give the same bytes (and the
+same hash in `dvc.lock`) on every run.
 """
 
 from __future__ import annotations
@@ -8,6 +10,7 @@ from __future__ import annotations
 import json
 import os
 import tempfile
+import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -22,11 +25,15 @@ def save_model(path: Path | str, model: MRFModel, w: np.ndarray, params: dict[st
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     meta = {"format": FORMAT, "features": model.features, **params}
+    arrays = {"w": np.asarray(w, dtype=np.float64), "feature_names": np.array(model.feature_names()),
+              "meta": np.array(json.dumps(meta, sort_keys=True))}
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".npz", dir=path.parent)
     os.close(fd)
     try:
-        np.savez(tmp, w=np.asarray(w, dtype=np.float64), feature_names=np.array(model.feature_names()),
-                 meta=np.array(json.dumps(meta, sort_keys=True)))
+        with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_STORED) as z:
+            for name, array in arrays.items():
+                with z.open(zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0)), "w") as fh:
+                    np.lib.format.write_array(fh, array, allow_pickle=False)
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
@@ -38,12 +45,14 @@ def load_model(path: Path | str) -> tuple[MRFModel, np.ndarray, dict[str, Any]]:
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such model file (run `dvc repro train` or `taskseq train`)")
-    with np.load(path, allow_pickle=False) as z:
-        try:
+    try:
+        with np.load(path, allow_pickle=False) as z:
             meta = json.loads(str(z["meta"]))
             w, names = z["w"], [str(n) for n in z["feature_names"]]
-        except KeyError as err:
-            raise ValueError(f"{path}: not a taskseq model file (missing {err.args[0]})") from None
+    except KeyError as err:
+        raise ValueError(f"{path}: not a taskseq model file (missing {err.args[0]})") from None
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as err:
+        raise ValueError(f"{path}: not a readable taskseq model file ({err})") from None
     if meta.get("format") != FORMAT:
         raise ValueError(f"{path}: format {meta.get('format')!r}, expected {FORMAT!r}")
     model = MRFModel(meta["features"])

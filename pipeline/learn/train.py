@@ -10,13 +10,13 @@ from tqdm import tqdm
 
 from ..features.context import StepContext
 from .mrf import MRFModel
-from .ssvm import OneSlackSSVM
+from .ssvm import CuttingPlaneSSVM
 
 
 @dataclass
 class Fit:
     model: MRFModel
-    ssvm: OneSlackSSVM
+    ssvm: CuttingPlaneSSVM
     seconds: float
 
     @property
@@ -24,8 +24,8 @@ class Fit:
         return self.ssvm.w_
 
 
-def fit_mrf(contexts: list[StepContext], features: str = "full", C: float = 1.0, tol: float = 1e-3,
-            max_iter: int = 2000, progress: bool = False) -> Fit:
+def fit_mrf(contexts: list[StepContext], features: str = "full", C: float = 3.0, tol: float = 1e-3,
+            max_iter: int = 2000, n_slacks: int = 4, progress: bool = False) -> Fit:
     model = MRFModel(features)
     # a bar on a terminal only: logs of CI and DVC stay readable
     bar = tqdm(total=max_iter, desc=f"ssvm {features}", unit="it", disable=None if progress else True,
@@ -36,7 +36,7 @@ def fit_mrf(contexts: list[StepContext], features: str = "full", C: float = 1.0,
         bar.set_postfix(gap=f"{it.gap:.3g}", constraints=it.n_constraints)
 
     start = time.perf_counter()
-    ssvm = OneSlackSSVM(model, C=C, tol=tol, max_iter=max_iter, progress=tick)
+    ssvm = CuttingPlaneSSVM(model, C=C, tol=tol, max_iter=max_iter, n_slacks=n_slacks, progress=tick)
     try:
         ssvm.fit(contexts, [x.gold for x in contexts])
     finally:

@@ -1,0 +1,55 @@
+"""Fitted models addressed by what they were fitted on, so that each is trained once.
+
+Cross-validation, attribute noise, feedback and recipes all need the MRF
+trained on the same training folds with the same settings. The `folds` stage
+trains every one of them once and writes them here; a later stage asks for the
+model of its own training steps and settings and gets the stored one. The
+address is a hash of the feature set, every learner setting that changes the
+weights and the training steps themselves, so a store written for other data
+or other settings can never be served by mistake: a miss means "train".
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..features.context import StepContext
+from .mrf import MRFModel
+from .persist import load_model, save_model
+
+
+def training_key(features: str, params: dict[str, Any], contexts: Sequence[StepContext]) -> str:
+    """sha256 of the feature set, the learner's settings and every array of every training step."""
+    h = hashlib.sha256()
+    h.update(json.dumps({"features": features, **params}, sort_keys=True).encode())
+    for x in contexts:
+        h.update(json.dumps([x.object_ids, x.task, list(x.prev_prims), list(x.prev_args), list(x.gold)]).encode())
+        for a in (x.objects, x.task_rel, x.collide):
+            h.update(np.ascontiguousarray(a).tobytes())
+    return h.hexdigest()
+
+
+class ModelStore:
+    """A folder of `<key>.npz` model files (see `persist`), one per training set and settings."""
+
+    def __init__(self, directory: Path | str) -> None:
+        self.directory = Path(directory)
+
+    def path(self, key: str) -> Path:
+        return self.directory / f"{key}.npz"
+
+    def load(self, key: str) -> tuple[MRFModel, np.ndarray] | None:
+        path = self.path(key)
+        if not path.exists():
+            return None
+        model, w, _ = load_model(path)
+        return model, w
+
+    def save(self, key: str, model: MRFModel, w: np.ndarray, meta: dict[str, Any]) -> None:
+        save_model(self.path(key), model, w, meta)

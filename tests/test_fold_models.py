@@ -1,0 +1,83 @@
+"""Fold models are trained once by the `folds` stage and served to every evaluation stage."""
+
+from functools import partial
+
+import pytest
+
+import pipeline.evaluate.methods as methods_module
+from pipeline.evaluate.crossval import Demonstrations, cross_validate, scenarios_from_records
+from pipeline.evaluate.fold_models import train_fold_models, training_jobs
+from pipeline.evaluate.methods import MRFMethod
+from pipeline.evaluate.recipes import evaluate_recipes
+from pipeline.evaluate.robustness import Condition, evaluate_conditions
+from pipeline.features.dataset import build_steps
+from pipeline.learn.train import fit_mrf
+
+SETTINGS = {"C": 3.0, "tol": 1e-2, "max_iter": 300, "n_slacks": 2}
+
+
+@pytest.fixture(scope="module")
+def small(benchmark_tables):
+    records = [i.record for i in benchmark_tables[1] if i.record["env_id"] in ("env01", "env02", "env03")]
+    contexts, meta = build_steps(records)
+    return records, contexts, meta, scenarios_from_records(records)
+
+
+@pytest.fixture(scope="module")
+def store(small, tmp_path_factory):
+    records, contexts, meta, scenarios = small
+    jobs = training_jobs(meta, scenarios, n_folds=2, seed=0, group_by="scenario")
+    out = tmp_path_factory.mktemp("store") / "folds"
+    fitted = train_fold_models(partial(MRFMethod, **SETTINGS), contexts, meta, jobs, out, n_jobs=1)
+    return out, jobs, fitted
+
+
+@pytest.fixture
+def count_fits(monkeypatch):
+    calls = []
+
+    def counting(*args, **kwargs):
+        calls.append(kwargs.get("n_slacks"))
+        return fit_mrf(*args, **kwargs)
+
+    monkeypatch.setattr(methods_module, "fit_mrf", counting)
+    return calls
+
+
+def test_each_distinct_model_is_trained_once_and_indexed(store):
+    out, jobs, fitted = store
+    assert len(jobs) == 3 * 2 + 4  # three feature sets x two folds, four recipe kinds
+    assert len({r["key"] for r in fitted}) == len(fitted)
+    assert sum(len(r["uses"]) for r in fitted) == len(jobs)  # identical training sets share one model
+    assert all(r["converged"] for r in fitted)
+    assert sorted(p.name for p in out.iterdir()) == sorted([*(f"{r['key']}.npz" for r in fitted), "index.json"])
+
+
+def test_evaluation_stages_load_the_stored_models_without_training(small, store, count_fits):
+    records, contexts, meta, scenarios = small
+    out, _, _ = store
+    mrf = partial(MRFMethod, **SETTINGS, store=str(out))
+    methods = {"full": partial(mrf, "full", name="full"), "only_edge": partial(mrf, "edge", name="only_edge")}
+    cross_validate(methods, contexts, meta, scenarios, Demonstrations.from_records(records), n_folds=2)
+    evaluate_conditions(partial(mrf, "full"), contexts, meta, scenarios, [Condition("noise", 0.1, 0)], n_folds=2,
+                        fold_seed=0, group_by="scenario", max_steps=20, seed=0, n_jobs=1)
+    evaluate_recipes(partial(mrf, "full"), contexts, meta)
+    assert count_fits == []
+
+
+def test_other_settings_are_never_served_from_the_store(small, store, count_fits):
+    records, contexts, meta, scenarios = small
+    out, _, _ = store
+    other = MRFMethod("full", **{**SETTINGS, "n_slacks": 1}, store=str(out))
+    train = [i for i, m in enumerate(meta) if m.scenario_id != meta[0].scenario_id]
+    other.fit([contexts[i] for i in train], [meta[i] for i in train])
+    assert count_fits == [1]
+
+
+def test_the_store_is_the_same_bytes_whether_trained_serially_or_in_parallel(small, store, tmp_path):
+    records, contexts, meta, scenarios = small
+    out, jobs, _ = store
+    again = tmp_path / "folds"
+    train_fold_models(partial(MRFMethod, **SETTINGS), contexts, meta, jobs, again, n_jobs=2)
+    for path in out.iterdir():
+        assert (again / path.name).read_bytes() == path.read_bytes(), path.name
