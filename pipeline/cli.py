@@ -604,13 +604,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--top-k", type=int, default=3, help="candidates shown per step (default 3)")
     p.add_argument("--json", action="store_true", help="print the program as JSON")
 
+    def fold_options(p: argparse.ArgumentParser) -> None:
+        """Inputs and fold assignment, shared by `crossval` and `folds` so their folds agree."""
+        p.add_argument("--features", type=Path, default=Path("data/features"), help="feature folder")
+        p.add_argument("--processed", type=Path, default=Path("data/processed"), help="folder of Parquet tables")
+        p.add_argument("--folds", type=int, default=6, help="number of folds (default 6)")
+        p.add_argument("--group-by", choices=("scenario", "environment"), default="scenario",
+                       help="keep whole scenarios, or whole environments (unseen environments), in one fold")
+        p.add_argument("--seed", type=int, default=0, help="seed of the fold assignment")
+
     p = add("crossval", "cross-validate every method and write Table I, metrics and a confusion matrix", _crossval)
-    p.add_argument("--features", type=Path, default=Path("data/features"), help="feature folder")
-    p.add_argument("--processed", type=Path, default=Path("data/processed"), help="folder of Parquet tables")
-    p.add_argument("--folds", type=int, default=6, help="number of folds (default 6)")
-    p.add_argument("--group-by", choices=("scenario", "environment"), default="scenario",
-                   help="keep whole scenarios, or whole environments (unseen environments), in one fold")
-    p.add_argument("--seed", type=int, default=0, help="seed of the fold assignment")
+    fold_options(p)
     p.add_argument("--methods", nargs="+", default=list(METHOD_LABELS), help="methods to run")
     p.add_argument("--chance-seed", type=int, default=0, help="seed of the chance baseline")
     p.add_argument("--multiclass-C", type=float, default=1.0, help="C of the multiclass SVM")
@@ -657,12 +661,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--output", type=Path, default=Path("reports"), help="folder for recipes.json")
 
     p = add("folds", "train every MRF model the evaluation stages use, once, into a model store", _folds)
-    p.add_argument("--features", type=Path, default=Path("data/features"), help="feature folder")
-    p.add_argument("--processed", type=Path, default=Path("data/processed"), help="folder of Parquet tables")
-    p.add_argument("--folds", type=int, default=6, help="number of cross-validation folds (default 6)")
-    p.add_argument("--group-by", choices=("scenario", "environment"), default="scenario",
-                   help="keep whole scenarios, or whole environments, in one fold")
-    p.add_argument("--seed", type=int, default=0, help="seed of the fold assignment")
+    fold_options(p)
     training_options(p)
     p.add_argument("--n-jobs", type=int, default=os.cpu_count() or 1,
                    help="models trained in parallel (joblib; default: one per CPU)")
