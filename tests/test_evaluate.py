@@ -5,11 +5,12 @@ import re
 import numpy as np
 import pytest
 
-from pipeline.evaluate.crossval import FoldResult, SequenceOutcome, run_fold, scenario_folds, scenarios_from_records
+from pipeline.evaluate.crossval import FoldResult, SequenceOutcome, run_fold, scenario_folds
 from pipeline.evaluate.folds import grouped_folds
 from pipeline.evaluate.methods import ChanceMethod, MulticlassMethod
 from pipeline.evaluate.metrics import step_accuracy, summarize
 from pipeline.features.context import StepContext
+from pipeline.logs.benchmark import Benchmark
 from pipeline.report.tables import table_rows, to_csv, to_latex, to_markdown
 from pipeline.sim.primitives import ALL_PRIMITIVES
 
@@ -30,7 +31,7 @@ def test_grouped_folds_cover_everything_once_and_never_split_a_group():
 
 @pytest.fixture(scope="module")
 def scenarios(benchmark_tables):
-    return scenarios_from_records([i.record for i in benchmark_tables[1]])
+    return Benchmark.from_records([i.record for i in benchmark_tables[1]]).scenarios
 
 
 @pytest.mark.parametrize("group_by", ["scenario", "environment"])

@@ -5,13 +5,15 @@ from functools import partial
 import pytest
 
 import pipeline.evaluate.methods as methods_module
-from pipeline.evaluate.crossval import Demonstrations, cross_validate, scenarios_from_records
+from pipeline.evaluate.crossval import cross_validate
 from pipeline.evaluate.fold_models import train_fold_models, training_jobs
 from pipeline.evaluate.methods import MRFMethod
 from pipeline.evaluate.recipes import evaluate_recipes
 from pipeline.evaluate.robustness import Condition, evaluate_conditions
 from pipeline.features.dataset import build_steps
 from pipeline.learn.train import fit_mrf
+from pipeline.logs.benchmark import Benchmark
+from pipeline.settings import Folds
 
 SETTINGS = {"C": 3.0, "tol": 1e-2, "max_iter": 300, "n_slacks": 2}
 
@@ -20,7 +22,7 @@ SETTINGS = {"C": 3.0, "tol": 1e-2, "max_iter": 300, "n_slacks": 2}
 def small(benchmark_tables):
     records = [i.record for i in benchmark_tables[1] if i.record["env_id"] in ("env01", "env02", "env03")]
     contexts, meta = build_steps(records)
-    return records, contexts, meta, scenarios_from_records(records)
+    return records, contexts, meta, Benchmark.from_records(records).scenarios
 
 
 @pytest.fixture(scope="module")
@@ -58,9 +60,9 @@ def test_evaluation_stages_load_the_stored_models_without_training(small, store,
     out, _, _ = store
     mrf = partial(MRFMethod, **SETTINGS, store=str(out))
     methods = {"full": partial(mrf, "full", name="full"), "only_edge": partial(mrf, "edge", name="only_edge")}
-    cross_validate(methods, contexts, meta, scenarios, Demonstrations.from_records(records), n_folds=2)
-    evaluate_conditions(partial(mrf, "full"), contexts, meta, scenarios, [Condition("noise", 0.1, 0)], n_folds=2,
-                        fold_seed=0, group_by="scenario", max_steps=20, seed=0, n_jobs=1)
+    cross_validate(methods, contexts, meta, Benchmark.from_records(records), n_folds=2)
+    evaluate_conditions(partial(mrf, "full"), contexts, meta, scenarios, [Condition("noise", 0.1, 0)],
+                        Folds(folds=2), max_steps=20)
     evaluate_recipes(partial(mrf, "full"), contexts, meta)
     assert count_fits == []
 

@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from pipeline.evaluate.crossval import scenarios_from_records
 from pipeline.evaluate.methods import MRFMethod
 from pipeline.evaluate.robustness import BINARY_COLUMNS, flip_masks, noisy_perception, observer
 from pipeline.features.context import step_context
+from pipeline.logs.benchmark import Benchmark
 from pipeline.plan.planner import plan
 from pipeline.sim.primitives import Action
 
@@ -16,7 +16,7 @@ def fitted(benchmark_steps, benchmark_tables):
     contexts, meta = benchmark_steps
     keep = [i for i, m in enumerate(meta) if m.sequence_id.startswith(("env01/", "env02/", "env03/"))]
     method = MRFMethod(C=5.0, tol=1e-3, max_iter=300).fit([contexts[i] for i in keep], [meta[i] for i in keep])
-    scenarios = scenarios_from_records([i.record for i in benchmark_tables[1]])
+    scenarios = Benchmark.from_records([i.record for i in benchmark_tables[1]]).scenarios
     return method, [s for sid, s in sorted(scenarios.items()) if sid.startswith(("env01/", "env02/", "env03/"))]
 
 

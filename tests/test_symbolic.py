@@ -5,8 +5,8 @@ from collections import deque
 import pytest
 from pddl import parse_domain, parse_problem
 
-from pipeline.evaluate.crossval import scenarios_from_records
 from pipeline.evaluate.methods import SymbolicMethod
+from pipeline.logs.benchmark import Benchmark
 from pipeline.plan.symbolic.executor import run_symbolic
 from pipeline.plan.symbolic.files import file_stem, write_pddl
 from pipeline.plan.symbolic.problem import build_problem, ground_actions
@@ -19,7 +19,7 @@ from tests.conftest import world
 
 @pytest.fixture(scope="module")
 def scenarios(benchmark_tables):
-    return scenarios_from_records([i.record for i in benchmark_tables[1]])
+    return Benchmark.from_records([i.record for i in benchmark_tables[1]]).scenarios
 
 
 def test_pddl_files_parse_with_a_standard_parser(scenarios, tmp_path):

@@ -4,49 +4,17 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
 
 from joblib import Parallel, delayed
 
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
-from ..logs.records import parse_record, state_from_dict
-from ..sim.primitives import Action
-from ..sim.state import WorldState
-from ..sim.tasks import Task
+from ..logs.benchmark import Benchmark
+from ..sim.scenarios import Scenario
 from .folds import grouped_folds
 from .methods import Method
 
 Y = tuple[int, int, int]
-
-
-@dataclass(frozen=True)
-class Scenario:
-    """What closed-loop evaluation needs of a scenario: where to start and what counts as right."""
-
-    id: str
-    env_id: str
-    task: Task
-    initial: WorldState
-    demonstrations: tuple[tuple[Action, ...], ...]
-
-
-@dataclass
-class Demonstrations:
-    """Every demonstrated world state by (sequence, step), and every sequence's actions."""
-
-    states: dict[tuple[str, int], WorldState]
-    actions: dict[str, tuple[Action, ...]]
-
-    @classmethod
-    def from_records(cls, records: list[dict[str, Any]]) -> Demonstrations:
-        states, actions = {}, {}
-        for rec in records:
-            specs, _, acts = parse_record(rec)
-            actions[rec["demo_id"]] = tuple(acts)
-            for k, st in enumerate([s["state"] for s in rec["steps"]] + [rec["final_state"]]):
-                states[(rec["demo_id"], k)] = state_from_dict(specs, st)
-        return cls(states, actions)
 
 
 @dataclass(frozen=True)
@@ -72,18 +40,6 @@ class FoldResult:
     programs: dict[str, tuple[list, str]] = field(default_factory=dict)  # kept for recordings: steps, status
 
 
-def scenarios_from_records(records: list[dict[str, Any]]) -> dict[str, Scenario]:
-    out: dict[str, Scenario] = {}
-    demos: dict[str, list[tuple[Action, ...]]] = {}
-    for rec in records:
-        specs, task, actions = parse_record(rec)
-        demos.setdefault(rec["scenario_id"], []).append(tuple(actions))
-        if rec["scenario_id"] not in out:
-            initial = state_from_dict(specs, rec["steps"][0]["state"])
-            out[rec["scenario_id"]] = Scenario(rec["scenario_id"], rec["env_id"], task, initial, ())
-    return {k: Scenario(s.id, s.env_id, s.task, s.initial, tuple(demos[k])) for k, s in out.items()}
-
-
 def judge(scenario: Scenario, program) -> SequenceOutcome:
     actions = tuple(program.actions)
     prims = tuple(a.primitive for a in actions)
@@ -102,7 +58,7 @@ def judge(scenario: Scenario, program) -> SequenceOutcome:
 
 def run_fold(make: Callable[[], Method], fold: int, contexts: list[StepContext], meta: list[StepMeta],
              scenarios: dict[str, Scenario], test_scenarios: set[str], max_steps: int,
-             demos: Demonstrations | None = None, keep_programs: frozenset[str] = frozenset()) -> FoldResult:
+             demos: Benchmark | None = None, keep_programs: frozenset[str] = frozenset()) -> FoldResult:
     train_index = training_index(meta, test_scenarios)
     test_index = [i for i, m in enumerate(meta) if m.scenario_id in test_scenarios]
     method = make().fit([contexts[i] for i in train_index], [meta[i] for i in train_index])
@@ -135,15 +91,16 @@ def scenario_folds(scenarios: dict[str, Scenario], n_folds: int, seed: int, grou
 
 
 def cross_validate(methods: dict[str, Callable[[], Method]], contexts: list[StepContext], meta: list[StepMeta],
-                   scenarios: dict[str, Scenario], demos: Demonstrations, n_folds: int = 6, seed: int = 0,
+                   bench: Benchmark, n_folds: int = 6, seed: int = 0,
                    group_by: str = "scenario", max_steps: int = 20, n_jobs: int = 1,
                    verbose: int = 0, keep_programs: dict[str, frozenset[str]] | None = None) -> list[FoldResult]:
     """`keep_programs` names, per method, the scenarios whose programs come back (for recordings)."""
+    scenarios = bench.scenarios
     folds = scenario_folds(scenarios, n_folds, seed, group_by)
     jobs = [(name, k) for name in methods for k in range(n_folds)]
     keep = keep_programs or {}
     return Parallel(n_jobs=n_jobs, verbose=verbose)(
-        delayed(run_fold)(methods[name], k, contexts, meta, scenarios, folds[k], max_steps, demos,
+        delayed(run_fold)(methods[name], k, contexts, meta, scenarios, folds[k], max_steps, bench,
                           keep.get(name, frozenset()))
         for name, k in jobs
     )

@@ -21,7 +21,8 @@ from ..features.context import StepContext
 from ..features.dataset import StepMeta
 from ..io import atomic_directory, write_json_atomic
 from ..learn.store import ModelStore
-from .crossval import Scenario, scenario_folds, training_index
+from ..sim.scenarios import Scenario
+from .crossval import scenario_folds, training_index
 from .methods import MRFMethod
 from .recipes import recipe_training_sets
 

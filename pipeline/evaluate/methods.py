@@ -7,39 +7,41 @@ is run closed-loop in the simulator from a scenario's initial state.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Protocol
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from functools import partial
+from typing import Protocol
 
 import numpy as np
 from sklearn.svm import LinearSVC
 
-from ..features.context import N_PRIM, OBJECT_COLUMNS, StepContext, step_context
+from ..features.context import N_PRIM, OBJECT_COLUMNS, StepContext, candidate_index, step_context
 from ..features.dataset import StepMeta
-from ..learn.mrf import MRFModel, candidate_index
+from ..learn.mrf import MRFModel
 from ..learn.store import ModelStore, training_key
 from ..learn.train import fit_mrf
+from ..logs.benchmark import Benchmark
 from ..plan.planner import Program, plan, run_loop
 from ..plan.symbolic.executor import first_action, run_symbolic
 from ..plan.symbolic.roles import ROLE_OF_TASK, RoleRanker, demonstrated_roles
+from ..settings import Crossval, Learner, Pddl
 from ..sim.primitives import Action
+from ..sim.scenarios import Scenario
 from ..sim.state import WorldState
 from ..sim.tasks import TASKS, Task
-
-if TYPE_CHECKING:
-    from .crossval import Demonstrations, Scenario
 
 Y = tuple[int, int, int]
 
 
 class Method(Protocol):
-    """`meta` says which sequence and step each context is; `demos` holds their world states."""
+    """`meta` says which sequence and step each context is; `demos` holds their world states and actions."""
 
     name: str
     predicts_args: bool
 
     def fit(self, contexts: list[StepContext], meta: list[StepMeta]) -> Method: ...
 
-    def predict_steps(self, contexts: list[StepContext], meta: list[StepMeta], demos: Demonstrations) -> list[Y]: ...
+    def predict_steps(self, contexts: list[StepContext], meta: list[StepMeta], demos: Benchmark) -> list[Y]: ...
 
     def run(self, scenario: Scenario, max_steps: int) -> Program | None: ...
 
@@ -173,6 +175,7 @@ class SymbolicMethod:
 
     goals: str = "manual"  # manual | svm
     C: float = 1.0
+    horizon: int = Pddl().horizon
     name: str = "symb_plan_manual"
     predicts_args: bool = True
 
@@ -204,15 +207,42 @@ class SymbolicMethod:
         X, ids = _role_candidates(step_context(initial, task, []))
         return {role: ids[self.rankers_[role].best(X)]}
 
-    def predict_steps(self, contexts: list[StepContext], meta: list[StepMeta], demos: Demonstrations) -> list[Y]:
+    def predict_steps(self, contexts: list[StepContext], meta: list[StepMeta], demos: Benchmark) -> list[Y]:
         out = []
         for x, m in zip(contexts, meta, strict=True):
             task = Task(TASKS[x.task], _task_args(x))
             roles = self.roles(task, demos.states[(m.sequence_id, 0)], demos.actions[m.sequence_id])
-            action = first_action(demos.states[(m.sequence_id, m.step)], task, roles)
+            action = first_action(demos.states[(m.sequence_id, m.step)], task, roles, self.horizon)
             out.append(x.encode(action) if action is not None else (-1, -1, -1))
         return out
 
     def run(self, scenario: Scenario, max_steps: int) -> Program:
         roles = self.roles(scenario.task, scenario.initial, scenario.demonstrations[0])
-        return run_symbolic(scenario.initial, scenario.task, roles, max_steps)
+        return run_symbolic(scenario.initial, scenario.task, roles, max_steps, self.horizon)
+
+
+METHOD_LABELS = {
+    "chance": "chance",
+    "multiclass": "multiclass",
+    "symb_plan_svm": "symb-plan-svm",
+    "symb_plan_manual": "symb-plan-manual",
+    "only_edge": "only edge features",
+    "only_clique": "only clique features",
+    "full": "ours - full",
+}
+
+
+def table1_methods(settings: Crossval, learner: Learner, horizon: int = Pddl().horizon,
+                   store: str | None = None) -> dict[str, Callable[[], Method]]:
+    """Every method of Table I, by name, as factories of unfitted methods; `horizon` is the symbolic planners'."""
+    mrf = partial(MRFMethod, **asdict(learner), store=store)
+    return {
+        "chance": partial(ChanceMethod, seed=settings.chance_seed),
+        "multiclass": partial(MulticlassMethod, C=settings.multiclass_C),
+        "symb_plan_svm": partial(SymbolicMethod, goals="svm", C=settings.ranking_C, horizon=horizon,
+                                 name="symb_plan_svm"),
+        "symb_plan_manual": partial(SymbolicMethod, goals="manual", horizon=horizon, name="symb_plan_manual"),
+        "only_edge": partial(mrf, features="edge", name="only_edge"),
+        "only_clique": partial(mrf, features="clique", name="only_clique"),
+        "full": partial(mrf, features="full", name="full"),
+    }

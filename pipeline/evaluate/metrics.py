@@ -69,3 +69,15 @@ def summarize(results: list, contexts: list[StepContext], predicts_args: dict[st
             }
         out[name] = entry
     return out
+
+
+def headline_metrics(summary: dict[str, dict]) -> dict[str, dict[str, float]]:
+    """Per method, the figures DVC tracks: average step accuracy and the sequence rates it has."""
+    out = {}
+    for name, entry in summary.items():
+        m = {"average_prim": entry["steps"].get("average/prim"), "average_arg": entry["steps"].get("average/arg")}
+        for key in ("sequence/prim", "sequence/arg", "success"):
+            if key in entry:
+                m[key.replace("/", "_")] = entry[key]
+        out[name] = {k: v for k, v in m.items() if v is not None}
+    return out

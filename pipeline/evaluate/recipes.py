@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
@@ -129,3 +130,14 @@ def evaluate_recipes(make: Callable[[], MRFMethod], contexts: list[StepContext],
             for feedback in (False, True):
                 out.append(run_recipe(method, recipe, feedback, max_steps))
     return out
+
+
+def recipe_report(outcomes: list[RecipeOutcome]) -> dict[str, Any]:
+    """Totals with and without feedback, and every run with its programs (reports/recipes.json)."""
+    descriptions = {(r.name, r.env_id): r.description for r in RECIPES}
+    rows = [{"recipe": o.recipe, "env_id": o.env_id, "description": descriptions[(o.recipe, o.env_id)],
+             "feedback": o.feedback, "success": o.success,
+             "programs": [{"task": t, "status": st, "success": ok} for t, st, ok in o.programs]} for o in outcomes]
+    totals = {"no_feedback": sum(o.success for o in outcomes if not o.feedback),
+              "feedback_first_step": sum(o.success for o in outcomes if o.feedback), "recipes": len(RECIPES)}
+    return {"totals": totals, "runs": rows}

@@ -15,9 +15,11 @@ from joblib import Parallel, delayed
 from ..features.context import OBJECT_COLUMNS, StepContext
 from ..features.dataset import StepMeta
 from ..plan.planner import plan
+from ..settings import Feedback, Folds, Noise
 from ..sim.objects import BINARY_ATTRIBUTES
 from ..sim.primitives import Action
-from .crossval import Scenario, judge, scenario_folds, training_index
+from ..sim.scenarios import Scenario
+from .crossval import SequenceOutcome, judge, scenario_folds, training_index
 from .methods import MRFMethod
 
 BINARY_COLUMNS = np.array([OBJECT_COLUMNS.index(a) for a in BINARY_ATTRIBUTES])
@@ -68,7 +70,7 @@ class Condition:
     b: int  # seed, or n
 
 
-def _fold(make, fold: int, contexts, meta, scenarios, test, conditions, max_steps, seed):
+def _fold(make, contexts, meta, scenarios, test, conditions, max_steps, seed):
     train = training_index(meta, test)
     method: MRFMethod = make().fit([contexts[i] for i in train], [meta[i] for i in train])
     out = []
@@ -91,11 +93,51 @@ def _fold(make, fold: int, contexts, meta, scenarios, test, conditions, max_step
 
 
 def evaluate_conditions(make, contexts: list[StepContext], meta: list[StepMeta], scenarios: dict[str, Scenario],
-                        conditions: list[Condition], n_folds: int, fold_seed: int, group_by: str, max_steps: int,
-                        seed: int, n_jobs: int) -> list[tuple[Condition, object]]:
-    folds = scenario_folds(scenarios, n_folds, fold_seed, group_by)
+                        conditions: list[Condition], folds: Folds, max_steps: int, seed: int = 0,
+                        n_jobs: int = 1) -> list[tuple[Condition, SequenceOutcome]]:
+    """Each condition's outcome on every scenario, from the full model of the scenario's test fold."""
+    tests = scenario_folds(scenarios, folds.folds, folds.seed, folds.group_by)
     parts = Parallel(n_jobs=n_jobs)(
-        delayed(_fold)(make, k, contexts, meta, scenarios, folds[k], conditions, max_steps, seed)
-        for k in range(n_folds)
+        delayed(_fold)(make, contexts, meta, scenarios, tests[k], conditions, max_steps, seed)
+        for k in range(folds.folds)
     )
     return [item for part in parts for item in part]
+
+
+def rates(outcomes: list[SequenceOutcome]) -> dict[str, float]:
+    """Sequence accuracy (arg, prim) and success of a set of programs, in percent."""
+    return {
+        "sequence_arg": 100.0 * float(np.mean([o.arg_correct for o in outcomes])),
+        "sequence_prim": 100.0 * float(np.mean([o.prim_correct for o in outcomes])),
+        "success": 100.0 * float(np.mean([o.success for o in outcomes])),
+    }
+
+
+def noise_runs(settings: Noise, results: list[tuple[Condition, SequenceOutcome]]) -> list[dict[str, float]]:
+    """One row per (rate, noise draw) over all scenarios."""
+    return [{"rate": r, "seed": s, **rates([o for c, o in results if c == Condition("noise", r, s)])}
+            for r in settings.rates for s in range(settings.seeds)]
+
+
+def noise_curve(settings: Noise, runs: list[dict[str, float]]) -> list[dict[str, float]]:
+    """Per rate, the mean over noise draws, with the spread of sequence accuracy (arg)."""
+    out = []
+    for r in settings.rates:
+        mine = [x for x in runs if x["rate"] == r]
+        arg = [x["sequence_arg"] for x in mine]
+        out.append({"rate": r, "sequence_arg": float(np.mean(arg)), "sequence_arg_std": float(np.std(arg)),
+                    "sequence_prim": float(np.mean([x["sequence_prim"] for x in mine])),
+                    "success": float(np.mean([x["success"] for x in mine]))})
+    return out
+
+
+def feedback_steps(settings: Feedback, max_steps: int) -> list[int]:
+    """The step counts with feedback; `all` is every step the loop may take."""
+    return [max_steps if n == "all" else int(n) for n in settings.n]
+
+
+def feedback_rows(settings: Feedback, max_steps: int,
+                  results: list[tuple[Condition, SequenceOutcome]]) -> list[dict[str, float]]:
+    """One row per (k, n) over all scenarios."""
+    return [{"k": k, "n": n, **rates([o for c, o in results if c == Condition("feedback", k, n)])}
+            for k in settings.k for n in feedback_steps(settings, max_steps)]

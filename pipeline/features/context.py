@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -136,3 +137,32 @@ def step_context(
     if gold is not None:
         ctx.gold = ctx.encode(gold)
     return ctx
+
+
+@lru_cache(maxsize=64)
+def candidate_index(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every (p, a1, a2) that respects arity over n objects; -1 marks an absent argument.
+
+    Ordered by primitive, then a1, then a2: ties in score go to the first.
+    """
+    ps, a1s, a2s = [], [], []
+    objs = np.arange(n)
+    for p, arity in enumerate(ARITIES):
+        if arity == 0:
+            ps.append([p])
+            a1s.append([-1])
+            a2s.append([-1])
+        elif arity == 1:
+            ps.append(np.full(n, p))
+            a1s.append(objs)
+            a2s.append(np.full(n, -1))
+        else:
+            i, j = np.meshgrid(objs, objs, indexing="ij")
+            keep = i != j
+            ps.append(np.full(int(keep.sum()), p))
+            a1s.append(i[keep])
+            a2s.append(j[keep])
+    arrays = tuple(np.concatenate(a).astype(np.int64) for a in (ps, a1s, a2s))
+    for a in arrays:
+        a.setflags(write=False)
+    return arrays  # type: ignore[return-value]

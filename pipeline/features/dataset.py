@@ -25,11 +25,10 @@ import pyarrow.parquet as pq
 from scipy import sparse
 
 from ..io import atomic_directory
-from ..learn.mrf import candidate_index
 from ..logs.records import parse_record, state_from_dict
 from ..sim.primitives import Action
 from ..sim.tasks import TASKS
-from .context import HISTORY_ARG_COLUMNS, OBJECT_COLUMNS, TASK_REL_COLUMNS, StepContext, step_context
+from .context import HISTORY_ARG_COLUMNS, OBJECT_COLUMNS, TASK_REL_COLUMNS, StepContext, candidate_index, step_context
 
 
 @dataclass(frozen=True)

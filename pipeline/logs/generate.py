@@ -13,7 +13,7 @@ def write_demonstrations(scenarios: list[Scenario], output: Path | str) -> dict[
     """Replace `output` with one `<env>.jsonl` per environment; returns lines per file."""
     by_env: dict[str, list[str]] = {}
     for scenario in scenarios:
-        for index in range(len(scenario.sequences)):
+        for index in range(len(scenario.demonstrations)):
             by_env.setdefault(scenario.env_id, []).append(dumps(demonstration_record(scenario, index)))
     with atomic_directory(output) as tmp:
         for env_id, lines in by_env.items():

@@ -83,7 +83,7 @@ def demonstration_record(scenario: Scenario, index: int) -> dict[str, Any]:
     """The log record of the `index`-th acceptable sequence of `scenario`."""
     state = scenario.initial
     steps = []
-    for action in scenario.sequences[index]:
+    for action in scenario.demonstrations[index]:
         steps.append({"primitive": action.primitive, "args": list(action.args), "state": state_to_dict(state)})
         state = execute(state, action)
     return {

@@ -34,7 +34,7 @@ class Scenario:
     env_id: str
     task: Task
     initial: WorldState
-    sequences: tuple[tuple[Action, ...], ...]
+    demonstrations: tuple[tuple[Action, ...], ...]  # acceptable action sequences, the first as logged
 
     @property
     def id(self) -> str:
@@ -99,7 +99,7 @@ def benchmark_scenarios(seed: int) -> list[Scenario]:
     """
     rng = np.random.default_rng(seed)
     pool = candidate_scenarios(seed)
-    multi = [s for s in pool if len(s.sequences) == 2]
+    multi = [s for s in pool if len(s.demonstrations) == 2]
     if len(multi) < N_WITH_ALTERNATIVES:
         raise RuntimeError(f"only {len(multi)} candidate scenarios have two sequences")
     best: tuple[int, list[Scenario]] | None = None
@@ -107,11 +107,11 @@ def benchmark_scenarios(seed: int) -> list[Scenario]:
         chosen = _spread(multi, N_WITH_ALTERNATIVES, rng)
         for task, quota in QUOTAS.items():
             have = sum(1 for s in chosen if s.task.name == task)
-            single = [s for s in pool if len(s.sequences) == 1 and s.task.name == task]
+            single = [s for s in pool if len(s.demonstrations) == 1 and s.task.name == task]
             if len(single) < quota - have:
                 raise RuntimeError(f"only {len(single)} candidate {task} scenarios for a quota of {quota - have}")
             chosen += _spread(single, quota - have, rng)
-        miss = abs(sum(len(q) for s in chosen for q in s.sequences) - TARGET_STEPS)
+        miss = abs(sum(len(q) for s in chosen for q in s.demonstrations) - TARGET_STEPS)
         if best is None or miss < best[0]:
             best = (miss, chosen)
     assert best is not None

@@ -99,6 +99,27 @@ class StageRun:
             yield child
 
 
+class NoRun:
+    """What a stage logs when nothing is recorded (`--no-mlflow`, or library use): it is dropped."""
+
+    def metrics(self, values: dict[str, float | None], step: int | None = None) -> None:
+        pass
+
+    def params(self, values: dict[str, Any]) -> None:
+        pass
+
+    def artifact(self, path: Path | str, folder: str | None = None) -> None:
+        pass
+
+    @contextmanager
+    def child(self, name: str, params: dict[str, Any] | None = None) -> Iterator[NoRun]:
+        yield self
+
+
+Tracker = StageRun | NoRun
+NO_RUN = NoRun()
+
+
 @contextmanager
 def stage_run(stage: str, params: dict[str, Any], inputs: list[Path] | None = None) -> Iterator[StageRun]:
     """Open the stage's run; parameters from params.yaml and the command line, tags for provenance."""

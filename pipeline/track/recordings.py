@@ -77,3 +77,9 @@ def record_program(path: Path | str, recording_id: str, initial: WorldState, tas
             break
     rec.flush()
     del rec
+
+
+def spread(ids: list[str], n: int) -> frozenset[str]:
+    """`n` of the ids, evenly spaced in sorted order: the scenarios whose programs are recorded."""
+    ids = sorted(ids)
+    return frozenset(ids[:: max(1, len(ids) // n)][:n]) if n > 0 else frozenset()

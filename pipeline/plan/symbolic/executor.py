@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from ...settings import Pddl
 from ...sim.primitives import Action, PreconditionError, execute
 from ...sim.safety import violations
 from ...sim.state import WorldState
@@ -10,7 +11,7 @@ from ..planner import DONE, INFEASIBLE, STEP_CAP, PlanStep, Program
 from .problem import build_problem
 from .sat import PlanResult, solve
 
-HORIZON = 12
+HORIZON = Pddl().horizon
 MAX_REPLANS = 3
 
 

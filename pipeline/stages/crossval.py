@@ -1,0 +1,75 @@
+"""Stage `crossval`: every method of Table I over grouped folds, teacher-forced and closed-loop.
+
+Writes Table I (long CSV, Markdown, LaTeX), the per-method summary, the metrics
+DVC tracks, every closed-loop program, a confusion matrix of the full model and,
+when asked, Rerun recordings of some of its programs.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from ..evaluate.crossval import cross_validate
+from ..evaluate.methods import METHOD_LABELS, table1_methods
+from ..evaluate.metrics import confusion, headline_metrics, summarize
+from ..features.dataset import read_features
+from ..io import write_json_atomic, write_text_atomic
+from ..logs.benchmark import load_benchmark
+from ..plan.symbolic.files import file_stem
+from ..report.csvs import sequences_csv
+from ..report.tables import confusion_png, table_rows, to_csv, to_latex, to_markdown
+from ..settings import Crossval, Learner, Pddl
+from ..track.mlflow_runs import NO_RUN, Tracker
+from ..track.recordings import record_program, spread
+
+
+def run(settings: Crossval, learner: Learner, pddl: Pddl, features: Path, processed: Path, output: Path,
+        store: Path | None = None, methods: list[str] | None = None, n_jobs: int = 1, recordings: int = 0,
+        tracker: Tracker = NO_RUN) -> dict[str, Any]:
+    contexts, meta = read_features(features)
+    bench = load_benchmark(processed)
+    factories = table1_methods(settings, learner, pddl.horizon, None if store is None else str(store))
+    unknown = set(methods or []) - set(factories)
+    if unknown:
+        raise ValueError(f"unknown methods {sorted(unknown)}; known: {', '.join(factories)}")
+    factories = {k: v for k, v in factories.items() if methods is None or k in methods}
+    print(f"cross-validating {', '.join(factories)} over {settings.folds} folds grouped by {settings.group_by} "
+          f"({len(bench.scenarios)} scenarios, {len(contexts)} steps, {n_jobs} jobs)")
+    recorded = spread(list(bench.scenarios), recordings)
+    results = cross_validate(factories, contexts, meta, bench, n_folds=settings.folds, seed=settings.seed,
+                             group_by=settings.group_by, max_steps=settings.max_steps, n_jobs=n_jobs, verbose=5,
+                             keep_programs={"full": recorded})
+    summary = summarize(results, contexts, {k: v().predicts_args for k, v in factories.items()})
+    rows = table_rows(summary, METHOD_LABELS)
+    out = Path(output)
+    write_text_atomic(out / "table1.csv", to_csv(rows))
+    write_text_atomic(out / "table1.md", to_markdown(rows))
+    caption = (f"{settings.folds}-fold cross-validation grouped by {settings.group_by} on {len(bench.scenarios)} "
+               "scenarios: percentage of primitives (prim) and of primitives with arguments (arg) right, "
+               "teacher-forced, and of closed-loop sequences equal to a demonstration.")
+    write_text_atomic(out / "table1.tex", to_latex(rows, caption))
+    write_json_atomic(out / "crossval.json", summary)
+    write_json_atomic(out / "metrics.json", headline_metrics(summary))
+    write_text_atomic(out / "crossval_sequences.csv", sequences_csv(results))
+    for name, entry in summary.items():
+        with tracker.child(name, {"method": name}) as child:
+            child.metrics({k.replace("/", "_"): v for k, v in entry["steps"].items()})
+            child.metrics({k: v for k, v in entry.items() if k in ("sequence/prim", "sequence/arg", "success",
+                                                                    "goal_reached")})
+    if "full" in factories:
+        full = [r for r in results if r.method == "full"]
+        index = [i for r in full for i in r.step_index]
+        preds = [y for r in full for y in r.step_predictions]
+        confusion_png(confusion([contexts[i] for i in index], preds), str(out / "confusion.png"),
+                      "full model, teacher-forced, cross-validated")
+    for r in results:
+        for sid, (steps, status) in r.programs.items():
+            sc = bench.scenarios[sid]
+            path = out / "recordings" / f"{file_stem(sid)}.rrd"
+            record_program(path, sid, sc.initial, sc.task, steps, status, sc.demonstrations[0])
+            tracker.artifact(path, "recordings")
+    for f in ("table1.csv", "table1.md", "table1.tex", "metrics.json", "confusion.png"):
+        tracker.artifact(out / f)
+    print(to_markdown(rows))
+    return summary

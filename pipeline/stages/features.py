@@ -1,0 +1,20 @@
+"""Stage `features`: every teacher-forced step's candidates and features, from the Parquet tables."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..features.context import candidate_index
+from ..features.dataset import build_steps, write_features
+from ..logs.ingest import read_tables, records_from_tables
+from ..track.mlflow_runs import NO_RUN, Tracker
+
+
+def run(input_dir: Path, output: Path, tracker: Tracker = NO_RUN) -> int:
+    records = records_from_tables(read_tables(input_dir))
+    contexts, meta = build_steps(records)
+    write_features(contexts, meta, output)
+    n_cand = sum(len(candidate_index(c.n)[0]) for c in contexts)
+    tracker.metrics({"steps": len(contexts), "candidates": n_cand, "sequences": len(records)})
+    print(f"wrote {len(contexts)} steps ({n_cand} candidates) from {len(records)} sequences to {output}")
+    return len(contexts)

@@ -1,0 +1,47 @@
+"""Stage `feedback`: sequence accuracy when an observer picks among the top k candidates at the first n steps."""
+
+from __future__ import annotations
+
+from dataclasses import asdict
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+from ..evaluate.methods import MRFMethod
+from ..evaluate.robustness import Condition, evaluate_conditions, feedback_rows, feedback_steps
+from ..features.dataset import read_features
+from ..io import write_text_atomic
+from ..logs.benchmark import load_benchmark
+from ..report.csvs import csv_text
+from ..report.tables import line_plot_png
+from ..settings import Crossval, Feedback, Learner
+from ..track.mlflow_runs import NO_RUN, Tracker
+
+DECIMALS = {"sequence_arg": 2, "sequence_prim": 2, "success": 2}
+
+
+def run(settings: Feedback, crossval: Crossval, learner: Learner, features: Path, processed: Path, output: Path,
+        store: Path | None = None, n_jobs: int = 1, tracker: Tracker = NO_RUN) -> list[dict[str, Any]]:
+    contexts, meta = read_features(features)
+    bench = load_benchmark(processed)
+    make = partial(MRFMethod, features="full", **asdict(learner), store=None if store is None else str(store))
+    ns = feedback_steps(settings, crossval.max_steps)
+    conditions = [Condition("feedback", k, n) for k in settings.k for n in ns]
+    results = evaluate_conditions(make, contexts, meta, bench.scenarios, conditions, crossval.fold_settings,
+                                  crossval.max_steps, n_jobs=n_jobs)
+    rows = feedback_rows(settings, crossval.max_steps, results)
+    out = Path(output)
+    text = csv_text(["k", "n", "sequence_arg", "sequence_prim", "success"], rows, DECIMALS)
+    write_text_atomic(out / "feedback.csv", text)
+    for r in rows:
+        with tracker.child(f"feedback k={r['k']} n={r['n']}", {"k": r["k"], "n": r["n"]}) as child:
+            child.metrics({k: r[k] for k in DECIMALS})
+    series = {f"top {k}": (list(range(len(ns))), [r["sequence_arg"] for r in rows if r["k"] == k], None)
+              for k in settings.k}
+    line_plot_png(series, str(out / "feedback.png"), "Sequence accuracy (arg) with an observer's feedback",
+                  "steps with feedback", "% sequences correct", xticks=list(range(len(ns))),
+                  xticklabels=list(settings.n))
+    for f in ("feedback.csv", "feedback.png"):
+        tracker.artifact(out / f)
+    print(text, end="")
+    return rows

@@ -1,0 +1,23 @@
+"""Stage `ingest`: validate the logs and write them as Parquet tables, with the dataset's counts."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from ..io import write_json_atomic
+from ..logs.ingest import dataset_summary, load_logs, write_tables
+from ..track.mlflow_runs import NO_RUN, Tracker, flatten
+
+
+def run(input_dir: Path, output: Path, metrics: Path | None = None, tracker: Tracker = NO_RUN) -> dict[str, Any]:
+    """Raises `LogError` (file, record, field) or `FileNotFoundError` before anything is written."""
+    tables, _ = load_logs(input_dir)
+    summary = dataset_summary(tables)
+    write_tables(tables, output)
+    if metrics:
+        write_json_atomic(metrics, summary)
+    tracker.metrics({k: v for k, v in flatten(summary).items() if isinstance(v, (int, float))})
+    print(f"ingested {summary['sequences']} sequences ({summary['steps']} steps, {summary['scenarios']} scenarios, "
+          f"{summary['environments']} environments) into {output}")
+    return summary

@@ -1,0 +1,19 @@
+"""Stage `pddl`: the PDDL domain, a problem per scenario and its shortest plan, for symbolic planners."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..logs.benchmark import load_benchmark
+from ..plan.symbolic.files import write_pddl
+from ..settings import Pddl
+from ..track.mlflow_runs import NO_RUN, Tracker
+
+
+def run(settings: Pddl, processed: Path, output: Path, tracker: Tracker = NO_RUN) -> dict[str, int]:
+    counts = write_pddl(load_benchmark(processed).scenarios, output, horizon=settings.horizon)
+    tracker.metrics(counts)
+    tracker.artifact(Path(output) / "domain.pddl")
+    print(f"wrote the domain, {counts['problems']} problems and {counts['plans']} shortest plans to {output}"
+          + (f"; {counts['no_plan']} without a plan within horizon {settings.horizon}" if counts["no_plan"] else ""))
+    return counts

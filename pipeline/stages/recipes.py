@@ -1,0 +1,38 @@
+"""Stage `recipes`: programs chained into recipes, in environments held out from training."""
+
+from __future__ import annotations
+
+from dataclasses import asdict
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+from ..evaluate.methods import MRFMethod
+from ..evaluate.recipes import RECIPES, evaluate_recipes, recipe_report
+from ..features.dataset import read_features
+from ..io import write_json_atomic
+from ..settings import Crossval, Learner
+from ..track.mlflow_runs import NO_RUN, Tracker
+
+
+def run(crossval: Crossval, learner: Learner, features: Path, output: Path, store: Path | None = None,
+        tracker: Tracker = NO_RUN) -> dict[str, Any]:
+    contexts, meta = read_features(features)
+    make = partial(MRFMethod, features="full", **asdict(learner), store=None if store is None else str(store))
+    outcomes = evaluate_recipes(make, contexts, meta, max_steps=crossval.max_steps)
+    report = recipe_report(outcomes)
+    write_json_atomic(Path(output) / "recipes.json", report)
+    for name in dict.fromkeys(o.recipe for o in outcomes):
+        mine = [o for o in outcomes if o.recipe == name]
+        with tracker.child(name, {"recipe": name}) as child:
+            child.metrics({"success_no_feedback": sum(o.success for o in mine if not o.feedback),
+                           "success_feedback": sum(o.success for o in mine if o.feedback)})
+    totals = report["totals"]
+    tracker.metrics({k: float(v) for k, v in totals.items()})
+    tracker.artifact(Path(output) / "recipes.json")
+    for o in outcomes:
+        print(f"{o.recipe:24s} {o.env_id} feedback={'yes' if o.feedback else 'no ':3s} "
+              f"{'SUCCESS' if o.success else 'failed '}  " + " -> ".join(f"{t} [{st}]" for t, st, _ in o.programs))
+    print(f"success: {totals['no_feedback']}/{len(RECIPES)} without feedback, "
+          f"{totals['feedback_first_step']}/{len(RECIPES)} with one feedback at the start of each program")
+    return report

@@ -1,0 +1,71 @@
+"""The stage layout: DVC knows every file a stage runs, and settings defaults equal params.yaml."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from dataclasses import fields
+from pathlib import Path
+
+import pytest
+import yaml
+
+from pipeline.settings import SECTIONS, parse_section
+from pipeline.stages import STAGES
+
+ROOT = Path(__file__).resolve().parents[1]
+DVC = yaml.safe_load((ROOT / "dvc.yaml").read_text())["stages"]
+
+LOADED = """
+import importlib, json, sys
+importlib.import_module("pipeline.cli")
+importlib.import_module("pipeline.stages." + sys.argv[1])
+print(json.dumps(sorted(m.__file__ for n, m in sys.modules.items()
+                        if (n == "pipeline" or n.startswith("pipeline.")) and getattr(m, "__file__", None))))
+"""
+
+
+def loaded_files(stage: str) -> list[str]:
+    """The project files a fresh interpreter loads to run the stage, relative to the repository."""
+    out = subprocess.run([sys.executable, "-c", LOADED, stage], capture_output=True, text=True, check=True, cwd=ROOT)
+    return [str(Path(f).resolve().relative_to(ROOT)) for f in json.loads(out.stdout)]
+
+
+def dvc_stage(name: str) -> dict:
+    """A stage of dvc.yaml by name; a `foreach` stage's template."""
+    stage = DVC[name]
+    return stage.get("do", stage)
+
+
+def covers(dep: str, path: str) -> bool:
+    return path == dep or path.startswith(dep.rstrip("/") + "/")
+
+
+def test_every_stage_of_dvc_yaml_has_its_module():
+    assert sorted(DVC) == sorted(STAGES)
+
+
+@pytest.mark.parametrize("stage", STAGES)
+def test_dvc_deps_are_exactly_the_project_code_a_stage_loads(stage):
+    deps = [d for d in dvc_stage(stage)["deps"] if d.startswith("pipeline")]
+    loaded = loaded_files(stage)
+    missing = sorted(f for f in loaded if not any(covers(d, f) for d in deps))
+    assert not missing, f"dvc.yaml stage {stage} misses deps on {missing}"
+    unused = sorted(d for d in deps if not any(covers(d, f) for f in loaded))
+    assert not unused, f"dvc.yaml stage {stage} depends on {unused}, which it never loads"
+    assert f"pipeline/stages/{stage}.py" in deps
+
+
+def test_settings_defaults_equal_params_yaml():
+    params = yaml.safe_load((ROOT / "params.yaml").read_text())
+    for section, cls in SECTIONS.items():
+        assert section in params, f"params.yaml has no section {section}"
+        assert parse_section(cls, params[section]) == cls(), f"defaults of {cls.__name__} differ from params.yaml"
+        assert set(params[section]) == {f.name for f in fields(cls)}, section
+
+
+def test_no_stage_command_passes_a_setting_that_changes_no_result():
+    for name in STAGES:
+        cmd = dvc_stage(name)["cmd"]
+        assert "--n-jobs" not in cmd and "--recordings" not in cmd, name
