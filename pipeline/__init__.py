@@ -1,0 +1,1 @@
+"""taskseq: learning to sequence manipulation primitives for under-specified tasks (unrolled MRF + SSVM)."""

@@ -5,6 +5,9 @@ options default to `pipeline/settings.py`, which equals `params.yaml`, so the
 command a stage runs under DVC is the command a user can type. `--n-jobs` and
 `--recordings` change no result and are not in `params.yaml`: their defaults
 come from the machine (`TASKSEQ_N_JOBS`, or one job per CPU) and this file.
+
+It runs past 300 lines because it holds every subcommand's parser with its
+help text, which a user reads as one `--help`; it holds no stage logic.
 """
 
 from __future__ import annotations
@@ -49,6 +52,18 @@ def _settings(cls: type, args: argparse.Namespace, **renamed: str) -> Any:
                   if renamed.get(f.name, f.name) in values})
 
 
+def _learner(args: argparse.Namespace) -> S.Learner:
+    """Learner settings from the options; C from `--selection` when a selection file is named."""
+    learner = _settings(S.Learner, args)
+    if getattr(args, "selection", None) is not None:
+        from dataclasses import replace
+
+        from .evaluate.selection import read_selection
+
+        learner = replace(learner, C=read_selection(args.selection))
+    return learner
+
+
 def _fold_crossval(args: argparse.Namespace) -> S.Crossval:
     """noise and feedback: the folds of crossval (`--fold-seed`) and its step cap."""
     return S.Crossval(folds=args.folds, group_by=args.group_by, seed=args.fold_seed, max_steps=args.max_steps)
@@ -59,31 +74,41 @@ def dispatch(args: argparse.Namespace, tracker) -> int:
     c = args.command
     if c in STAGES:
         stage = importlib.import_module(f"pipeline.stages.{c}")
-    if c == "generate":
+    if c == "select":
+        stage.run(S.World(seeds=tuple(args.seeds), dev_seed=args.dev_seed), S.Select(C=tuple(args.grid)),
+                  _learner(args), _settings(S.Crossval, args), args.data, args.output, args.n_jobs, tracker)
+    elif c == "aggregate":
+        stage.run(S.World(seeds=tuple(args.seeds), dev_seed=args.dev_seed), args.worlds, args.output, tracker)
+    elif c == "generate":
         stage.run(_settings(S.Generate, args), args.output, tracker)
     elif c == "ingest":
         stage.run(args.input, args.output, args.metrics, tracker)
     elif c == "features":
         stage.run(args.input, args.output, tracker)
     elif c == "train":
-        stage.run(_settings(S.Train, args), args.features, args.model, args.metrics, args.curve, tracker)
+        train = _settings(S.Train, args)
+        if args.selection is not None:
+            from dataclasses import replace
+
+            train = replace(train, C=_learner(args).C)
+        stage.run(train, args.features, args.model, args.metrics, args.curve, tracker)
     elif c == "pddl":
         stage.run(_settings(S.Pddl, args), args.processed, args.output, tracker)
     elif c == "folds":
-        stage.run(_settings(S.Folds, args), _settings(S.Learner, args), args.features, args.processed, args.output,
+        stage.run(_settings(S.Folds, args), _learner(args), args.features, args.processed, args.output,
                   args.metrics, args.n_jobs, tracker)
     elif c == "crossval":
-        stage.run(_settings(S.Crossval, args), _settings(S.Learner, args), S.Pddl(args.horizon), args.features,
+        stage.run(_settings(S.Crossval, args), _learner(args), S.Pddl(args.horizon), args.features,
                   args.processed, args.output, _store(args.model_store), args.methods, args.n_jobs,
-                  args.recordings, tracker)
+                  args.recordings, args.recordings_dir, tracker)
     elif c == "noise":
-        stage.run(_settings(S.Noise, args), _fold_crossval(args), _settings(S.Learner, args), args.features,
+        stage.run(_settings(S.Noise, args), _fold_crossval(args), _learner(args), args.features,
                   args.processed, args.output, _store(args.model_store), args.n_jobs, tracker)
     elif c == "feedback":
-        stage.run(_settings(S.Feedback, args), _fold_crossval(args), _settings(S.Learner, args), args.features,
+        stage.run(_settings(S.Feedback, args), _fold_crossval(args), _learner(args), args.features,
                   args.processed, args.output, _store(args.model_store), args.n_jobs, tracker)
     elif c == "recipes":
-        stage.run(S.Crossval(max_steps=args.max_steps), _settings(S.Learner, args), args.features, args.output,
+        stage.run(S.Crossval(max_steps=args.max_steps), _learner(args), args.features, args.output,
                   _store(args.model_store), tracker)
     elif c == "report":
         stage.run(args.reports, args.output, tracker)
@@ -109,7 +134,7 @@ def dispatch(args: argparse.Namespace, tracker) -> int:
         from .io import write_json_atomic
         from .logs.benchmark import load_benchmark
 
-        result = run_bench(load_benchmark(args.processed).records, **vars(_settings(S.Learner, args)),
+        result = run_bench(load_benchmark(args.processed).records, **vars(_learner(args)),
                            repeats=args.repeats)
         write_json_atomic(args.output, result)
         print(format_bench(result))
@@ -143,6 +168,15 @@ def build_parser() -> argparse.ArgumentParser:
         return sub.add_parser(name, help=help_, description=help_)
 
     G, T, P, C, N, F = S.Generate(), S.Train(), S.Pddl(), S.Crossval(), S.Noise(), S.Feedback()
+    W, SEL = S.World(), S.Select()
+
+    def world_options(p: argparse.ArgumentParser) -> None:
+        # dvc.yaml passes the `world` section as `${world}`, which DVC writes as --seeds ... --dev_seed ...
+        p.add_argument("--seeds", type=int, nargs="+", default=list(W.seeds),
+                       help=f"reported world seeds (default {' '.join(map(str, W.seeds))})")
+        p.add_argument("--dev-seed", "--dev_seed", dest="dev_seed", type=int, default=W.dev_seed,
+                       help=f"the development world's seed, never reported (default {W.dev_seed})")
+
 
     p = add("generate", "simulate the demonstrator and write demonstration logs (JSON Lines)")
     p.add_argument("--seed", type=int, default=G.seed, help=f"world seed: scenario draws and position jitter "
@@ -170,6 +204,9 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--n-slacks", type=int, default=T.n_slacks,
                        help="slack groups of the cutting plane, one cut each per iteration; 1 is the classic "
                             f"1-slack algorithm, the optimum is the same for every value (default {T.n_slacks})")
+
+        p.add_argument("--selection", type=Path, default=None,
+                       help="take C from this file written by `taskseq select` (overrides --C)")
 
     def store_option(p: argparse.ArgumentParser) -> None:
         p.add_argument("--model-store", type=Path, default=None,
@@ -226,7 +263,9 @@ def build_parser() -> argparse.ArgumentParser:
     jobs_option(p, "folds run")
     p.add_argument("--recordings", type=int, default=RECORDINGS,
                    help=f"Rerun recordings of the full model's programs, spread over the scenarios, written to "
-                        f"OUTPUT/recordings (default {RECORDINGS}); changes no result")
+                        f"--recordings-dir (default {RECORDINGS}); changes no result")
+    p.add_argument("--recordings-dir", type=Path, default=None,
+                   help="folder for the recordings (default OUTPUT/recordings)")
     p.add_argument("--output", type=Path, default=Path("reports"), help="folder for the tables and metrics")
 
     def robustness_options(p: argparse.ArgumentParser) -> None:
@@ -265,6 +304,24 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--output", type=Path, required=True, help="model store folder to write (replaced)")
     p.add_argument("--metrics", type=Path, default=None, help="training times and objectives (JSON)")
 
+    p = add("select", "draw the development world and choose C on it by cross-validation")
+    world_options(p)
+    p.add_argument("--grid", type=float, nargs="+", default=list(SEL.C),
+                   help=f"values of C to try (default {' '.join(f'{c:g}' for c in SEL.C)})")
+    fold_options(p)
+    p.add_argument("--max-steps", type=int, default=C.max_steps, help="step cap of closed-loop runs")
+    training_options(p)
+    jobs_option(p, "fits")
+    p.add_argument("--data", type=Path, default=Path("data/dev"),
+                   help="folder for the development world's logs, tables and features (replaced)")
+    p.add_argument("--output", type=Path, default=Path("reports/selection.json"), help="the choice (JSON)")
+
+    p = add("aggregate", "every figure over the world seeds: mean ± sd tables, failures, noise, feedback, recipes")
+    world_options(p)
+    p.add_argument("--worlds", type=Path, default=Path("reports/worlds"),
+                   help="folder of the per-world results, one subfolder per seed")
+    p.add_argument("--output", type=Path, default=Path("reports"), help="folder for the tables over seeds")
+
     p = add("report", "write reports/summary.md: every result next to the paper's figures")
     p.add_argument("--reports", type=Path, default=Path("reports"), help="folder of the stages' results")
     p.add_argument("--output", type=Path, default=Path("reports/summary.md"), help="Markdown file to write")
@@ -300,8 +357,13 @@ def _run(args: argparse.Namespace, tracker) -> int:
             return 2
         print("nothing was written", file=sys.stderr)
         return 1
-    except (ValueError, KeyError) as err:
+    except ValueError as err:
         print(f"error: {err}", file=sys.stderr)
+        return 2
+    except KeyError as err:  # a field missing from a hand-written environment file (`plan`)
+        if args.command in STAGES:
+            raise
+        print(f"error: missing field {err}", file=sys.stderr)
         return 2
 
 

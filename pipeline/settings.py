@@ -15,16 +15,31 @@ from typing import Any
 
 @dataclass(frozen=True)
 class Generate:
-    """The simulated benchmark."""
+    """One draw of the simulated benchmark (a world)."""
 
     seed: int = 0  # scenario draws and item position jitter
+
+
+@dataclass(frozen=True)
+class World:
+    """Which worlds the pipeline draws: results are means over `seeds`; settings are chosen on `dev_seed`."""
+
+    seeds: tuple[int, ...] = (0, 3, 7)  # reported world seeds
+    dev_seed: int = 100  # the development world: settings are chosen here and it is never reported
+
+
+@dataclass(frozen=True)
+class Select:
+    """Settings chosen on the development world by cross-validation, never on a reported world."""
+
+    C: tuple[float, ...] = (0.3, 1.0, 3.0, 10.0)  # slack weights tried for the MRF models
 
 
 @dataclass(frozen=True)
 class Learner:
     """The cutting-plane structural SVM (`train` section, without the feature set)."""
 
-    C: float = 3.0  # slack weight: 0.5 ||w||^2 + C * sum of slacks
+    C: float = 3.0  # slack weight: 0.5 ||w||^2 + C * sum of slacks; the pipeline takes it from `select`
     tol: float = 1e-3  # relative primal-dual gap to stop at
     max_iter: int = 2000  # cutting-plane iterations at most
     n_slacks: int = 4  # slack groups, one cut each per iteration (1: classic 1-slack)
@@ -79,13 +94,18 @@ class Feedback:
 
 
 SECTIONS: dict[str, type] = {
-    "generate": Generate,
+    "world": World,
+    "select": Select,
     "train": Train,
     "pddl": Pddl,
     "crossval": Crossval,
     "noise": Noise,
     "feedback": Feedback,
 }
+
+
+# Fields of a section's class that params.yaml leaves out, and why.
+NOT_IN_PARAMS = {("train", "C"): "chosen by the select stage on the development world (reports/selection.json)"}
 
 
 def from_values(cls: type, values: dict[str, Any]) -> Any:

@@ -87,7 +87,8 @@ def test_step_accuracy_on_hand_made_predictions():
 
 
 def _outcome(sid, task, prim, arg, success):
-    return SequenceOutcome(sid, task, (), "done", prim, arg, success, True, success)
+    return SequenceOutcome(sid, task, (), "done", prim, arg, success, True, success,
+                           "exact" if arg else ("other_success" if success else "wrong_object"))
 
 
 def test_summary_pools_folds_and_hides_arguments_a_method_does_not_predict():

@@ -1,4 +1,4 @@
-"""reports/summary.md puts each of our results next to the paper's figure."""
+"""reports/summary.md puts each of our results (mean ± sd over world seeds) next to the paper's figure."""
 
 import json
 
@@ -7,25 +7,33 @@ from pipeline.report.summary import build_summary
 
 
 def test_summary_sets_our_numbers_beside_the_papers(tmp_path):
-    (tmp_path / "dataset.json").write_text(json.dumps({"environments": 13, "objects": 43, "tasks": 5,
-                                                       "scenarios": 113, "sequences": 127, "steps": 759}))
-    (tmp_path / "crossval.json").write_text(json.dumps({
-        "full": {"steps": {"average/prim": 96.8, "average/arg": 88.4}, "sequence/prim": 69.9,
-                 "sequence/arg": 56.6, "success": 77.0},
-        "multiclass": {"steps": {"average/prim": 95.0, "average/arg": None}},
+    (tmp_path / "dataset.json").write_text(json.dumps({"0": {"steps": 759}, "3": {"steps": 741}}))
+    (tmp_path / "selection.json").write_text(json.dumps({"C": 3.0, "dev_seed": 100, "criterion": "sequence_arg",
+                                                         "candidates": [{"C": 3.0, "sequence_arg": 61.1}]}))
+    (tmp_path / "metrics.json").write_text(json.dumps({
+        "full": {"average_prim": 96.8, "average_prim_sd": 0.4, "average_arg": 88.4, "average_arg_sd": 1.0,
+                 "sequence_prim": 69.9, "sequence_prim_sd": 2.0, "sequence_arg": 56.6, "sequence_arg_sd": 7.5,
+                 "success": 77.0, "success_sd": 3.0},
+        "multiclass": {"average_prim": 95.0, "average_prim_sd": 0.5},
     }))
-    header = "rate,sequence_arg,sequence_arg_std,sequence_prim,success\n"
-    (tmp_path / "noise.csv").write_text(header + "0.1,42.8,3.0,59,59\n")
-    (tmp_path / "feedback.csv").write_text("k,n,sequence_arg,sequence_prim,success\n2,1,62.8,75,78\n3,20,85.8,87,91\n")
-    (tmp_path / "recipes.json").write_text(json.dumps({"totals": {"no_feedback": 1, "feedback_first_step": 2,
-                                                                  "recipes": 12}, "runs": []}))
+    (tmp_path / "failures.csv").write_text("world_seed,method,task,kind,programs\n0,full,all,exact,6\n"
+                                           "0,full,all,wrong_object,3\n0,full,all,step_cap,1\n")
+    header = "rate,sequence_arg,sequence_arg_sd,sequence_prim,sequence_prim_sd,success,success_sd\n"
+    (tmp_path / "noise.csv").write_text(header + "0.1,42.8,3.0,59,1,59,1\n")
+    fb = "k,n,sequence_arg,sequence_arg_sd,sequence_prim,sequence_prim_sd,success,success_sd\n"
+    (tmp_path / "feedback.csv").write_text(fb + "2,1,62.8,1.0,75,1,78,1\n3,20,85.8,2.0,87,1,91,1\n")
+    (tmp_path / "recipes.json").write_text(json.dumps({"recipes": 12, "per_seed": {
+        "0": {"no_feedback": 1, "feedback_first_step": 2}, "3": {"no_feedback": 4, "feedback_first_step": 5}}}))
     text = build_summary(tmp_path, METHOD_LABELS)
-    assert "| steps | 736 | 759 |" in text
-    assert "| ours - full | 96.8 | 96.7 | 88.4 | 90.0 | 69.9 | 91.6 | 56.6 | 69.7 | 77.0 |" in text
-    assert "| multiclass | 95.0 | 78.4 | - | - |" in text
+    assert "| steps | 736 | 759 | 741 |" in text
+    assert "C = 3, chosen by 6-fold cross-validation of the full model on the development world (seed 100" in text
+    assert ("| ours - full | 96.8 ± 0.4 | 96.7 | 88.4 ± 1.0 | 90.0 | 69.9 ± 2.0 | 91.6 | 56.6 ± 7.5 | 69.7 | "
+            "77.0 ± 3.0 |") in text
+    assert "| multiclass | 95.0 ± 0.5 | 78.4 | - | - |" in text
+    assert "wrong object 30.0%; step cap 10.0%" in text and "Exact matches 60.0%" in text
     assert "| 0.1 | 42.8 ± 3.0 | 55.8 |" in text
-    assert "| 2 | 1 | 62.8 | 74.1 |" in text and "| 3 | all | 85.8 | 81.4 |" in text
-    assert "| no feedback | 1/12 | 9/12 |" in text
+    assert "| 2 | 1 | 62.8 ± 1.0 | 74.1 |" in text and "| 3 | all | 85.8 ± 2.0 | 81.4 |" in text
+    assert "| no feedback | 1/12, 4/12 | 9/12 |" in text
 
 
 def test_summary_skips_what_was_not_run(tmp_path):

@@ -11,6 +11,7 @@ from ..features.context import StepContext
 from ..features.dataset import StepMeta
 from ..logs.benchmark import Benchmark
 from ..sim.scenarios import Scenario
+from .failures import classify
 from .folds import grouped_folds
 from .methods import Method
 
@@ -28,6 +29,7 @@ class SequenceOutcome:
     goal_reached: bool
     safe: bool
     success: bool
+    failure: str  # its kind (`failures.KINDS`): exact, other_success, or why it failed
 
 
 @dataclass
@@ -43,6 +45,7 @@ class FoldResult:
 def judge(scenario: Scenario, program) -> SequenceOutcome:
     actions = tuple(program.actions)
     prims = tuple(a.primitive for a in actions)
+    unsafe = [k for k, s in enumerate(program.steps) if s.unsafe]
     return SequenceOutcome(
         scenario_id=scenario.id,
         task=scenario.task.name,
@@ -53,6 +56,7 @@ def judge(scenario: Scenario, program) -> SequenceOutcome:
         goal_reached=program.goal_reached,
         safe=program.safe,
         success=program.success,
+        failure=classify(actions, program.status, unsafe, program.success, scenario.demonstrations),
     )
 
 
@@ -99,7 +103,7 @@ def cross_validate(methods: dict[str, Callable[[], Method]], contexts: list[Step
     folds = scenario_folds(scenarios, n_folds, seed, group_by)
     jobs = [(name, k) for name in methods for k in range(n_folds)]
     keep = keep_programs or {}
-    return Parallel(n_jobs=n_jobs, verbose=verbose)(
+    return Parallel(n_jobs=n_jobs, verbose=verbose if n_jobs != 1 else 0)(  # joblib fails on verbose serial runs
         delayed(run_fold)(methods[name], k, contexts, meta, scenarios, folds[k], max_steps, bench,
                           keep.get(name, frozenset()))
         for name, k in jobs

@@ -69,7 +69,7 @@ def train_fold_models(make: Callable[[str], MRFMethod], contexts: list[StepConte
         key = make(CROSSVAL_FEATURES[job.method]).key([contexts[i] for i in job.index])
         keyed.setdefault(key, []).append(job)
     keys = list(keyed)
-    fitted = Parallel(n_jobs=n_jobs, verbose=verbose)(
+    fitted = Parallel(n_jobs=n_jobs, verbose=verbose if n_jobs != 1 else 0)(  # joblib fails on verbose serial runs
         delayed(_fit)(make, contexts, meta, keyed[k][0]) for k in keys
     )
     records = []

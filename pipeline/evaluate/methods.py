@@ -205,6 +205,8 @@ class SymbolicMethod:
         if self.goals == "manual":
             return demonstrated_roles(task, demonstration)
         X, ids = _role_candidates(step_context(initial, task, []))
+        if role not in self.rankers_:  # no training task had this role: no preference, the first object
+            return {role: ids[0]}
         return {role: ids[self.rankers_[role].best(X)]}
 
     def predict_steps(self, contexts: list[StepContext], meta: list[StepMeta], demos: Benchmark) -> list[Y]:

@@ -8,6 +8,7 @@ import numpy as np
 
 from ..features.context import StepContext
 from ..sim.primitives import ALL_PRIMITIVES, PRIMITIVES
+from .failures import failure_counts
 
 Y = tuple[int, int, int]
 
@@ -59,12 +60,14 @@ def summarize(results: list, contexts: list[StepContext], predicts_args: dict[st
             entry["success"] = 100.0 * np.mean([s.success for s in seqs])
             entry["goal_reached"] = 100.0 * np.mean([s.goal_reached for s in seqs])
             entry["n_scenarios"] = len(seqs)
+            entry["programs"] = failure_counts([s.failure for s in seqs])
             per_task = defaultdict(list)
             for s in seqs:
                 per_task[s.task].append(s)
             entry["per_task"] = {
                 t: {"sequence/arg": 100.0 * np.mean([s.arg_correct for s in v]),
-                    "success": 100.0 * np.mean([s.success for s in v]), "n": len(v)}
+                    "success": 100.0 * np.mean([s.success for s in v]), "n": len(v),
+                    "programs": failure_counts([s.failure for s in v])}
                 for t, v in sorted(per_task.items())
             }
         out[name] = entry

@@ -18,6 +18,11 @@ formulas do.
 The score decomposes into a table over p, tables over (p, a1) and (p, a2) and a
 table over (a1, a2), so the scores of all candidates of a step are a handful of
 broadcast sums: no Python loop over candidates.
+
+The module runs past 300 lines because it holds the model whole: its feature
+blocks, the per-candidate joint feature (the slow reference the tests compare
+against), the batched oracle the learner calls over all steps at once, and the
+per-step tables the planner ranks with.
 """
 
 from __future__ import annotations

@@ -31,13 +31,13 @@ def csv_text(columns: Sequence[str], rows: Iterable[dict[str, Any]], decimals: d
 
 
 SEQUENCE_COLUMNS = ("method", "fold", "scenario", "task", "status", "prim_correct", "arg_correct", "goal_reached",
-                    "safe", "success", "program")
+                    "safe", "success", "failure", "program")
 
 
 def sequences_csv(results: list) -> str:
     """Every closed-loop program of a cross-validation, one row each (crossval `FoldResult`s)."""
     rows = ({"method": r.method, "fold": r.fold, "scenario": s.scenario_id, "task": s.task, "status": s.status,
              "prim_correct": s.prim_correct, "arg_correct": s.arg_correct, "goal_reached": s.goal_reached,
-             "safe": s.safe, "success": s.success, "program": " ".join(s.actions)}
+             "safe": s.safe, "success": s.success, "failure": s.failure, "program": " ".join(s.actions)}
             for r in results for s in r.sequences or [])
     return csv_text(SEQUENCE_COLUMNS, rows)

@@ -7,7 +7,9 @@ import json
 from pathlib import Path
 from typing import Any
 
+from ..evaluate.failures import FAILURES
 from . import paper
+from .seeds import failure_shares
 
 
 def _f(v: Any) -> str:
@@ -18,37 +20,70 @@ def _load(path: Path) -> Any:
     return json.loads(path.read_text()) if path.exists() else None
 
 
+def _pm(entry: dict[str, Any], key: str) -> str:
+    v = entry.get(key)
+    return "-" if v is None else f"{v:.1f} ± {entry.get(f'{key}_sd', 0.0):.1f}"
+
+
+def _failure_rows(reports: Path) -> list[dict[str, Any]]:
+    path = reports / "failures.csv"
+    if not path.exists():
+        return []
+    with path.open(newline="") as fh:
+        return [{**r, "world_seed": int(r["world_seed"]), "programs": int(r["programs"])} for r in csv.DictReader(fh)]
+
+
 def build_summary(reports: Path, labels: dict[str, str]) -> str:
-    out = ["# Results", "", "Every number below comes from `dvc repro` (files in `reports/`); the paper's figures",
-           "are Sung, Selman and Saxena's, on their own 127 sequences from OpenRAVE.", ""]
+    out = ["# Results", "",
+           "Every number below comes from `dvc repro` (files in `reports/`). Each is the mean ± sample",
+           "standard deviation over the world seeds of `params.yaml` (independent draws of the simulated benchmark);",
+           "per-seed values are in `reports/*_seeds.csv` and `reports/worlds/<seed>/`. The paper's figures are",
+           "Sung, Selman and Saxena's, on their own 127 sequences from OpenRAVE.", ""]
     ds = _load(reports / "dataset.json")
     if ds:
-        out += ["## Dataset", "", "| figure | paper | here |", "|---|---:|---:|"]
-        out += [f"| {k} | {v} | {ds.get(k)} |" for k, v in paper.DATASET.items()]
+        seeds = list(ds)
+        out += ["## Dataset", "", "| figure | paper | " + " | ".join(f"seed {s}" for s in seeds) + " |",
+                "|---|---:|" + "---:|" * len(seeds)]
+        out += [f"| {k} | {v} | " + " | ".join(str(ds[s].get(k)) for s in seeds) + " |"
+                for k, v in paper.DATASET.items()]
         out.append("")
-    cv = _load(reports / "crossval.json")
-    if cv:
-        out += ["## Table I (6-fold cross-validation)", "",
+    sel = _load(reports / "selection.json")
+    if sel:
+        tried = ", ".join(f"{c['C']:g}: {c['sequence_arg']:.1f}" for c in sel["candidates"])
+        out += ["## Settings", "", f"C = {sel['C']:g}, chosen by 6-fold cross-validation of the full model on the "
+                f"development world (seed {sel['dev_seed']}, never reported), by {sel['criterion']} "
+                f"(sequence arg per C: {tried}).", ""]
+    metrics = _load(reports / "metrics.json")
+    if metrics:
+        out += ["## Table I (6-fold cross-validation, mean ± sd over world seeds)", "",
                 "| method | avg prim | paper | avg arg | paper | seq prim | paper | seq arg | paper | success |",
                 "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
         for name in labels:
-            if name not in cv:
+            if name not in metrics:
                 continue
-            e, label = cv[name], labels[name]
+            e, label = metrics[name], labels[name]
             p = paper.TABLE1.get(label, (None,) * 4)
-            out.append(f"| {label} | {_f(e['steps'].get('average/prim'))} | {_f(p[0])} | "
-                       f"{_f(e['steps'].get('average/arg'))} | {_f(p[1])} | {_f(e.get('sequence/prim'))} | "
-                       f"{_f(p[2])} | {_f(e.get('sequence/arg'))} | {_f(p[3])} | {_f(e.get('success'))} |")
-        out += ["", "Per primitive: `reports/table1.md` and `reports/table1.tex`; confusion matrix: "
-                "`reports/confusion.png`.", ""]
+            out.append(f"| {label} | {_pm(e, 'average_prim')} | {_f(p[0])} | {_pm(e, 'average_arg')} | {_f(p[1])} | "
+                       f"{_pm(e, 'sequence_prim')} | {_f(p[2])} | {_pm(e, 'sequence_arg')} | {_f(p[3])} | "
+                       f"{_pm(e, 'success')} |")
+        out += ["", "Per primitive: `reports/table1.md` and `reports/table1.tex`; per seed: "
+                "`reports/table1_seeds.csv`, `reports/crossval_seeds.csv`.", ""]
+    failures = _failure_rows(reports)
+    if failures and any(r["method"] == "full" for r in failures):
+        shares = failure_shares(failures, "full")
+        kinds = sorted(((v[0], k) for k, v in shares.items() if k in FAILURES and v[0] > 0), reverse=True)[:3]
+        lead = "; ".join(f"{k.replace('_', ' ')} {v:.1f}%" for v, k in kinds)
+        out += ["## Why programs fail", "", f"Leading failure kinds of the full model (share of its programs): {lead}. "
+                f"Exact matches {shares['exact'][0]:.1f}%, other successful programs "
+                f"{shares['other_success'][0]:.1f}%. Per method and task: `reports/failures.md`.", ""]
     noise = reports / "noise.csv"
     if noise.exists():
         rows = list(csv.DictReader(noise.open()))
-        out += ["## Attribute noise (sequence arg, full model)", "", "| flip rate | here (mean ± std) | paper |",
+        out += ["## Attribute noise (sequence arg, full model)", "", "| flip rate | here (mean ± sd) | paper |",
                 "|---:|---:|---:|"]
         for r in rows:
             rate = float(r["rate"])
-            out.append(f"| {rate:g} | {float(r['sequence_arg']):.1f} ± {float(r['sequence_arg_std']):.1f} | "
+            out.append(f"| {rate:g} | {float(r['sequence_arg']):.1f} ± {float(r['sequence_arg_sd']):.1f} | "
                        f"{_f(paper.NOISE.get(rate))} |")
         out += ["", "![noise](noise.png)", ""]
     fb = reports / "feedback.csv"
@@ -59,15 +94,21 @@ def build_summary(reports: Path, labels: dict[str, str]) -> str:
         for r in rows:
             n = r["n"]
             key_n = "all" if int(n) >= 20 else n
-            out.append(f"| {r['k']} | {key_n} | {float(r['sequence_arg']):.1f} | "
+            out.append(f"| {r['k']} | {key_n} | {float(r['sequence_arg']):.1f} ± {float(r['sequence_arg_sd']):.1f} | "
                        f"{_f(paper.FEEDBACK.get((int(r['k']), key_n)))} |")
         out += ["", "![feedback](feedback.png)", ""]
     rec = _load(reports / "recipes.json")
     if rec:
-        t = rec["totals"]
-        out += ["## Recipes (environments held out from training)", "", "| | here | paper |", "|---|---:|---:|",
-                f"| no feedback | {t['no_feedback']}/{t['recipes']} | {paper.RECIPES['no_feedback']}/12 |",
-                f"| one feedback at the start of each program | {t['feedback_first_step']}/{t['recipes']} | "
+        n = rec["recipes"]
+        per = rec["per_seed"]
+
+        def cells(key: str) -> str:
+            return ", ".join(f"{t[key]}/{n}" for t in per.values())
+
+        out += ["## Recipes (environments held out from training)", "",
+                f"| | here (seeds {', '.join(per)}) | paper |", "|---|---:|---:|",
+                f"| no feedback | {cells('no_feedback')} | {paper.RECIPES['no_feedback']}/12 |",
+                f"| one feedback at the start of each program | {cells('feedback_first_step')} | "
                 f"{paper.RECIPES['feedback_first_step']}/12 |", ""]
     train = _load(reports / "train.json")
     bench = _load(reports / "bench.json")

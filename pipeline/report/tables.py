@@ -42,8 +42,9 @@ def to_csv(rows: list[dict[str, Any]]) -> str:
 
 
 def _grid(rows: list[dict[str, Any]]) -> tuple[list[str], dict[tuple[str, str, str], float | None]]:
+    """Methods in order, and every cell's value by (method, column, prim|arg|prim_sd|arg_sd)."""
     methods = list(dict.fromkeys(r["method"] for r in rows))
-    cell = {(r["method"], r["column"], k): r[k] for r in rows for k in ("prim", "arg")}
+    cell = {(r["method"], r["column"], k): r.get(k) for r in rows for k in ("prim", "arg", "prim_sd", "arg_sd")}
     return methods, cell
 
 
@@ -52,13 +53,15 @@ def _best(methods: list[str], cell: dict, col: str, k: str) -> float | None:
     return max(vals) if vals else None
 
 
-def _row(methods: list[str], cell: dict, m: str, bold: str) -> list[str]:
-    """Formatted prim and arg cells of method m; `bold` is a format with {} for the best of a column."""
+def _row(methods: list[str], cell: dict, m: str, bold: str, pm: str = " ± ") -> list[str]:
+    """Formatted prim and arg cells of method m (`mean{pm}sd` where rows carry a spread); `bold` is a
+    format with {} for the best mean of a column."""
     vals = []
     for c in COLUMNS:
         for k in ("prim", "arg"):
-            v = cell[(m, c, k)]
-            vals.append(bold.format(_fmt(v)) if v is not None and v == _best(methods, cell, c, k) else _fmt(v))
+            v, sd = cell[(m, c, k)], cell[(m, c, f"{k}_sd")]
+            text = _fmt(v) + (f"{pm}{sd:.1f}" if v is not None and sd is not None else "")
+            vals.append(bold.format(text) if v is not None and v == _best(methods, cell, c, k) else text)
     return vals
 
 
@@ -89,7 +92,8 @@ def to_latex(rows: list[dict[str, Any]], caption: str) -> str:
     ]
     for m in methods:
         label = m.replace("_", "\\_")
-        out.append(f"\\textit{{{label}}} & " + " & ".join(_row(methods, cell, m, "\\textbf{{{}}}")) + " \\\\")
+        out.append(f"\\textit{{{label}}} & " + " & ".join(_row(methods, cell, m, "\\textbf{{{}}}", " $\\pm$ "))
+                   + " \\\\")
     out += ["\\bottomrule", "\\end{tabular}}", "\\end{table*}"]
     return "\n".join(out) + "\n"
 

@@ -5,5 +5,5 @@ and the paths `dvc.yaml` declares, calls the library, writes only those paths,
 and logs to the tracker it is given. Argument parsing stays in `pipeline.cli`.
 """
 
-STAGES = ("generate", "ingest", "features", "train", "pddl", "folds", "crossval", "noise", "feedback", "recipes",
-          "report")
+STAGES = ("select", "generate", "ingest", "features", "train", "pddl", "folds", "crossval", "noise", "feedback",
+          "recipes", "aggregate", "report")

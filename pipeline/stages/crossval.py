@@ -26,7 +26,7 @@ from ..track.recordings import record_program, spread
 
 def run(settings: Crossval, learner: Learner, pddl: Pddl, features: Path, processed: Path, output: Path,
         store: Path | None = None, methods: list[str] | None = None, n_jobs: int = 1, recordings: int = 0,
-        tracker: Tracker = NO_RUN) -> dict[str, Any]:
+        recordings_dir: Path | None = None, tracker: Tracker = NO_RUN) -> dict[str, Any]:
     contexts, meta = read_features(features)
     bench = load_benchmark(processed)
     factories = table1_methods(settings, learner, pddl.horizon, None if store is None else str(store))
@@ -66,7 +66,7 @@ def run(settings: Crossval, learner: Learner, pddl: Pddl, features: Path, proces
     for r in results:
         for sid, (steps, status) in r.programs.items():
             sc = bench.scenarios[sid]
-            path = out / "recordings" / f"{file_stem(sid)}.rrd"
+            path = Path(recordings_dir or out / "recordings") / f"{file_stem(sid)}.rrd"
             record_program(path, sid, sc.initial, sc.task, steps, status, sc.demonstrations[0])
             tracker.artifact(path, "recordings")
     for f in ("table1.csv", "table1.md", "table1.tex", "metrics.json", "confusion.png"):

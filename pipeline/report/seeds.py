@@ -1,0 +1,158 @@
+"""Results over world seeds: each figure as the mean over seeds with its spread, per-seed values kept.
+
+The spread is the sample standard deviation over world seeds (n - 1 in the
+denominator; 0 with a single seed): how much a figure moves when the world is
+drawn again, which is what a reader of one table needs to know.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..evaluate.failures import KINDS
+
+
+def mean_sd(values: Sequence[float]) -> tuple[float, float]:
+    """Mean and sample standard deviation; raises on an empty list, sd 0 for one value."""
+    if len(values) == 0:
+        raise ValueError("mean_sd: no values")
+    v = np.asarray(values, dtype=float)
+    return float(v.mean()), float(v.std(ddof=1)) if len(v) > 1 else 0.0
+
+
+def _csv(path: Path) -> list[dict[str, str]]:
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: missing; run the stage that writes it for this world seed")
+    with path.open(newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def _num(path: Path, row: int, field: str, text: str) -> float | None:
+    if text == "":
+        return None
+    try:
+        return float(text)
+    except ValueError:
+        raise ValueError(f"{path}: record {row}, field {field!r}: not a number: {text!r}") from None
+
+
+def world_dirs(worlds: Path, seeds: Sequence[int]) -> dict[int, Path]:
+    return {s: Path(worlds) / str(s) for s in seeds}
+
+
+def table1_over_seeds(dirs: dict[int, Path]) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """Per-seed long rows (with `world_seed`) and mean ± sd rows of Table I (prim, arg per method and column)."""
+    per_seed: list[dict[str, Any]] = []
+    for seed, d in dirs.items():
+        path = d / "table1.csv"
+        for i, r in enumerate(_csv(path), start=2):
+            per_seed.append({"world_seed": seed, "method": r["method"], "column": r["column"],
+                             "prim": _num(path, i, "prim", r["prim"]), "arg": _num(path, i, "arg", r["arg"])})
+    keys = list(dict.fromkeys((r["method"], r["column"]) for r in per_seed))
+    mean_rows = []
+    for method, column in keys:
+        mine = [r for r in per_seed if (r["method"], r["column"]) == (method, column)]
+        row: dict[str, Any] = {"method": method, "column": column}
+        for k in ("prim", "arg"):
+            vals = [r[k] for r in mine if r[k] is not None]
+            m, s = mean_sd(vals) if vals else (None, None)
+            row[k], row[f"{k}_sd"] = m, s
+        mean_rows.append(row)
+    return per_seed, mean_rows
+
+
+def crossval_over_seeds(dirs: dict[int, Path]) -> dict[int, dict[str, Any]]:
+    """Each seed's `crossval.json` (the per-method summary of its cross-validation)."""
+    out = {}
+    for seed, d in dirs.items():
+        path = d / "crossval.json"
+        if not path.exists():
+            raise FileNotFoundError(f"{path}: missing; run crossval for world seed {seed}")
+        out[seed] = json.loads(path.read_text())
+    return out
+
+
+HEADLINE = (("average_prim", ("steps", "average/prim")), ("average_arg", ("steps", "average/arg")),
+            ("sequence_prim", ("sequence/prim",)), ("sequence_arg", ("sequence/arg",)), ("success", ("success",)),
+            ("goal_reached", ("goal_reached",)))
+
+
+def _get(entry: dict[str, Any], path: tuple[str, ...]) -> float | None:
+    for k in path:
+        if not isinstance(entry, dict) or k not in entry:
+            return None
+        entry = entry[k]
+    return entry
+
+
+def headline_over_seeds(summaries: dict[int, dict[str, Any]]) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+    """Per (seed, method) rows of the headline figures, and per method their mean and sd over seeds."""
+    rows = []
+    for seed, summary in summaries.items():
+        for method, entry in summary.items():
+            rows.append({"world_seed": seed, "method": method, **{k: _get(entry, p) for k, p in HEADLINE}})
+    means: dict[str, Any] = {}
+    for method in dict.fromkeys(r["method"] for r in rows):
+        mine = [r for r in rows if r["method"] == method]
+        out = {}
+        for k, _ in HEADLINE:
+            vals = [r[k] for r in mine if r[k] is not None]
+            if vals:
+                out[k], out[f"{k}_sd"] = mean_sd(vals)
+                out[f"{k}_min"] = float(min(vals))
+        means[method] = out
+    return rows, means
+
+
+def failures_over_seeds(summaries: dict[int, dict[str, Any]]) -> list[dict[str, Any]]:
+    """Long rows (world_seed, method, task, kind, programs); task `all` sums the tasks."""
+    rows = []
+    for seed, summary in summaries.items():
+        for method, entry in summary.items():
+            if "programs" not in entry:
+                continue
+            rows += [{"world_seed": seed, "method": method, "task": "all", "kind": k, "programs": n}
+                     for k, n in entry["programs"].items()]
+            for task, t in entry.get("per_task", {}).items():
+                rows += [{"world_seed": seed, "method": method, "task": task, "kind": k, "programs": n}
+                         for k, n in t["programs"].items()]
+    return rows
+
+
+def failure_shares(rows: list[dict[str, Any]], method: str, task: str = "all") -> dict[str, tuple[float, float]]:
+    """Per kind, the mean and sd over seeds of its share of the method's programs, in percent."""
+    seeds = sorted({r["world_seed"] for r in rows if r["method"] == method and r["task"] == task})
+    out = {}
+    for kind in KINDS:
+        shares = []
+        for s in seeds:
+            mine = [r for r in rows if (r["world_seed"], r["method"], r["task"]) == (s, method, task)]
+            total = sum(r["programs"] for r in mine)
+            shares.append(100.0 * sum(r["programs"] for r in mine if r["kind"] == kind) / max(total, 1))
+        out[kind] = mean_sd(shares) if shares else (0.0, 0.0)
+    return out
+
+
+def curve_over_seeds(dirs: dict[int, Path], name: str, keys: Sequence[str],
+                     values: Sequence[str]) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """A per-seed CSV (noise.csv, feedback.csv) stacked with `world_seed`, and its mean ± sd per key."""
+    per_seed = []
+    for seed, d in dirs.items():
+        path = d / name
+        for i, r in enumerate(_csv(path), start=2):
+            per_seed.append({"world_seed": seed, **{k: r[k] for k in keys},
+                             **{v: _num(path, i, v, r[v]) for v in values}})
+    out = []
+    for key in dict.fromkeys(tuple(r[k] for k in keys) for r in per_seed):
+        mine = [r for r in per_seed if tuple(r[k] for k in keys) == key]
+        row: dict[str, Any] = dict(zip(keys, key, strict=True))
+        for v in values:
+            row[v], row[f"{v}_sd"] = mean_sd([r[v] for r in mine])
+        out.append(row)
+    return per_seed, out

@@ -1,0 +1,134 @@
+"""Stage `aggregate`: every figure over the reported world seeds, as mean ± sd, per-seed values kept.
+
+Reads each world's results (`reports/worlds/<seed>/`) and writes the tables a
+paper quotes: Table I, the headline metrics, why programs fail, the noise and
+feedback curves and the recipes, each with its spread over world seeds.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from ..evaluate.failures import KINDS
+from ..evaluate.methods import METHOD_LABELS
+from ..io import write_json_atomic, write_text_atomic
+from ..report import paper
+from ..report.csvs import csv_text
+from ..report.seeds import (
+    crossval_over_seeds,
+    curve_over_seeds,
+    failure_shares,
+    failures_over_seeds,
+    headline_over_seeds,
+    mean_sd,
+    table1_over_seeds,
+    world_dirs,
+)
+from ..report.tables import line_plot_png, to_latex, to_markdown
+from ..settings import World
+from ..track.mlflow_runs import NO_RUN, Tracker
+
+RATES = ("sequence_arg", "sequence_prim", "success")
+
+
+def failures_markdown(rows: list[dict[str, Any]], methods: list[str], n_seeds: int) -> str:
+    """Share of programs of each kind (mean ± sd over world seeds, %), per method, then per task of the full model."""
+    head = "| {} | " + " | ".join(k.replace("_", " ") for k in KINDS) + " |"
+    sep = "|---|" + "---:|" * len(KINDS)
+    out = [f"Programs by kind, % of each method's closed-loop programs, mean ± sd over {n_seeds} world seeds.", "",
+           head.format("method"), sep]
+    for m in methods:
+        shares = failure_shares(rows, m)
+        out.append(f"| {METHOD_LABELS.get(m, m)} | " + " | ".join(f"{a:.1f} ± {s:.1f}" for a, s in shares.values())
+                   + " |")
+    if "full" in methods:
+        out += ["", "The full model per task:", "", head.format("task"), sep]
+        for task in sorted({r["task"] for r in rows if r["method"] == "full" and r["task"] != "all"}):
+            shares = failure_shares(rows, "full", task)
+            out.append(f"| {task} | " + " | ".join(f"{a:.1f} ± {s:.1f}" for a, s in shares.values()) + " |")
+    return "\n".join(out) + "\n"
+
+
+def run(world: World, worlds: Path, output: Path, tracker: Tracker = NO_RUN) -> dict[str, Any]:
+    dirs = world_dirs(worlds, world.seeds)
+    out = Path(output)
+    per_seed, table = table1_over_seeds(dirs)
+    write_text_atomic(out / "table1_seeds.csv", csv_text(["world_seed", "method", "column", "prim", "arg"], per_seed,
+                                                         {"prim": 2, "arg": 2}))
+    write_text_atomic(out / "table1.csv", csv_text(["method", "column", "prim", "prim_sd", "arg", "arg_sd"], table,
+                                                   {"prim": 2, "prim_sd": 2, "arg": 2, "arg_sd": 2}))
+    write_text_atomic(out / "table1.md", to_markdown(table))
+    seeds_text = ", ".join(map(str, world.seeds))
+    write_text_atomic(out / "table1.tex", to_latex(table, (
+        f"Mean $\\pm$ sample standard deviation over {len(world.seeds)} world seeds ({seeds_text}), each a 6-fold "
+        "cross-validation: percentage of primitives (prim) and of primitives with arguments (arg) right, "
+        "teacher-forced, and of closed-loop sequences equal to a demonstration.")))
+
+    summaries = crossval_over_seeds(dirs)
+    rows, means = headline_over_seeds(summaries)
+    write_text_atomic(out / "crossval_seeds.csv", csv_text(["world_seed", "method"] + [k for k in rows[0]
+                                                           if k not in ("world_seed", "method")], rows))
+    write_json_atomic(out / "metrics.json", means)
+    for r in rows:
+        with tracker.child(f"{r['method']} seed={r['world_seed']}",
+                           {"method": r["method"], "world_seed": r["world_seed"]}) as child:
+            child.metrics({k: v for k, v in r.items() if k not in ("method", "world_seed")})
+    tracker.metrics({f"{m}.{k}": v for m, figures in means.items() for k, v in figures.items()})
+
+    failures = failures_over_seeds(summaries)
+    write_text_atomic(out / "failures.csv", csv_text(["world_seed", "method", "task", "kind", "programs"], failures))
+    methods = list(dict.fromkeys(r["method"] for r in failures))
+    write_text_atomic(out / "failures.md", failures_markdown(failures, methods, len(world.seeds)))
+
+    noise_seeds, noise = curve_over_seeds(dirs, "noise.csv", ["rate"], RATES)
+    write_text_atomic(out / "noise_seeds.csv", csv_text(["world_seed", "rate", *RATES], noise_seeds,
+                                                        dict.fromkeys(RATES, 2)))
+    cols = ["rate"] + [c for v in RATES for c in (v, f"{v}_sd")]
+    write_text_atomic(out / "noise.csv", csv_text(cols, noise, dict.fromkeys(cols[1:], 2)))
+    line_plot_png({f"ours - full (mean, sd over {len(world.seeds)} world seeds)":
+                   ([float(r["rate"]) for r in noise], [r["sequence_arg"] for r in noise],
+                    [r["sequence_arg_sd"] for r in noise])},
+                  str(out / "noise.png"), "Sequence accuracy (arg) with binary attributes flipped",
+                  "probability of flipping each binary attribute", "% sequences correct",
+                  reference={"paper": (list(paper.NOISE), list(paper.NOISE.values()))})
+
+    fb_seeds, fb = curve_over_seeds(dirs, "feedback.csv", ["k", "n"], RATES)
+    write_text_atomic(out / "feedback_seeds.csv", csv_text(["world_seed", "k", "n", *RATES], fb_seeds,
+                                                           dict.fromkeys(RATES, 2)))
+    cols = ["k", "n"] + [c for v in RATES for c in (v, f"{v}_sd")]
+    write_text_atomic(out / "feedback.csv", csv_text(cols, fb, dict.fromkeys(cols[2:], 2)))
+    ks = list(dict.fromkeys(r["k"] for r in fb))
+    ns = list(dict.fromkeys(r["n"] for r in fb))
+    line_plot_png({f"top {k}": (list(range(len(ns))), [r["sequence_arg"] for r in fb if r["k"] == k],
+                                [r["sequence_arg_sd"] for r in fb if r["k"] == k]) for k in ks},
+                  str(out / "feedback.png"), "Sequence accuracy (arg) with an observer's feedback",
+                  "steps with feedback", "% sequences correct", xticks=list(range(len(ns))), xticklabels=ns)
+
+    datasets = {}
+    for seed, d in dirs.items():
+        path = d / "dataset.json"
+        if path.exists():
+            datasets[str(seed)] = json.loads(path.read_text())
+    write_json_atomic(out / "dataset.json", datasets)
+
+    recipes = {}
+    for seed, d in dirs.items():
+        path = d / "recipes.json"
+        if not path.exists():
+            raise FileNotFoundError(f"{path}: missing; run recipes for world seed {seed}")
+        recipes[seed] = json.loads(path.read_text())
+    totals = {k: [r["totals"][k] for r in recipes.values()] for k in ("no_feedback", "feedback_first_step")}
+    write_json_atomic(out / "recipes.json", {
+        "recipes": recipes[world.seeds[0]]["totals"]["recipes"],
+        "per_seed": {str(s): r["totals"] for s, r in recipes.items()},
+        "mean": {k: mean_sd(v)[0] for k, v in totals.items()},
+        "sd": {k: mean_sd(v)[1] for k, v in totals.items()},
+        "min": {k: min(v) for k, v in totals.items()},
+    })
+    for f in ("table1.md", "table1.tex", "metrics.json", "failures.md", "noise.png", "feedback.png", "recipes.json"):
+        tracker.artifact(out / f)
+    print(to_markdown(table))
+    print(f"over world seeds {seeds_text}; failure kinds in {out / 'failures.md'}")
+    return means

@@ -1,0 +1,153 @@
+"""Every stage, run end to end through the command line on a tiny world (two environments, 2 folds)."""
+
+from __future__ import annotations
+
+import csv
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from pipeline.cli import main
+from pipeline.settings import Crossval, Learner, Select, World
+from pipeline.stages import select as select_stage
+
+FOLDS = ["--folds", "2", "--group-by", "scenario", "--seed", "0"]
+LEARN = ["--tol", "0.01", "--max-iter", "300", "--n-slacks", "2"]
+
+
+@pytest.fixture(scope="module")
+def tiny(benchmark_logs, tmp_path_factory) -> Path:
+    """A tiny world: the logs of two environments, ingested, featurised and with its fold models."""
+    root = tmp_path_factory.mktemp("tiny")
+    (root / "raw").mkdir()
+    for env in ("env01", "env04"):
+        shutil.copy(benchmark_logs / f"{env}.jsonl", root / "raw")
+    w = root / "worlds" / "0"
+    assert main(["ingest", "--input", str(root / "raw"), "--output", str(root / "processed"),
+                 "--metrics", str(w / "dataset.json")]) == 0
+    assert main(["features", "--input", str(root / "processed"), "--output", str(root / "features")]) == 0
+    (root / "selection.json").write_text(json.dumps({"C": 2.0}))
+    assert main(["folds", "--features", str(root / "features"), "--processed", str(root / "processed"), *FOLDS,
+                 *LEARN, "--selection", str(root / "selection.json"), "--output", str(root / "store"),
+                 "--metrics", str(root / "folds.json"), "--n-jobs", "1"]) == 0
+    return root
+
+
+def data(root: Path) -> list[str]:
+    return ["--features", str(root / "features"), "--processed", str(root / "processed")]
+
+
+def test_ingest_and_features_write_their_outputs(tiny):
+    assert json.loads((tiny / "worlds" / "0" / "dataset.json").read_text())["environments"] == 2
+    assert {p.name for p in (tiny / "processed").iterdir()} >= {"steps.parquet", "scenarios.parquet"}
+    index = json.loads((tiny / "store" / "index.json").read_text())
+    assert all(m["C"] == 2.0 for m in index["models"])  # C comes from the selection file
+
+
+def test_train_and_pddl(tiny):
+    out = tiny / "train"
+    assert main(["train", "--features", str(tiny / "features"), *LEARN, "--model", str(out / "mrf.npz"),
+                 "--metrics", str(out / "train.json"), "--curve", str(out / "curve.csv")]) == 0
+    metrics = json.loads((out / "train.json").read_text())
+    assert metrics["train_average_arg"] > 50 and (out / "mrf.npz").exists()
+    assert (out / "curve.csv").read_text().startswith("iteration,primal,best_primal,dual,gap,n_constraints\n")
+    assert main(["pddl", "--processed", str(tiny / "processed"), "--output", str(tiny / "pddl")]) == 0
+    n_problems = len(list((tiny / "pddl" / "problems").glob("*.pddl")))
+    assert n_problems == len(list((tiny / "pddl" / "plans").glob("*.plan"))) > 0
+
+
+@pytest.fixture(scope="module")
+def evaluated(tiny) -> Path:
+    w = tiny / "worlds" / "0"
+    sel = ["--selection", str(tiny / "selection.json"), "--model-store", str(tiny / "store")]
+    assert main(["crossval", *data(tiny), *FOLDS, *LEARN, *sel, "--output", str(w), "--n-jobs", "1",
+                 "--recordings", "1", "--recordings-dir", str(tiny / "recordings")]) == 0
+    fold = [*FOLDS[:4], "--fold-seed", "0"]
+    assert main(["noise", *data(tiny), *fold, *LEARN, *sel, "--rates", "0.0", "0.3", "--seeds", "2",
+                 "--output", str(w), "--n-jobs", "1"]) == 0
+    assert main(["feedback", *data(tiny), *fold, *LEARN, *sel, "--k", "2", "--n", "0", "all",
+                 "--output", str(w), "--n-jobs", "1"]) == 0
+    assert main(["recipes", "--features", str(tiny / "features"), *LEARN, *sel, "--output", str(w)]) == 0
+    return w
+
+
+def test_crossval_writes_table1_with_every_method_and_classified_programs(evaluated, tiny):
+    summary = json.loads((evaluated / "crossval.json").read_text())
+    assert set(summary) == {"chance", "multiclass", "symb_plan_svm", "symb_plan_manual", "only_edge",
+                            "only_clique", "full"}
+    rows = list(csv.DictReader((evaluated / "crossval_sequences.csv").open()))
+    full = [r for r in rows if r["method"] == "full"]
+    assert len(full) == summary["full"]["n_scenarios"]
+    assert all((r["failure"] == "exact") == (r["arg_correct"] == "1") for r in full)
+    assert sum(summary["full"]["programs"].values()) == len(full)
+    assert len(list((tiny / "recordings").glob("*.rrd"))) == 1
+    assert (evaluated / "confusion.png").stat().st_size > 0
+
+
+def test_noise_at_rate_zero_equals_the_clean_cross_validation(evaluated):
+    summary = json.loads((evaluated / "crossval.json").read_text())
+    curve = list(csv.DictReader((evaluated / "noise.csv").open()))
+    assert [r["rate"] for r in curve] == ["0.0", "0.3"]
+    assert float(curve[0]["sequence_arg"]) == pytest.approx(summary["full"]["sequence/arg"], abs=0.01)
+    assert len(list(csv.DictReader((evaluated / "noise_runs.csv").open()))) == 4
+
+
+def test_feedback_at_every_step_is_never_worse_than_none(evaluated):
+    rows = {r["n"]: float(r["sequence_arg"]) for r in csv.DictReader((evaluated / "feedback.csv").open())}
+    assert set(rows) == {"0", "20"} and rows["20"] >= rows["0"]
+
+
+def test_aggregate_and_report_over_worlds(evaluated, tiny):
+    second = tiny / "worlds" / "5"
+    shutil.copytree(evaluated, second, dirs_exist_ok=True)  # a second world with the same results: sd 0
+    out = tiny / "reports"
+    assert main(["aggregate", "--seeds", "0", "5", "--dev_seed", "100", "--worlds", str(tiny / "worlds"),
+                 "--output", str(out)]) == 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    single = json.loads((evaluated / "crossval.json").read_text())["full"]
+    assert metrics["full"]["sequence_arg"] == pytest.approx(single["sequence/arg"])
+    assert metrics["full"]["sequence_arg_sd"] == 0.0
+    assert "± 0.0" in (out / "table1.md").read_text() and "$\\pm$" in (out / "table1.tex").read_text()
+    seeds = {r["world_seed"] for r in csv.DictReader((out / "table1_seeds.csv").open())}
+    assert seeds == {"0", "5"}
+    assert "The full model per task" in (out / "failures.md").read_text()
+    assert json.loads((out / "recipes.json").read_text())["per_seed"].keys() == {"0", "5"}
+    (out / "selection.json").write_text(json.dumps({"C": 2.0, "dev_seed": 100, "criterion": "sequence_arg",
+                                                    "candidates": [{"C": 2.0, "sequence_arg": 50.0}]}))
+    assert main(["report", "--reports", str(out), "--output", str(out / "summary.md")]) == 0
+    text = (out / "summary.md").read_text()
+    for heading in ("## Dataset", "## Settings", "## Table I", "## Why programs fail", "## Attribute noise",
+                    "## Human feedback", "## Recipes"):
+        assert heading in text
+
+
+def test_select_sees_only_the_development_world(tiny, monkeypatch, tmp_path):
+    """The expert world used to choose C is drawn from dev_seed alone; no reported world reaches it."""
+    drawn = []
+
+    def spy_generate(seed, output):
+        drawn.append(seed)
+        shutil.copytree(tiny / "raw", output)
+        return {}
+
+    monkeypatch.setattr(select_stage, "generate", spy_generate)
+    result = select_stage.run(World(seeds=(0, 3), dev_seed=100), Select(C=(0.5, 2.0)),
+                              Learner(tol=0.01, max_iter=300, n_slacks=2), Crossval(folds=2), tmp_path / "dev",
+                              tmp_path / "selection.json")
+    assert drawn == [100]
+    assert result["C"] in (0.5, 2.0) and len(result["candidates"]) == 2
+    assert json.loads((tmp_path / "selection.json").read_text())["dev_seed"] == 100
+    with pytest.raises(ValueError, match="also a reported seed"):
+        select_stage.run(World(seeds=(0, 100), dev_seed=100), Select(), Learner(), Crossval(), tmp_path / "d",
+                         tmp_path / "s.json")
+
+
+def test_a_bad_selection_file_is_named(tiny, tmp_path, capsys):
+    bad = tmp_path / "selection.json"
+    bad.write_text(json.dumps({"C": "big"}))
+    code = main(["--no-mlflow", "recipes", "--features", str(tiny / "features"), "--selection", str(bad),
+                 "--output", str(tmp_path)])
+    assert code == 2 and f"{bad}: field 'C' must be a positive number" in capsys.readouterr().err
+    assert not (tmp_path / "recipes.json").exists()
