@@ -26,7 +26,7 @@ def test_candidates_respect_arity():
     assert not np.any((a1 == a2) & (a1 >= 0))
 
 
-@pytest.mark.parametrize("features", ["full", "edge", "clique"])
+@pytest.mark.parametrize("features", ["full", "edge", "clique", "relations"])
 def test_vectorised_scores_equal_the_per_candidate_reference(some_steps, features):
     model = MRFModel(features)
     rng = np.random.default_rng(2)
@@ -37,8 +37,9 @@ def test_vectorised_scores_equal_the_per_candidate_reference(some_steps, feature
         np.testing.assert_allclose(scores, slow, rtol=1e-10, atol=1e-10)
 
 
-def test_batched_inference_and_joint_features_equal_the_per_step_ones(some_steps):
-    model = MRFModel("full")
+@pytest.mark.parametrize("features", ["full", "relations"])
+def test_batched_inference_and_joint_features_equal_the_per_step_ones(some_steps, features):
+    model = MRFModel(features)
     w = np.random.default_rng(3).normal(size=model.size_joint_feature)
     gold = [x.gold for x in some_steps]
     assert model.batch_inference(some_steps, w) == [model.inference(x, w) for x in some_steps]
@@ -97,6 +98,18 @@ def test_feature_files_round_trip(benchmark_steps, tmp_path):
         np.testing.assert_array_equal(a.objects, b.objects)
         np.testing.assert_array_equal(a.task_rel, b.task_rel)
         np.testing.assert_array_equal(a.collide, b.collide)
+        np.testing.assert_array_equal(a.relations, b.relations)
+
+
+def test_the_paper_models_ignore_relations_and_the_relations_model_needs_them(some_steps):
+    from dataclasses import replace
+
+    w_full = np.random.default_rng(5).normal(size=MRFModel("full").size_joint_feature)
+    stripped = [replace(x, relations=None) for x in some_steps]
+    assert MRFModel("full").batch_inference(stripped, w_full) == MRFModel("full").batch_inference(some_steps, w_full)
+    model = MRFModel("relations")
+    with pytest.raises(ValueError, match="needs steps with relations"):
+        model.batch_inference(stripped, np.zeros(model.size_joint_feature))
 
 
 def test_steps_include_a_final_done(benchmark_steps):

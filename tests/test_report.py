@@ -18,12 +18,12 @@ def test_summary_sets_our_numbers_beside_the_papers(tmp_path):
     }))
     (tmp_path / "failures.csv").write_text("world_seed,method,task,kind,programs\n0,full,all,exact,6\n"
                                            "0,full,all,wrong_object,3\n0,full,all,step_cap,1\n")
-    header = "rate,sequence_arg,sequence_arg_sd,sequence_prim,sequence_prim_sd,success,success_sd\n"
-    (tmp_path / "noise.csv").write_text(header + "0.1,42.8,3.0,59,1,59,1\n")
-    fb = "k,n,sequence_arg,sequence_arg_sd,sequence_prim,sequence_prim_sd,success,success_sd\n"
-    (tmp_path / "feedback.csv").write_text(fb + "2,1,62.8,1.0,75,1,78,1\n3,20,85.8,2.0,87,1,91,1\n")
-    (tmp_path / "recipes.json").write_text(json.dumps({"recipes": 12, "per_seed": {
-        "0": {"no_feedback": 1, "feedback_first_step": 2}, "3": {"no_feedback": 4, "feedback_first_step": 5}}}))
+    header = "method,rate,sequence_arg,sequence_arg_sd,sequence_prim,sequence_prim_sd,success,success_sd\n"
+    (tmp_path / "noise.csv").write_text(header + "full,0.1,42.8,3.0,59,1,59,1\nrelations,0.1,50.0,2.0,59,1,59,1\n")
+    fb = "method,k,n,sequence_arg,sequence_arg_sd,sequence_prim,sequence_prim_sd,success,success_sd\n"
+    (tmp_path / "feedback.csv").write_text(fb + "full,2,1,62.8,1.0,75,1,78,1\nfull,3,20,85.8,2.0,87,1,91,1\n")
+    (tmp_path / "recipes.json").write_text(json.dumps({"methods": {"full": {"recipes": 12, "per_seed": {
+        "0": {"no_feedback": 1, "feedback_first_step": 2}, "3": {"no_feedback": 4, "feedback_first_step": 5}}}}}))
     text = build_summary(tmp_path, METHOD_LABELS)
     assert "| steps | 736 | 759 | 741 |" in text
     assert "C = 3, chosen by 6-fold cross-validation of the full model on the development world (seed 100" in text
@@ -31,9 +31,10 @@ def test_summary_sets_our_numbers_beside_the_papers(tmp_path):
             "77.0 ± 3.0 |") in text
     assert "| multiclass | 95.0 ± 0.5 | 78.4 | - | - |" in text
     assert "wrong object 30.0%; step cap 10.0%" in text and "Exact matches 60.0%" in text
-    assert "| 0.1 | 42.8 ± 3.0 | 55.8 |" in text
-    assert "| 2 | 1 | 62.8 ± 1.0 | 74.1 |" in text and "| 3 | all | 85.8 ± 2.0 | 81.4 |" in text
-    assert "| no feedback | 1/12, 4/12 | 9/12 |" in text
+    assert "| ours - full | 0.1 | 42.8 ± 3.0 | 55.8 |" in text and "| ours + relations | 0.1 | 50.0 ± 2.0 |" in text
+    assert "| ours - full | 2 | 1 | 62.8 ± 1.0 | 74.1 |" in text
+    assert "| ours - full | 3 | all | 85.8 ± 2.0 | 81.4 |" in text
+    assert "| ours - full | none | 1/12, 4/12 | 9/12 |" in text
 
 
 def test_summary_skips_what_was_not_run(tmp_path):

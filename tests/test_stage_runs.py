@@ -76,7 +76,7 @@ def evaluated(tiny) -> Path:
 def test_crossval_writes_table1_with_every_method_and_classified_programs(evaluated, tiny):
     summary = json.loads((evaluated / "crossval.json").read_text())
     assert set(summary) == {"chance", "multiclass", "symb_plan_svm", "symb_plan_manual", "only_edge",
-                            "only_clique", "full"}
+                            "only_clique", "full", "relations"}
     rows = list(csv.DictReader((evaluated / "crossval_sequences.csv").open()))
     full = [r for r in rows if r["method"] == "full"]
     assert len(full) == summary["full"]["n_scenarios"]
@@ -89,14 +89,18 @@ def test_crossval_writes_table1_with_every_method_and_classified_programs(evalua
 def test_noise_at_rate_zero_equals_the_clean_cross_validation(evaluated):
     summary = json.loads((evaluated / "crossval.json").read_text())
     curve = list(csv.DictReader((evaluated / "noise.csv").open()))
-    assert [r["rate"] for r in curve] == ["0.0", "0.3"]
-    assert float(curve[0]["sequence_arg"]) == pytest.approx(summary["full"]["sequence/arg"], abs=0.01)
-    assert len(list(csv.DictReader((evaluated / "noise_runs.csv").open()))) == 4
+    assert [(r["method"], r["rate"]) for r in curve] == [("full", "0.0"), ("full", "0.3"), ("relations", "0.0"),
+                                                         ("relations", "0.3")]
+    for r in curve[::2]:
+        assert float(r["sequence_arg"]) == pytest.approx(summary[r["method"]]["sequence/arg"], abs=0.01)
+    assert len(list(csv.DictReader((evaluated / "noise_runs.csv").open()))) == 8
 
 
 def test_feedback_at_every_step_is_never_worse_than_none(evaluated):
-    rows = {r["n"]: float(r["sequence_arg"]) for r in csv.DictReader((evaluated / "feedback.csv").open())}
-    assert set(rows) == {"0", "20"} and rows["20"] >= rows["0"]
+    rows = {(r["method"], r["n"]): float(r["sequence_arg"])
+            for r in csv.DictReader((evaluated / "feedback.csv").open())}
+    assert set(rows) == {(m, n) for m in ("full", "relations") for n in ("0", "20")}
+    assert all(rows[(m, "20")] >= rows[(m, "0")] for m in ("full", "relations"))
 
 
 def test_aggregate_and_report_over_worlds(evaluated, tiny):
@@ -113,7 +117,8 @@ def test_aggregate_and_report_over_worlds(evaluated, tiny):
     seeds = {r["world_seed"] for r in csv.DictReader((out / "table1_seeds.csv").open())}
     assert seeds == {"0", "5"}
     assert "The full model per task" in (out / "failures.md").read_text()
-    assert json.loads((out / "recipes.json").read_text())["per_seed"].keys() == {"0", "5"}
+    recipes = json.loads((out / "recipes.json").read_text())["methods"]
+    assert recipes.keys() == {"full", "relations"} and recipes["full"]["per_seed"].keys() == {"0", "5"}
     (out / "selection.json").write_text(json.dumps({"C": 2.0, "dev_seed": 100, "criterion": "sequence_arg",
                                                     "candidates": [{"C": 2.0, "sequence_arg": 50.0}]}))
     assert main(["report", "--reports", str(out), "--output", str(out / "summary.md")]) == 0

@@ -23,10 +23,11 @@ from ..io import atomic_directory, write_json_atomic
 from ..learn.store import ModelStore
 from ..sim.scenarios import Scenario
 from .crossval import scenario_folds, training_index
-from .methods import MRFMethod
+from .methods import ADDED_METHODS, MRFMethod
 from .recipes import recipe_training_sets
 
-CROSSVAL_FEATURES = {"full": "full", "only_edge": "edge", "only_clique": "clique"}
+CROSSVAL_FEATURES = {"full": "full", "only_edge": "edge", "only_clique": "clique", "relations": "relations"}
+ROBUSTNESS_METHODS = ("full", *ADDED_METHODS)  # the methods noise, feedback and recipes run
 
 
 @dataclass(frozen=True)
@@ -38,14 +39,15 @@ class TrainingJob:
 
 def training_jobs(meta: list[StepMeta], scenarios: dict[str, Scenario], n_folds: int, seed: int,
                   group_by: str) -> list[TrainingJob]:
-    """The MRF fits of crossval (three feature sets x folds) and recipes (full model per kind)."""
+    """The MRF fits of crossval (every MRF method x folds) and recipes (each robustness method per kind)."""
     jobs = []
     folds = scenario_folds(scenarios, n_folds, seed, group_by)
     for method in CROSSVAL_FEATURES:
         for k, test in enumerate(folds):
             jobs.append(TrainingJob(method, f"fold {k}", tuple(training_index(meta, test))))
-    for name, index in recipe_training_sets(meta).items():
-        jobs.append(TrainingJob("full", f"recipes: {name}", tuple(index)))
+    for method in ROBUSTNESS_METHODS:
+        for name, index in recipe_training_sets(meta).items():
+            jobs.append(TrainingJob(method, f"recipes: {name}", tuple(index)))
     return jobs
 
 

@@ -35,6 +35,14 @@ ATTRIBUTE_COLUMNS = CONTINUOUS_ATTRIBUTES + BINARY_ATTRIBUTES
 OBJECT_COLUMNS = STATE_COLUMNS + ATTRIBUTE_COLUMNS
 TASK_REL_COLUMNS = ("is_task_arg1", "is_task_arg2", "overlaps_task_arg1", "overlaps_task_arg2")
 HISTORY_ARG_COLUMNS = ("a1_prev1", "a2_prev1", "a1_prev2", "a2_prev2")
+# Relations of every object to three reference objects of the step: the task's first argument, the
+# container that holds it, and the object in the gripper. Geometry and state only: never names or categories.
+RELATION_REFERENCES = ("object", "container", "held")
+VOLUME_RATIOS = (1.0, 1.25, 1.5, 1.75, 2.0, 2.5, 3.0, 4.0)  # volume at least this many times the reference's
+LENGTH_MARGINS = (0.0, 0.02, 0.04, 0.06, 0.1)  # longest side at least this much (m) over the reference's height
+RELATION_KINDS = ("is", *(f"volume_ge_{r:g}x" for r in VOLUME_RATIOS), "log_volume_ratio",
+                  *(f"length_over_height_ge_{m:g}m" for m in LENGTH_MARGINS), "near")
+RELATION_COLUMNS = tuple(f"{k}_{r}" for r in RELATION_REFERENCES for k in RELATION_KINDS)
 
 _LENGTHS = {"height", "max_wl", "min_wl"}
 
@@ -59,6 +67,7 @@ class StepContext:
     prev_prims: tuple[int, int]  # primitive index at t-1 and t-2 (NO_PRIM if none)
     prev_args: tuple[int, int, int, int]  # object index of a1,a2 at t-1 and a1,a2 at t-2 (-1 if none)
     gold: tuple[int, int, int] | None = None  # (primitive, a1, a2), -1 for an absent argument
+    relations: np.ndarray | None = None  # (n, len(RELATION_COLUMNS)) float; only the `relations` model reads it
 
     @property
     def n(self) -> int:
@@ -90,6 +99,45 @@ class StepContext:
             raise ValueError(f"{action}: object {err.args[0]} is not in this step's environment") from None
         args += [-1] * (2 - len(args))
         return PRIM_INDEX[action.primitive], args[0], args[1]
+
+
+def _log_ratio(a: np.ndarray, b: float) -> np.ndarray:
+    """log10(a / b) over two decades, clipped to [-1, 1]."""
+    return np.clip(np.log10(np.maximum(a, 1e-9) / max(b, 1e-9)) / 2.0, -1.0, 1.0)
+
+
+def relations(state: WorldState, task: Task, ids: list[str]) -> np.ndarray:
+    """(n, len(RELATION_COLUMNS)): how each object compares with the step's reference objects.
+
+    Volume against the reference's volume, as a log ratio and as steps (does it
+    hold as much, a quarter more, ... four times as much), longest side against
+    the reference's height as steps of margin (does it reach out of it), and
+    nearness (horizontal distance under 1 m, scaled). Steps let a linear score
+    prefer "just big enough" over "bigger". A missing reference (no container,
+    an empty gripper) leaves its columns at zero; no object is compared with itself.
+    """
+    attrs = [state.specs[o].attributes() for o in ids]
+    volume = np.array([a["volume"] for a in attrs])
+    length = np.array([a["max_wl"] for a in attrs])
+    xy = np.array([state.poses[o][:2] for o in ids])
+    first = task.args[0] if task.args else None
+    refs = (first, state.container_of(first) if first in state.specs else None, state.held)
+    out = np.zeros((len(ids), len(RELATION_COLUMNS)))
+    k = len(RELATION_KINDS)
+    for r, ref in enumerate(refs):
+        if ref is None or ref not in state.specs:
+            continue
+        j = ids.index(ref)
+        ratio = volume / volume[j]
+        margin = length - attrs[j]["height"]
+        d = np.hypot(*(xy - xy[j]).T)
+        cols = np.column_stack([
+            np.arange(len(ids)) == j, *(ratio >= t for t in VOLUME_RATIOS), _log_ratio(volume, volume[j]),
+            *(margin >= m for m in LENGTH_MARGINS), np.clip(1.0 - d, 0.0, 1.0),
+        ]).astype(float)
+        cols[j, 1:] = 0.0
+        out[:, r * k : (r + 1) * k] = cols
+    return out
 
 
 def step_context(
@@ -133,7 +181,8 @@ def step_context(
     for k in range(2):
         args = list(prev[k].args) if k < len(prev) else []
         prev_args += [index.get(a, -1) for a in args] + [-1] * (2 - len(args))
-    ctx = StepContext(ids, objects, task_rel, collide, TASK_INDEX[task.name], prev_prims, tuple(prev_args))
+    ctx = StepContext(ids, objects, task_rel, collide, TASK_INDEX[task.name], prev_prims, tuple(prev_args),
+                      relations=relations(state, task, ids))
     if gold is not None:
         ctx.gold = ctx.encode(gold)
     return ctx

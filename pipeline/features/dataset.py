@@ -6,11 +6,11 @@ state, so a planner learns when to stop.
 
 Files (written by `taskseq features`):
   steps.parquet       one row per step: ids, task, history, label, where its objects start
-  objects.npz         CSR matrix, one row per (step, object): OBJECT_COLUMNS then
-                      TASK_REL_COLUMNS; `object_ids` names the rows; `collide_*`
-                      hold the colliding pairs (step row, i, j) in COO form
-  candidates.parquet  one row per candidate of every step: step_id, primitive, a1, a2
-                      (object positions within the step, -1 if absent), is_gold
+  objects.npz         CSR matrix, one row per (step, object): OBJECT_COLUMNS, then
+                      TASK_REL_COLUMNS, then RELATION_COLUMNS; `object_ids` names the rows;
+                      `collide_*` hold the colliding pairs (step row, i, j) in COO form
+
+A step's candidates are not stored: `candidate_index(n)` enumerates them.
 """
 
 from __future__ import annotations
@@ -28,7 +28,14 @@ from ..io import atomic_directory
 from ..logs.records import parse_record, state_from_dict
 from ..sim.primitives import Action
 from ..sim.tasks import TASKS
-from .context import HISTORY_ARG_COLUMNS, OBJECT_COLUMNS, TASK_REL_COLUMNS, StepContext, candidate_index, step_context
+from .context import (
+    HISTORY_ARG_COLUMNS,
+    OBJECT_COLUMNS,
+    RELATION_COLUMNS,
+    TASK_REL_COLUMNS,
+    StepContext,
+    step_context,
+)
 
 
 @dataclass(frozen=True)
@@ -64,30 +71,19 @@ STEP_SCHEMA = pa.schema([
     ("a1_prev1", pa.int16()), ("a2_prev1", pa.int16()), ("a1_prev2", pa.int16()), ("a2_prev2", pa.int16()),
     ("gold_primitive", pa.int8()), ("gold_a1", pa.int16()), ("gold_a2", pa.int16()),
 ])
-CANDIDATE_SCHEMA = pa.schema([
-    ("step_id", pa.int32()), ("primitive", pa.int8()), ("a1", pa.int16()), ("a2", pa.int16()), ("is_gold", pa.bool_()),
-])
 
 
 def write_features(contexts: list[StepContext], meta: list[StepMeta], output: Path | str) -> None:
     rows, offsets, offset = [], [], 0
     ci, cj, cs = [], [], []
-    cand_cols: dict[str, list[np.ndarray]] = {k: [] for k in ("step_id", "primitive", "a1", "a2", "is_gold")}
     for sid, ctx in enumerate(contexts):
-        rows.append(np.hstack([ctx.objects, ctx.task_rel]))
+        rows.append(np.hstack([ctx.objects, ctx.task_rel, ctx.relations]))
         offsets.append(offset)
         offset += ctx.n
         i, j = np.nonzero(ctx.collide)
         ci.append(i)
         cj.append(j)
         cs.append(np.full(len(i), sid))
-        p, a1, a2 = candidate_index(ctx.n)
-        cand_cols["step_id"].append(np.full(len(p), sid))
-        cand_cols["primitive"].append(p)
-        cand_cols["a1"].append(a1)
-        cand_cols["a2"].append(a2)
-        g = ctx.gold
-        cand_cols["is_gold"].append((p == g[0]) & (a1 == g[1]) & (a2 == g[2]))
     matrix = sparse.csr_matrix(np.vstack(rows))
     steps = {
         "step_id": list(range(len(contexts))),
@@ -105,13 +101,10 @@ def write_features(contexts: list[StepContext], meta: list[StepMeta], output: Pa
     with atomic_directory(output) as tmp:
         pq.write_table(pa.Table.from_pydict(steps, schema=STEP_SCHEMA), tmp / "steps.parquet",
                        compression="zstd", write_statistics=False)
-        cands = {k: np.concatenate(v) for k, v in cand_cols.items()}
-        pq.write_table(pa.Table.from_pydict(cands, schema=CANDIDATE_SCHEMA), tmp / "candidates.parquet",
-                       compression="zstd", write_statistics=False)
         np.savez_compressed(
             tmp / "objects.npz",
             data=matrix.data, indices=matrix.indices, indptr=matrix.indptr, shape=np.array(matrix.shape),
-            columns=np.array(OBJECT_COLUMNS + TASK_REL_COLUMNS),
+            columns=np.array(OBJECT_COLUMNS + TASK_REL_COLUMNS + RELATION_COLUMNS),
             object_ids=np.array([o for c in contexts for o in c.object_ids]),
             collide_step=np.concatenate(cs), collide_i=np.concatenate(ci), collide_j=np.concatenate(cj),
         )
@@ -122,7 +115,7 @@ def read_features(directory: Path | str) -> tuple[list[StepContext], list[StepMe
     steps = pq.read_table(directory / "steps.parquet", schema=STEP_SCHEMA).to_pylist()
     with np.load(directory / "objects.npz", allow_pickle=False) as z:
         columns = tuple(str(c) for c in z["columns"])
-        if columns != OBJECT_COLUMNS + TASK_REL_COLUMNS:
+        if columns != OBJECT_COLUMNS + TASK_REL_COLUMNS + RELATION_COLUMNS:
             raise ValueError(f"{directory}/objects.npz: columns {columns} do not match this version's features")
         matrix = sparse.csr_matrix((z["data"], z["indices"], z["indptr"]), shape=tuple(z["shape"])).toarray()
         object_ids = [str(o) for o in z["object_ids"]]
@@ -141,7 +134,8 @@ def read_features(directory: Path | str) -> tuple[list[StepContext], list[StepMe
         contexts.append(StepContext(
             object_ids=object_ids[o : o + n],
             objects=matrix[o : o + n, :k],
-            task_rel=matrix[o : o + n, k:],
+            task_rel=matrix[o : o + n, k : k + len(TASK_REL_COLUMNS)],
+            relations=matrix[o : o + n, k + len(TASK_REL_COLUMNS) :],
             collide=collide,
             task=task_index[row["task"]],
             prev_prims=(row["prev1"], row["prev2"]),

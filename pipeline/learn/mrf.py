@@ -37,6 +37,7 @@ from ..features.context import (
     HISTORY_ARG_COLUMNS,
     N_PRIM,
     OBJECT_COLUMNS,
+    RELATION_COLUMNS,
     TASK_REL_COLUMNS,
     StepContext,
     candidate_index,
@@ -46,7 +47,9 @@ from ..sim.tasks import TASKS
 
 EDGE_FAMILIES = ("ae", "pt")
 CLIQUE_FAMILIES = ("aet", "pae", "ppt", "paae")
-FEATURE_SETS = {"full": EDGE_FAMILIES + CLIQUE_FAMILIES, "edge": EDGE_FAMILIES, "clique": CLIQUE_FAMILIES}
+RELATION_FAMILY = "rel"  # beyond the paper: relations of an argument to the step's reference objects
+FEATURE_SETS = {"full": EDGE_FAMILIES + CLIQUE_FAMILIES, "edge": EDGE_FAMILIES, "clique": CLIQUE_FAMILIES,
+                "relations": EDGE_FAMILIES + CLIQUE_FAMILIES + (RELATION_FAMILY,)}
 
 N_TASK = len(TASKS)
 N_OBJ = len(OBJECT_COLUMNS)
@@ -84,6 +87,9 @@ def _blocks() -> list[Block]:
     out.append(Block("ppt2", "ppt", (N_TASK, N_PRIM + 1, N_PRIM), (t, prev, p)))
     for s in (1, 2):
         out.append(Block(f"paae{s}", "paae", (N_PRIM, 4), (p, HISTORY_ARG_COLUMNS)))
+    for s in (1, 2):
+        out.append(Block(f"rel{s}", RELATION_FAMILY, (N_TASK, 2, len(RELATION_COLUMNS)),
+                         (t, ("holding", "empty_hand"), RELATION_COLUMNS)))
     return out
 
 
@@ -97,6 +103,7 @@ class StepBatch:
     steps: list[StepContext]
     objects: np.ndarray  # (S, N, K)
     task_rel: np.ndarray  # (S, N, 4)
+    relations: np.ndarray  # (S, N, R); zeros for steps without relations
     hist: np.ndarray  # (S, N, 4)
     collide: np.ndarray  # (S, N, N)
     valid: np.ndarray  # (S, N) bool
@@ -111,17 +118,20 @@ class StepBatch:
         S, N = len(steps), max(x.n for x in steps)
         K = len(OBJECT_COLUMNS)
         objects, rel, hist = np.zeros((S, N, K)), np.zeros((S, N, 4)), np.zeros((S, N, 4))
+        relations = np.zeros((S, N, len(RELATION_COLUMNS)))
         collide, valid = np.zeros((S, N, N), dtype=bool), np.zeros((S, N), dtype=bool)
         for s, x in enumerate(steps):
             objects[s, : x.n], rel[s, : x.n], hist[s, : x.n] = x.objects, x.task_rel, x.history_equal()
             collide[s, : x.n, : x.n] = x.collide
+            if x.relations is not None:
+                relations[s, : x.n] = x.relations
             valid[s, : x.n] = True
         task = np.array([x.task for x in steps])
         prev = np.array([x.prev_prims for x in steps])
         pair_valid = valid[:, :, None] & valid[:, None, :] & ~np.eye(N, dtype=bool)[None]
         valid_neg = np.where(valid, 0.0, -np.inf)
         pair_neg = np.where(pair_valid, 0.0, -np.inf)
-        return cls(steps, objects, rel, hist, collide, valid, pair_valid, valid_neg, pair_neg, task, prev)
+        return cls(steps, objects, rel, relations, hist, collide, valid, pair_valid, valid_neg, pair_neg, task, prev)
 
 
 class _Batched:
@@ -130,6 +140,7 @@ class _Batched:
     def _batch(self: MRFModel, X: list[StepContext]) -> StepBatch:  # type: ignore[misc]
         cached = getattr(self, "_batch_cache", None)
         if cached is None or cached[0] is not X:
+            self._check_relations(X)
             cached = (X, StepBatch.of(list(X)))
             self._batch_cache = cached
         return cached[1]
@@ -158,6 +169,8 @@ class _Batched:
                 unary += b.objects[:, :, list(_AE_COLS)] @ wt
             if (wt := self._w(w, f"aet_rel{s}")) is not None:
                 unary += np.matmul(b.task_rel, wt[b.task][:, :, None])[:, :, 0]
+            if (wt := self._w(w, f"rel{s}")) is not None:
+                unary += np.matmul(b.relations, wt[b.task, np.where(holding, 0, 1)][:, :, None])[:, :, 0]
             if (wt := self._w(w, f"aet_obj{s}")) is not None:
                 unary += np.matmul(b.objects, wt[b.task, np.where(holding, 0, 1)][:, :, None])[:, :, 0]
             table = np.repeat(unary[:, :, None], N_PRIM, axis=2)
@@ -237,6 +250,8 @@ class _Batched:
                 np.add.at(v, g_sel, obj[:, list(_AE_COLS)])
             if (v := view(f"aet_rel{s}")) is not None:
                 np.add.at(v, (g_sel, t_sel), b.task_rel[r, a_sel])
+            if (v := view(f"rel{s}")) is not None:
+                np.add.at(v, (g_sel, t_sel, np.where(holding[r], 0, 1)), b.relations[r, a_sel])
             if (v := view(f"aet_obj{s}")) is not None:
                 np.add.at(v, (g_sel, t_sel, np.where(holding[r], 0, 1)), obj)
             if (v := view(f"pae{s}")) is not None:
@@ -252,7 +267,9 @@ class _Batched:
 class MRFModel(_Batched):
     """Structured model of one step for `CuttingPlaneSSVM`; x is a `StepContext`, y is (p, a1, a2).
 
-    `features` picks the families: "full", "edge" (ae, pt) or "clique" (aet, pae, ppt, paae).
+    `features` picks the families: "full", "edge" (ae, pt) or "clique" (aet, pae, ppt, paae), as in
+    the paper; "relations" is "full" plus the relations of each argument to the step's reference
+    objects (`features.context.RELATION_COLUMNS`), an addition beyond the paper.
     """
 
     def __init__(self, features: str = "full") -> None:
@@ -261,11 +278,9 @@ class MRFModel(_Batched):
         self.features = features
         self.families = FEATURE_SETS[features]
         self.blocks = [b for b in ALL_BLOCKS if b.family in self.families]
-        self.offsets: dict[str, int] = {}
         self._slices: dict[str, tuple[int, int, tuple[int, ...]]] = {}
         offset = 0
         for b in self.blocks:
-            self.offsets[b.name] = offset
             self._slices[b.name] = (offset, offset + b.size, b.shape)
             offset += b.size
         self.size_joint_feature = offset
@@ -284,6 +299,16 @@ class MRFModel(_Batched):
     def family_of(self) -> np.ndarray:
         """Family name of every weight, aligned with `feature_names()`."""
         return np.concatenate([np.full(b.size, b.family) for b in self.blocks])
+
+    def _relations(self, x: StepContext) -> np.ndarray:
+        if x.relations is None:
+            raise ValueError("the relations model needs steps with relations (build them with step_context)")
+        return x.relations
+
+    def _check_relations(self, X: list[StepContext]) -> None:
+        if RELATION_FAMILY in self.families:
+            for x in X:
+                self._relations(x)
 
     def _w(self, w: np.ndarray, name: str) -> np.ndarray | None:
         sl = self._slices.get(name)
@@ -311,6 +336,8 @@ class MRFModel(_Batched):
             row = x.objects[a]
             put(f"ae{s}", slice(None), row[list(_AE_COLS)])
             put(f"aet_rel{s}", (g, slice(None)), x.task_rel[a])
+            if RELATION_FAMILY in self.families:
+                put(f"rel{s}", (g, 0 if x.holding else 1, slice(None)), self._relations(x)[a])
             put(f"aet_obj{s}", (g, 0 if x.holding else 1, slice(None)), row)
             put(f"pae{s}", (p, slice(None)), row)
             put(f"paae{s}", (p, slice(None)), hist[a])
@@ -336,6 +363,8 @@ class MRFModel(_Batched):
                 unary += x.objects[:, list(_AE_COLS)] @ wt
             if (wt := self._w(w, f"aet_rel{s}")) is not None:
                 unary += x.task_rel @ wt[g]
+            if (wt := self._w(w, f"rel{s}")) is not None:
+                unary += self._relations(x) @ wt[g, 0 if x.holding else 1]
             if (wt := self._w(w, f"aet_obj{s}")) is not None:
                 unary += x.objects @ wt[g, 0 if x.holding else 1]
             table = np.broadcast_to(unary, (N_PRIM, n)).copy()

@@ -32,6 +32,8 @@ def training_key(features: str, params: dict[str, Any], contexts: Sequence[StepC
         h.update(json.dumps([x.object_ids, x.task, list(x.prev_prims), list(x.prev_args), list(x.gold)]).encode())
         for a in (x.objects, x.task_rel, x.collide):
             h.update(np.ascontiguousarray(a).tobytes())
+        if x.relations is not None:
+            h.update(np.ascontiguousarray(x.relations).tobytes())
     return h.hexdigest()
 
 

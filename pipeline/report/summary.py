@@ -79,37 +79,35 @@ def build_summary(reports: Path, labels: dict[str, str]) -> str:
     noise = reports / "noise.csv"
     if noise.exists():
         rows = list(csv.DictReader(noise.open()))
-        out += ["## Attribute noise (sequence arg, full model)", "", "| flip rate | here (mean ± sd) | paper |",
-                "|---:|---:|---:|"]
+        out += ["## Attribute noise (sequence arg, mean ± sd over world seeds)", "",
+                "| method | flip rate | here | paper |", "|---|---:|---:|---:|"]
         for r in rows:
             rate = float(r["rate"])
-            out.append(f"| {rate:g} | {float(r['sequence_arg']):.1f} ± {float(r['sequence_arg_sd']):.1f} | "
-                       f"{_f(paper.NOISE.get(rate))} |")
+            out.append(f"| {labels.get(r['method'], r['method'])} | {rate:g} | {float(r['sequence_arg']):.1f} ± "
+                       f"{float(r['sequence_arg_sd']):.1f} | {_f(paper.NOISE.get(rate))} |")
         out += ["", "![noise](noise.png)", ""]
     fb = reports / "feedback.csv"
     if fb.exists():
         rows = list(csv.DictReader(fb.open()))
-        out += ["## Human feedback (sequence arg, full model)", "", "| top k | steps with feedback | here | paper |",
-                "|---:|---:|---:|---:|"]
+        out += ["## Human feedback (sequence arg, mean ± sd over world seeds)", "",
+                "| method | top k | steps with feedback | here | paper |", "|---|---:|---:|---:|---:|"]
         for r in rows:
             n = r["n"]
             key_n = "all" if int(n) >= 20 else n
-            out.append(f"| {r['k']} | {key_n} | {float(r['sequence_arg']):.1f} ± {float(r['sequence_arg_sd']):.1f} | "
+            out.append(f"| {labels.get(r['method'], r['method'])} | {r['k']} | {key_n} | "
+                       f"{float(r['sequence_arg']):.1f} ± {float(r['sequence_arg_sd']):.1f} | "
                        f"{_f(paper.FEEDBACK.get((int(r['k']), key_n)))} |")
         out += ["", "![feedback](feedback.png)", ""]
     rec = _load(reports / "recipes.json")
     if rec:
-        n = rec["recipes"]
-        per = rec["per_seed"]
-
-        def cells(key: str) -> str:
-            return ", ".join(f"{t[key]}/{n}" for t in per.values())
-
-        out += ["## Recipes (environments held out from training)", "",
-                f"| | here (seeds {', '.join(per)}) | paper |", "|---|---:|---:|",
-                f"| no feedback | {cells('no_feedback')} | {paper.RECIPES['no_feedback']}/12 |",
-                f"| one feedback at the start of each program | {cells('feedback_first_step')} | "
-                f"{paper.RECIPES['feedback_first_step']}/12 |", ""]
+        out += ["## Recipes (environments held out from training; successes per world seed)", "",
+                "| method | feedback | here | paper |", "|---|---|---:|---:|"]
+        for m, r in rec["methods"].items():
+            n = r["recipes"]
+            for key, what in (("no_feedback", "none"), ("feedback_first_step", "at the start of each program")):
+                cells = ", ".join(f"{t[key]}/{n}" for t in r["per_seed"].values())
+                out.append(f"| {labels.get(m, m)} | {what} | {cells} | {paper.RECIPES[key]}/12 |")
+        out.append("")
     train = _load(reports / "train.json")
     bench = _load(reports / "bench.json")
     if train or bench:

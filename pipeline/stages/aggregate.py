@@ -82,27 +82,32 @@ def run(world: World, worlds: Path, output: Path, tracker: Tracker = NO_RUN) -> 
     methods = list(dict.fromkeys(r["method"] for r in failures))
     write_text_atomic(out / "failures.md", failures_markdown(failures, methods, len(world.seeds)))
 
-    noise_seeds, noise = curve_over_seeds(dirs, "noise.csv", ["rate"], RATES)
-    write_text_atomic(out / "noise_seeds.csv", csv_text(["world_seed", "rate", *RATES], noise_seeds,
+    noise_seeds, noise = curve_over_seeds(dirs, "noise.csv", ["method", "rate"], RATES)
+    write_text_atomic(out / "noise_seeds.csv", csv_text(["world_seed", "method", "rate", *RATES], noise_seeds,
                                                         dict.fromkeys(RATES, 2)))
-    cols = ["rate"] + [c for v in RATES for c in (v, f"{v}_sd")]
-    write_text_atomic(out / "noise.csv", csv_text(cols, noise, dict.fromkeys(cols[1:], 2)))
-    line_plot_png({f"ours - full (mean, sd over {len(world.seeds)} world seeds)":
-                   ([float(r["rate"]) for r in noise], [r["sequence_arg"] for r in noise],
-                    [r["sequence_arg_sd"] for r in noise])},
+    cols = ["method", "rate"] + [c for v in RATES for c in (v, f"{v}_sd")]
+    write_text_atomic(out / "noise.csv", csv_text(cols, noise, dict.fromkeys(cols[2:], 2)))
+    noise_methods = list(dict.fromkeys(r["method"] for r in noise))
+    line_plot_png({f"{METHOD_LABELS.get(m, m)} (mean, sd over {len(world.seeds)} world seeds)":
+                   ([float(r["rate"]) for r in noise if r["method"] == m],
+                    [r["sequence_arg"] for r in noise if r["method"] == m],
+                    [r["sequence_arg_sd"] for r in noise if r["method"] == m]) for m in noise_methods},
                   str(out / "noise.png"), "Sequence accuracy (arg) with binary attributes flipped",
                   "probability of flipping each binary attribute", "% sequences correct",
                   reference={"paper": (list(paper.NOISE), list(paper.NOISE.values()))})
 
-    fb_seeds, fb = curve_over_seeds(dirs, "feedback.csv", ["k", "n"], RATES)
-    write_text_atomic(out / "feedback_seeds.csv", csv_text(["world_seed", "k", "n", *RATES], fb_seeds,
+    fb_seeds, fb = curve_over_seeds(dirs, "feedback.csv", ["method", "k", "n"], RATES)
+    write_text_atomic(out / "feedback_seeds.csv", csv_text(["world_seed", "method", "k", "n", *RATES], fb_seeds,
                                                            dict.fromkeys(RATES, 2)))
-    cols = ["k", "n"] + [c for v in RATES for c in (v, f"{v}_sd")]
-    write_text_atomic(out / "feedback.csv", csv_text(cols, fb, dict.fromkeys(cols[2:], 2)))
+    cols = ["method", "k", "n"] + [c for v in RATES for c in (v, f"{v}_sd")]
+    write_text_atomic(out / "feedback.csv", csv_text(cols, fb, dict.fromkeys(cols[3:], 2)))
     ks = list(dict.fromkeys(r["k"] for r in fb))
     ns = list(dict.fromkeys(r["n"] for r in fb))
-    line_plot_png({f"top {k}": (list(range(len(ns))), [r["sequence_arg"] for r in fb if r["k"] == k],
-                                [r["sequence_arg_sd"] for r in fb if r["k"] == k]) for k in ks},
+    fb_methods = list(dict.fromkeys(r["method"] for r in fb))
+    line_plot_png({f"{METHOD_LABELS.get(m, m)}, top {k}":
+                   (list(range(len(ns))), [r["sequence_arg"] for r in fb if r["k"] == k and r["method"] == m],
+                    [r["sequence_arg_sd"] for r in fb if r["k"] == k and r["method"] == m])
+                   for m in fb_methods for k in ks},
                   str(out / "feedback.png"), "Sequence accuracy (arg) with an observer's feedback",
                   "steps with feedback", "% sequences correct", xticks=list(range(len(ns))), xticklabels=ns)
 
@@ -119,14 +124,18 @@ def run(world: World, worlds: Path, output: Path, tracker: Tracker = NO_RUN) -> 
         if not path.exists():
             raise FileNotFoundError(f"{path}: missing; run recipes for world seed {seed}")
         recipes[seed] = json.loads(path.read_text())
-    totals = {k: [r["totals"][k] for r in recipes.values()] for k in ("no_feedback", "feedback_first_step")}
-    write_json_atomic(out / "recipes.json", {
-        "recipes": recipes[world.seeds[0]]["totals"]["recipes"],
-        "per_seed": {str(s): r["totals"] for s, r in recipes.items()},
-        "mean": {k: mean_sd(v)[0] for k, v in totals.items()},
-        "sd": {k: mean_sd(v)[1] for k, v in totals.items()},
-        "min": {k: min(v) for k, v in totals.items()},
-    })
+    by_method = {}
+    for m in recipes[world.seeds[0]]["methods"]:
+        totals = {k: [r["methods"][m]["totals"][k] for r in recipes.values()]
+                  for k in ("no_feedback", "feedback_first_step")}
+        by_method[m] = {
+            "recipes": recipes[world.seeds[0]]["methods"][m]["totals"]["recipes"],
+            "per_seed": {str(s): r["methods"][m]["totals"] for s, r in recipes.items()},
+            "mean": {k: mean_sd(v)[0] for k, v in totals.items()},
+            "sd": {k: mean_sd(v)[1] for k, v in totals.items()},
+            "min": {k: min(v) for k, v in totals.items()},
+        }
+    write_json_atomic(out / "recipes.json", {"methods": by_method})
     for f in ("table1.md", "table1.tex", "metrics.json", "failures.md", "noise.png", "feedback.png", "recipes.json"):
         tracker.artifact(out / f)
     print(to_markdown(table))

@@ -1,13 +1,15 @@
-"""Stage `feedback`: sequence accuracy when an observer picks among the top k candidates at the first n steps."""
+"""Stage `feedback`: sequence accuracy when an observer picks among the top k candidates at the first n steps.
+
+Run for the paper's full model and for each added method (`ROBUSTNESS_METHODS`).
+"""
 
 from __future__ import annotations
 
-from dataclasses import asdict
-from functools import partial
 from pathlib import Path
 from typing import Any
 
-from ..evaluate.methods import MRFMethod
+from ..evaluate.fold_models import ROBUSTNESS_METHODS
+from ..evaluate.methods import METHOD_LABELS, table1_methods
 from ..evaluate.robustness import Condition, evaluate_conditions, feedback_rows, feedback_steps
 from ..features.dataset import read_features
 from ..io import write_text_atomic
@@ -24,20 +26,24 @@ def run(settings: Feedback, crossval: Crossval, learner: Learner, features: Path
         store: Path | None = None, n_jobs: int = 1, tracker: Tracker = NO_RUN) -> list[dict[str, Any]]:
     contexts, meta = read_features(features)
     bench = load_benchmark(processed)
-    make = partial(MRFMethod, features="full", **asdict(learner), store=None if store is None else str(store))
+    methods = table1_methods(crossval, learner, store=None if store is None else str(store))
     ns = feedback_steps(settings, crossval.max_steps)
     conditions = [Condition("feedback", k, n) for k in settings.k for n in ns]
-    results = evaluate_conditions(make, contexts, meta, bench.scenarios, conditions, crossval.fold_settings,
-                                  crossval.max_steps, n_jobs=n_jobs)
-    rows = feedback_rows(settings, crossval.max_steps, results)
+    rows = []
+    for name in ROBUSTNESS_METHODS:
+        results = evaluate_conditions(methods[name], contexts, meta, bench.scenarios, conditions,
+                                      crossval.fold_settings, crossval.max_steps, n_jobs=n_jobs)
+        rows += [{"method": name, **r} for r in feedback_rows(settings, crossval.max_steps, results)]
     out = Path(output)
-    text = csv_text(["k", "n", "sequence_arg", "sequence_prim", "success"], rows, DECIMALS)
+    text = csv_text(["method", "k", "n", "sequence_arg", "sequence_prim", "success"], rows, DECIMALS)
     write_text_atomic(out / "feedback.csv", text)
     for r in rows:
-        with tracker.child(f"feedback k={r['k']} n={r['n']}", {"k": r["k"], "n": r["n"]}) as child:
+        with tracker.child(f"feedback {r['method']} k={r['k']} n={r['n']}",
+                           {"method": r["method"], "k": r["k"], "n": r["n"]}) as child:
             child.metrics({k: r[k] for k in DECIMALS})
-    series = {f"top {k}": (list(range(len(ns))), [r["sequence_arg"] for r in rows if r["k"] == k], None)
-              for k in settings.k}
+    series = {f"{METHOD_LABELS[m]}, top {k}": (list(range(len(ns))), [r["sequence_arg"] for r in rows
+                                                                     if r["k"] == k and r["method"] == m], None)
+              for m in ROBUSTNESS_METHODS for k in settings.k}
     line_plot_png(series, str(out / "feedback.png"), "Sequence accuracy (arg) with an observer's feedback",
                   "steps with feedback", "% sequences correct", xticks=list(range(len(ns))),
                   xticklabels=list(settings.n))

@@ -1,13 +1,15 @@
-"""Stage `noise`: closed-loop sequence accuracy of the full model with binary attributes flipped at test time."""
+"""Stage `noise`: closed-loop sequence accuracy with binary attributes flipped at test time.
+
+Run for the paper's full model and for each added method (`ROBUSTNESS_METHODS`).
+"""
 
 from __future__ import annotations
 
-from dataclasses import asdict
-from functools import partial
 from pathlib import Path
 from typing import Any
 
-from ..evaluate.methods import MRFMethod
+from ..evaluate.fold_models import ROBUSTNESS_METHODS
+from ..evaluate.methods import METHOD_LABELS, table1_methods
 from ..evaluate.robustness import Condition, evaluate_conditions, noise_curve, noise_runs
 from ..features.dataset import read_features
 from ..io import write_text_atomic
@@ -25,23 +27,28 @@ def run(settings: Noise, crossval: Crossval, learner: Learner, features: Path, p
         store: Path | None = None, n_jobs: int = 1, tracker: Tracker = NO_RUN) -> list[dict[str, Any]]:
     contexts, meta = read_features(features)
     bench = load_benchmark(processed)
-    make = partial(MRFMethod, features="full", **asdict(learner), store=None if store is None else str(store))
+    methods = table1_methods(crossval, learner, store=None if store is None else str(store))
     conditions = [Condition("noise", r, s) for r in settings.rates for s in range(settings.seeds)]
-    results = evaluate_conditions(make, contexts, meta, bench.scenarios, conditions, crossval.fold_settings,
-                                  crossval.max_steps, settings.seed, n_jobs)
-    runs = noise_runs(settings, results)
-    curve = noise_curve(settings, runs)
+    runs, curve = [], []
+    for name in ROBUSTNESS_METHODS:
+        results = evaluate_conditions(methods[name], contexts, meta, bench.scenarios, conditions,
+                                      crossval.fold_settings, crossval.max_steps, settings.seed, n_jobs)
+        mine = noise_runs(settings, results)
+        runs += [{"method": name, **r} for r in mine]
+        curve += [{"method": name, **r} for r in noise_curve(settings, mine)]
     out = Path(output)
-    write_text_atomic(out / "noise_runs.csv", csv_text(["rate", "seed", "sequence_arg", "sequence_prim", "success"],
-                                                       runs, RATE))
-    text = csv_text(list(RATE), curve, RATE)
+    write_text_atomic(out / "noise_runs.csv", csv_text(["method", "rate", "seed", "sequence_arg", "sequence_prim",
+                                                        "success"], runs, RATE))
+    text = csv_text(["method", *RATE], curve, RATE)
     write_text_atomic(out / "noise.csv", text)
     for row in curve:
-        with tracker.child(f"noise r={row['rate']}", {"rate": row["rate"]}) as child:
+        with tracker.child(f"noise {row['method']} r={row['rate']}", {"method": row["method"],
+                                                                       "rate": row["rate"]}) as child:
             child.metrics({"sequence_arg": row["sequence_arg"], "sequence_arg_std": row["sequence_arg_std"]})
-    line_plot_png({"ours - full (mean, std over seeds)": (list(settings.rates), [r["sequence_arg"] for r in curve],
-                                                          [r["sequence_arg_std"] for r in curve])},
-                  str(out / "noise.png"), "Sequence accuracy (arg) with binary attributes flipped",
+    series = {f"{METHOD_LABELS[m]} (mean, std over noise draws)":
+              (list(settings.rates), [r["sequence_arg"] for r in curve if r["method"] == m],
+               [r["sequence_arg_std"] for r in curve if r["method"] == m]) for m in ROBUSTNESS_METHODS}
+    line_plot_png(series, str(out / "noise.png"), "Sequence accuracy (arg) with binary attributes flipped",
                   "probability of flipping each binary attribute", "% sequences correct",
                   reference={"paper": (list(paper.NOISE), list(paper.NOISE.values()))})
     for f in ("noise.csv", "noise_runs.csv", "noise.png"):
