@@ -181,19 +181,19 @@ def build_parser() -> argparse.ArgumentParser:
     p = add("generate", "simulate the demonstrator and write demonstration logs (JSON Lines)")
     p.add_argument("--seed", type=int, default=G.seed, help=f"world seed: scenario draws and position jitter "
                                                              f"(default {G.seed})")
-    p.add_argument("--output", type=Path, default=Path("data/raw"), help="folder of *.jsonl logs (replaced)")
+    p.add_argument("--output", type=Path, required=True, help="folder of *.jsonl logs (replaced)")
 
     p = add("replay", "re-execute every logged sequence and report states or goals that differ")
     p.add_argument("input", type=Path, help="folder of *.jsonl logs")
 
     p = add("ingest", "validate logs and write them as Parquet tables plus dataset metrics")
-    p.add_argument("--input", type=Path, default=Path("data/raw"), help="folder of *.jsonl logs")
-    p.add_argument("--output", type=Path, default=Path("data/processed"), help="folder of Parquet tables (replaced)")
-    p.add_argument("--metrics", type=Path, default=Path("reports/dataset.json"), help="dataset counts as JSON")
+    p.add_argument("--input", type=Path, default=Path("data/worlds/0/raw"), help="folder of *.jsonl logs")
+    p.add_argument("--output", type=Path, required=True, help="folder of Parquet tables (replaced)")
+    p.add_argument("--metrics", type=Path, default=None, help="dataset counts as JSON (default: not written)")
 
     p = add("features", "build every teacher-forced step's candidates and features from the Parquet tables")
-    p.add_argument("--input", type=Path, default=Path("data/processed"), help="folder of Parquet tables")
-    p.add_argument("--output", type=Path, default=Path("data/features"), help="feature folder (replaced)")
+    p.add_argument("--input", type=Path, default=Path("data/worlds/0/processed"), help="folder of Parquet tables")
+    p.add_argument("--output", type=Path, required=True, help="feature folder (replaced)")
 
     def training_options(p: argparse.ArgumentParser) -> None:
         p.add_argument("--C", type=float, default=T.C, help=f"slack weight, C * sum of slacks (default {T.C})")
@@ -219,13 +219,13 @@ def build_parser() -> argparse.ArgumentParser:
                             "changes no result")
 
     p = add("train", "fit the MRF weights with the 1-slack structural SVM on every step")
-    p.add_argument("--features", type=Path, default=Path("data/features"), help="feature folder")
+    p.add_argument("--features", type=Path, default=Path("data/worlds/0/features"), help="feature folder")
     p.add_argument("--feature-set", choices=("full", "edge", "clique"), default=T.feature_set,
                    help="families of the score: all six, edge terms only, or clique terms only")
     training_options(p)
-    p.add_argument("--model", type=Path, default=Path("models/mrf.npz"), help="model file to write (.npz)")
-    p.add_argument("--metrics", type=Path, default=Path("reports/train.json"), help="training metrics (JSON)")
-    p.add_argument("--curve", type=Path, default=Path("reports/train_curve.csv"), help="objective per iteration")
+    p.add_argument("--model", type=Path, required=True, help="model file to write (.npz)")
+    p.add_argument("--metrics", type=Path, default=None, help="training metrics (JSON; default: not written)")
+    p.add_argument("--curve", type=Path, default=None, help="objective per iteration (CSV; default: not written)")
 
     p = add("plan", "plan a program for a task in an environment with a trained model")
     p.add_argument("--model", type=Path, default=Path("models/mrf.npz"), help="model file (.npz)")
@@ -238,8 +238,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print the program as JSON")
 
     def data_options(p: argparse.ArgumentParser) -> None:
-        p.add_argument("--features", type=Path, default=Path("data/features"), help="feature folder")
-        p.add_argument("--processed", type=Path, default=Path("data/processed"), help="folder of Parquet tables")
+        p.add_argument("--features", type=Path, default=Path("data/worlds/0/features"), help="feature folder")
+        p.add_argument("--processed", type=Path, default=Path("data/worlds/0/processed"),
+                       help="folder of Parquet tables")
 
     def fold_options(p: argparse.ArgumentParser, seed: str = "--seed") -> None:
         """The fold assignment, shared by every stage that evaluates on folds so their folds agree."""
@@ -266,7 +267,7 @@ def build_parser() -> argparse.ArgumentParser:
                         f"--recordings-dir (default {RECORDINGS}); changes no result")
     p.add_argument("--recordings-dir", type=Path, default=None,
                    help="folder for the recordings (default OUTPUT/recordings)")
-    p.add_argument("--output", type=Path, default=Path("reports"), help="folder for the tables and metrics")
+    p.add_argument("--output", type=Path, required=True, help="folder for the tables and metrics")
 
     def robustness_options(p: argparse.ArgumentParser) -> None:
         data_options(p)
@@ -275,7 +276,7 @@ def build_parser() -> argparse.ArgumentParser:
         store_option(p)
         p.add_argument("--max-steps", type=int, default=C.max_steps, help="step cap of closed-loop runs")
         jobs_option(p, "folds run")
-        p.add_argument("--output", type=Path, default=Path("reports"), help="folder for CSV and PNG")
+        p.add_argument("--output", type=Path, required=True, help="folder for CSV and PNG")
 
     p = add("noise", "sequence accuracy of the full model with binary attributes flipped at test time")
     robustness_options(p)
@@ -290,11 +291,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="steps with feedback (a number or 'all')")
 
     p = add("recipes", "chain programs into recipes in environments held out from training")
-    p.add_argument("--features", type=Path, default=Path("data/features"), help="feature folder")
+    p.add_argument("--features", type=Path, default=Path("data/worlds/0/features"), help="feature folder")
     training_options(p)
     store_option(p)
     p.add_argument("--max-steps", type=int, default=C.max_steps, help="step cap of each program")
-    p.add_argument("--output", type=Path, default=Path("reports"), help="folder for recipes.json")
+    p.add_argument("--output", type=Path, required=True, help="folder for recipes.json")
 
     p = add("folds", "train every MRF model the evaluation stages use, once, into a model store")
     data_options(p)
@@ -312,30 +313,30 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-steps", type=int, default=C.max_steps, help="step cap of closed-loop runs")
     training_options(p)
     jobs_option(p, "fits")
-    p.add_argument("--data", type=Path, default=Path("data/dev"),
+    p.add_argument("--data", type=Path, required=True,
                    help="folder for the development world's logs, tables and features (replaced)")
-    p.add_argument("--output", type=Path, default=Path("reports/selection.json"), help="the choice (JSON)")
+    p.add_argument("--output", type=Path, required=True, help="the choice (JSON)")
 
     p = add("aggregate", "every figure over the world seeds: mean ± sd tables, failures, noise, feedback, recipes")
     world_options(p)
     p.add_argument("--worlds", type=Path, default=Path("reports/worlds"),
                    help="folder of the per-world results, one subfolder per seed")
-    p.add_argument("--output", type=Path, default=Path("reports"), help="folder for the tables over seeds")
+    p.add_argument("--output", type=Path, required=True, help="folder for the tables over seeds")
 
     p = add("report", "write reports/summary.md: every result next to the paper's figures")
     p.add_argument("--reports", type=Path, default=Path("reports"), help="folder of the stages' results")
-    p.add_argument("--output", type=Path, default=Path("reports/summary.md"), help="Markdown file to write")
+    p.add_argument("--output", type=Path, required=True, help="Markdown file to write")
 
     p = add("pddl", "write the PDDL domain, a problem per scenario and its shortest plan (SAT)")
-    p.add_argument("--processed", type=Path, default=Path("data/processed"), help="folder of Parquet tables")
-    p.add_argument("--output", type=Path, default=Path("data/pddl"), help="folder to write (replaced)")
+    p.add_argument("--processed", type=Path, default=Path("data/worlds/0/processed"), help="folder of Parquet tables")
+    p.add_argument("--output", type=Path, required=True, help="folder to write (replaced)")
     p.add_argument("--horizon", type=int, default=P.horizon, help=f"longest plan searched (default {P.horizon})")
 
     p = add("bench", "time training, per-step inference (10 to 100 objects) and features memory")
-    p.add_argument("--processed", type=Path, default=Path("data/processed"), help="folder of Parquet tables")
+    p.add_argument("--processed", type=Path, default=Path("data/worlds/0/processed"), help="folder of Parquet tables")
     training_options(p)
     p.add_argument("--repeats", type=int, default=50, help="timed repetitions per environment size")
-    p.add_argument("--output", type=Path, default=Path("reports/bench.json"), help="results (JSON)")
+    p.add_argument("--output", type=Path, required=True, help="results (JSON)")
     return parser
 
 

@@ -39,6 +39,12 @@ def test_the_demonstration_followed_longest_decides():
     assert classify(OTHER, DONE, [], True, [DEMO, OTHER]) == "exact"
 
 
+def test_a_goal_reached_unsafely_is_an_unsafe_program_wherever_it_diverged():
+    program = acts("move_close(obj27)", "grasp(obj27)") + DEMO[2:]  # grasps the liquid itself, pours anyway
+    assert classify(program, DONE, [4], False, [DEMO], goal_reached=True) == "unsafe_step"
+    assert classify(program, DONE, [4], False, [DEMO], goal_reached=False) == "wrong_object"
+
+
 def test_an_infeasible_step_after_the_divergence_counts_as_the_divergence():
     program = DEMO[:2] + acts("move_close(obj16)", "grasp(obj14)")
     assert classify(program, INFEASIBLE, [], False, [DEMO]) == "wrong_object"

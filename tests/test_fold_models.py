@@ -48,7 +48,7 @@ def count_fits(monkeypatch):
 
 def test_each_distinct_model_is_trained_once_and_indexed(store):
     out, jobs, fitted = store
-    assert len(jobs) == 3 * 2 + 4  # three feature sets x two folds, four recipe kinds
+    assert len(jobs) == 4 * 2 + 2 * 4  # four MRF methods x two folds; full and relations x four recipe kinds
     assert len({r["key"] for r in fitted}) == len(fitted)
     assert sum(len(r["uses"]) for r in fitted) == len(jobs)  # identical training sets share one model
     assert all(r["converged"] for r in fitted)

@@ -6,6 +6,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from joblib import Parallel, delayed
+from threadpoolctl import threadpool_limits
 
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
@@ -56,13 +57,19 @@ def judge(scenario: Scenario, program) -> SequenceOutcome:
         goal_reached=program.goal_reached,
         safe=program.safe,
         success=program.success,
-        failure=classify(actions, program.status, unsafe, program.success, scenario.demonstrations),
+        failure=classify(actions, program.status, unsafe, program.success, scenario.demonstrations,
+                         program.goal_reached),
     )
 
 
 def run_fold(make: Callable[[], Method], fold: int, contexts: list[StepContext], meta: list[StepMeta],
              scenarios: dict[str, Scenario], test_scenarios: set[str], max_steps: int,
              demos: Benchmark | None = None, keep_programs: frozenset[str] = frozenset()) -> FoldResult:
+    with threadpool_limits(limits=1):  # the same sums, so the same bytes, in any process (see learn/train.py)
+        return _run_fold(make, fold, contexts, meta, scenarios, test_scenarios, max_steps, demos, keep_programs)
+
+
+def _run_fold(make, fold, contexts, meta, scenarios, test_scenarios, max_steps, demos, keep_programs) -> FoldResult:
     train_index = training_index(meta, test_scenarios)
     test_index = [i for i, m in enumerate(meta) if m.scenario_id in test_scenarios]
     method = make().fit([contexts[i] for i in train_index], [meta[i] for i in train_index])

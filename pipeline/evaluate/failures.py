@@ -2,8 +2,9 @@
 
 A program is compared with the demonstration it agrees with longest. Exact
 matches and other successful programs are not failures. A program stopped by
-the step cap is a `step_cap` whatever went before (it never ended). Otherwise
-the kind is that of the first step where it leaves the demonstration: the step
+the step cap is a `step_cap` whatever went before (it never ended); one that
+reached the goal but broke a safety rule on the way is an `unsafe_step`.
+Otherwise the kind is that of the first step where it leaves the demonstration: the step
 could not run (`infeasible_step`), broke a safety rule (`unsafe_step`), the
 planner chose `done` while the demonstration went on (`stopped_early`) or went
 on after the demonstration ended (`stopped_late`), chose the demonstrated
@@ -33,7 +34,7 @@ def _common_prefix(a: Sequence[Action], b: Sequence[Action]) -> int:
 
 
 def classify(actions: Sequence[Action], status: str, unsafe_steps: Sequence[int], success: bool,
-             demonstrations: Sequence[Sequence[Action]]) -> str:
+             demonstrations: Sequence[Sequence[Action]], goal_reached: bool = False) -> str:
     """The kind of a program (`actions` executed, `status` of the loop) against the scenario's demonstrations."""
     actions = tuple(actions)
     if any(actions == tuple(d) for d in demonstrations):
@@ -42,6 +43,8 @@ def classify(actions: Sequence[Action], status: str, unsafe_steps: Sequence[int]
         return "other_success"
     if status == STEP_CAP:
         return "step_cap"
+    if goal_reached and unsafe_steps:
+        return "unsafe_step"
     demo = max(demonstrations, key=lambda d: _common_prefix(actions, d))
     k = _common_prefix(actions, demo)
     if k == len(actions):  # the program stopped (chose done) or broke off where the demonstration goes on

@@ -13,6 +13,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from threadpoolctl import threadpool_limits
+
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
 from ..plan.planner import plan
@@ -124,11 +126,12 @@ def evaluate_recipes(make: Callable[[], MRFMethod], contexts: list[StepContext],
                      max_steps: int = 20) -> list[RecipeOutcome]:
     """Train (or load) once per recipe kind, without the kind's three environments, and run each recipe."""
     out = []
-    for name, train in recipe_training_sets(meta).items():
-        method = make().fit([contexts[i] for i in train], [meta[i] for i in train])
-        for recipe in (r for r in RECIPES if r.name == name):
-            for feedback in (False, True):
-                out.append(run_recipe(method, recipe, feedback, max_steps))
+    with threadpool_limits(limits=1):  # the same sums, so the same bytes, in any process (see learn/train.py)
+        for name, train in recipe_training_sets(meta).items():
+            method = make().fit([contexts[i] for i in train], [meta[i] for i in train])
+            for recipe in (r for r in RECIPES if r.name == name):
+                for feedback in (False, True):
+                    out.append(run_recipe(method, recipe, feedback, max_steps))
     return out
 
 

@@ -11,6 +11,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from joblib import Parallel, delayed
+from threadpoolctl import threadpool_limits
 
 from ..features.context import OBJECT_COLUMNS, StepContext
 from ..features.dataset import StepMeta
@@ -71,6 +72,11 @@ class Condition:
 
 
 def _fold(make, contexts, meta, scenarios, test, conditions, max_steps, seed):
+    with threadpool_limits(limits=1):  # the same sums, so the same bytes, in any process (see learn/train.py)
+        return _replay(make, contexts, meta, scenarios, test, conditions, max_steps, seed)
+
+
+def _replay(make, contexts, meta, scenarios, test, conditions, max_steps, seed):
     train = training_index(meta, test)
     method: MRFMethod = make().fit([contexts[i] for i in train], [meta[i] for i in train])
     out = []

@@ -6,6 +6,7 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from ..features.context import StepContext
@@ -37,8 +38,11 @@ def fit_mrf(contexts: list[StepContext], features: str = "full", C: float = 3.0,
 
     start = time.perf_counter()
     ssvm = CuttingPlaneSSVM(model, C=C, tol=tol, max_iter=max_iter, n_slacks=n_slacks, progress=tick)
+    # one BLAS thread: a multi-threaded BLAS may sum in another order, and the weights must be the same
+    # bytes whether this runs in the main process or in a joblib worker (whose BLAS threads differ)
     try:
-        ssvm.fit(contexts, [x.gold for x in contexts])
+        with threadpool_limits(limits=1):
+            ssvm.fit(contexts, [x.gold for x in contexts])
     finally:
         bar.close()
     return Fit(model, ssvm, time.perf_counter() - start)
