@@ -37,15 +37,16 @@ def test_training_fits_its_own_demonstrations(small_fit):
 
 def test_planner_reproduces_a_training_demonstration_in_closed_loop(small_fit):
     fit, records = small_fit
-    reproduced = 0
+    reproduced = succeeded = 0
     for record in records:
         state, task, actions = scenario(record)
         program = plan(fit.model, fit.w, state, task)
-        assert program.status in (DONE, "step_cap", "infeasible")
+        succeeded += program.success
         if program.actions == actions:
             reproduced += 1
-            assert program.goal_reached and program.success
-    assert reproduced >= len(records) // 2  # 14 of 20 when this was written
+            assert program.status == DONE and program.goal_reached and program.success
+    # deterministic: 14 of 20 reproduced and 17 of 20 successful when this was written; one of slack each
+    assert reproduced >= 13 and succeeded >= 16
 
 
 def test_plan_records_scores_and_alternatives(small_fit):

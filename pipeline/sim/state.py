@@ -13,7 +13,6 @@ from .objects import ObjectSpec
 
 ON = "on"
 INSIDE = "inside"
-RELATIONS = (ON, INSIDE)
 
 # Horizontal distance (m) from the robot base to an object's footprint within
 # which the arm can grasp it or place something on it.
@@ -99,11 +98,6 @@ class WorldState:
         x, y, z = self.poses[obj]
         w, l, h = self.specs[obj].size  # noqa: E741
         return (x - w / 2, y - l / 2, z, x + w / 2, y + l / 2, z + h)
-
-    def collide(self, a: str, b: str) -> bool:
-        """Boxes intersect or touch (a cup on a table collides with the table)."""
-        ba, bb = self.box(a), self.box(b)
-        return all(ba[i] <= bb[i + 3] + EPS and bb[i] <= ba[i + 3] + EPS for i in range(3))
 
     def overlap_top(self, a: str, b: str) -> bool:
         """Footprints share area when seen from above."""

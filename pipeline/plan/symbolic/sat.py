@@ -10,7 +10,6 @@ so trying k = 0, 1, ..., H on one incremental solver finds the shortest plan.
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 from itertools import count
 
@@ -25,8 +24,6 @@ class PlanResult:
     plan: list[GroundAction] | None  # None: no plan within the horizon
     horizon: int
     n_actions: int  # ground actions considered
-    n_clauses: int
-    seconds: float
 
     @property
     def found(self) -> bool:
@@ -39,11 +36,10 @@ class PlanResult:
 
 
 def solve(problem: Problem, horizon: int = 12, solver: str = "g4") -> PlanResult:
-    start = time.perf_counter()
     actions = ground_actions(problem)
     fluents = sorted({f for a in actions for f in a.pre | a.pre_not | a.add | a.delete} | problem.goal)
     if not problem.goal <= set(fluents) | problem.init:
-        return PlanResult(None, horizon, len(actions), 0, time.perf_counter() - start)
+        return PlanResult(None, horizon, len(actions))
     ids = count(1)
     fv = {(f, t): next(ids) for t in range(horizon + 1) for f in fluents}
     av = {(i, t): next(ids) for t in range(horizon) for i in range(len(actions))}
@@ -87,8 +83,8 @@ def solve(problem: Problem, horizon: int = 12, solver: str = "g4") -> PlanResult
                 model = {v for v in sat.get_model() if v > 0}
                 chosen = [actions[i] for t in range(k) for i in range(len(actions)) if av[(i, t)] in model]
                 plan = canonical(problem, chosen)
-                return PlanResult(plan, horizon, len(actions), len(clauses), time.perf_counter() - start)
-    return PlanResult(None, horizon, len(actions), len(clauses), time.perf_counter() - start)
+                return PlanResult(plan, horizon, len(actions))
+    return PlanResult(None, horizon, len(actions))
 
 
 def apply(state: frozenset[Atom], action: GroundAction) -> frozenset[Atom] | None:
