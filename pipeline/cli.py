@@ -17,7 +17,6 @@ import importlib
 import os
 import sys
 from collections.abc import Sequence
-from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
@@ -45,11 +44,9 @@ def _store(path: Path | None) -> Path | None:
     return path
 
 
-def _settings(cls: type, args: argparse.Namespace, **renamed: str) -> Any:
-    """A settings object from the parsed options; `renamed` maps a field to its option's dest."""
-    values = vars(args)
-    return cls(**{f.name: values[renamed.get(f.name, f.name)] for f in fields(cls)
-                  if renamed.get(f.name, f.name) in values})
+def _settings(cls: type, args: argparse.Namespace) -> Any:
+    """A settings object from the parsed options (their dests are the settings' field names)."""
+    return S.from_values(cls, vars(args))
 
 
 def _learner(args: argparse.Namespace) -> S.Learner:

@@ -79,7 +79,7 @@ def headline_metrics(summary: dict[str, dict]) -> dict[str, dict[str, float]]:
     out = {}
     for name, entry in summary.items():
         m = {"average_prim": entry["steps"].get("average/prim"), "average_arg": entry["steps"].get("average/arg")}
-        for key in ("sequence/prim", "sequence/arg", "success"):
+        for key in ("sequence/prim", "sequence/arg", "success", "goal_reached"):
             if key in entry:
                 m[key.replace("/", "_")] = entry[key]
         out[name] = {k: v for k, v in m.items() if v is not None}

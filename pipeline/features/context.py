@@ -106,7 +106,8 @@ def _log_ratio(a: np.ndarray, b: float) -> np.ndarray:
     return np.clip(np.log10(np.maximum(a, 1e-9) / max(b, 1e-9)) / 2.0, -1.0, 1.0)
 
 
-def relations(state: WorldState, task: Task, ids: list[str]) -> np.ndarray:
+def relations(state: WorldState, task: Task, ids: list[str],
+              attrs: list[dict[str, float]] | None = None) -> np.ndarray:
     """(n, len(RELATION_COLUMNS)): how each object compares with the step's reference objects.
 
     Volume against the reference's volume, as a log ratio and as steps (does it
@@ -115,8 +116,9 @@ def relations(state: WorldState, task: Task, ids: list[str]) -> np.ndarray:
     nearness (horizontal distance under 1 m, scaled). Steps let a linear score
     prefer "just big enough" over "bigger". A missing reference (no container,
     an empty gripper) leaves its columns at zero; no object is compared with itself.
+    `attrs` are the objects' attributes in `ids` order, when the caller has them already.
     """
-    attrs = [state.specs[o].attributes() for o in ids]
+    attrs = attrs if attrs is not None else [state.specs[o].attributes() for o in ids]
     volume = np.array([a["volume"] for a in attrs])
     length = np.array([a["max_wl"] for a in attrs])
     xy = np.array([state.poses[o][:2] for o in ids])
@@ -151,9 +153,9 @@ def step_context(
     index = {o: i for i, o in enumerate(ids)}
     n = len(ids)
     objects = np.zeros((n, len(OBJECT_COLUMNS)))
+    all_attrs = [state.specs[o].attributes() for o in ids]
     for i, o in enumerate(ids):
-        spec = state.specs[o]
-        attrs = spec.attributes()
+        attrs = all_attrs[i]
         objects[i, : len(STATE_COLUMNS)] = (
             float(state.held == o),
             min(state.distance(o), 10.0) / 10.0,
@@ -182,7 +184,7 @@ def step_context(
         args = list(prev[k].args) if k < len(prev) else []
         prev_args += [index.get(a, -1) for a in args] + [-1] * (2 - len(args))
     ctx = StepContext(ids, objects, task_rel, collide, TASK_INDEX[task.name], prev_prims, tuple(prev_args),
-                      relations=relations(state, task, ids))
+                      relations=relations(state, task, ids, all_attrs))
     if gold is not None:
         ctx.gold = ctx.encode(gold)
     return ctx

@@ -16,6 +16,10 @@ from typing import Any
 import numpy as np
 
 from ..evaluate.failures import KINDS
+from ..evaluate.methods import METHOD_LABELS
+from ..evaluate.metrics import headline_metrics
+
+HEADLINE = ("average_prim", "average_arg", "sequence_prim", "sequence_arg", "success", "goal_reached")
 
 
 def mean_sd(values: Sequence[float]) -> tuple[float, float]:
@@ -67,41 +71,51 @@ def table1_over_seeds(dirs: dict[int, Path]) -> tuple[list[dict[str, Any]], list
     return per_seed, mean_rows
 
 
-def crossval_over_seeds(dirs: dict[int, Path]) -> dict[int, dict[str, Any]]:
-    """Each seed's `crossval.json` (the per-method summary of its cross-validation)."""
+def json_over_seeds(dirs: dict[int, Path], name: str) -> dict[int, Any]:
+    """Each seed's JSON result file `name`; a missing one names the file and the seed."""
     out = {}
     for seed, d in dirs.items():
-        path = d / "crossval.json"
+        path = d / name
         if not path.exists():
-            raise FileNotFoundError(f"{path}: missing; run crossval for world seed {seed}")
+            raise FileNotFoundError(f"{path}: missing; run the stage that writes it for world seed {seed}")
         out[seed] = json.loads(path.read_text())
     return out
 
 
-HEADLINE = (("average_prim", ("steps", "average/prim")), ("average_arg", ("steps", "average/arg")),
-            ("sequence_prim", ("sequence/prim",)), ("sequence_arg", ("sequence/arg",)), ("success", ("success",)),
-            ("goal_reached", ("goal_reached",)))
+def crossval_over_seeds(dirs: dict[int, Path]) -> dict[int, dict[str, Any]]:
+    """Each seed's `crossval.json` (the per-method summary of its cross-validation)."""
+    return json_over_seeds(dirs, "crossval.json")
 
 
-def _get(entry: dict[str, Any], path: tuple[str, ...]) -> float | None:
-    for k in path:
-        if not isinstance(entry, dict) or k not in entry:
-            return None
-        entry = entry[k]
-    return entry
+def recipes_over_seeds(dirs: dict[int, Path]) -> dict[str, Any]:
+    """Per method, the recipes succeeded per seed (with and without feedback), and their mean, sd and minimum."""
+    recipes = json_over_seeds(dirs, "recipes.json")
+    first = next(iter(recipes.values()))["methods"]
+    by_method = {}
+    for m in first:
+        totals = {k: [r["methods"][m]["totals"][k] for r in recipes.values()]
+                  for k in ("no_feedback", "feedback_first_step")}
+        by_method[m] = {
+            "recipes": first[m]["totals"]["recipes"],
+            "per_seed": {str(s): r["methods"][m]["totals"] for s, r in recipes.items()},
+            "mean": {k: mean_sd(v)[0] for k, v in totals.items()},
+            "sd": {k: mean_sd(v)[1] for k, v in totals.items()},
+            "min": {k: min(v) for k, v in totals.items()},
+        }
+    return {"methods": by_method}
 
 
 def headline_over_seeds(summaries: dict[int, dict[str, Any]]) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     """Per (seed, method) rows of the headline figures, and per method their mean and sd over seeds."""
     rows = []
     for seed, summary in summaries.items():
-        for method, entry in summary.items():
-            rows.append({"world_seed": seed, "method": method, **{k: _get(entry, p) for k, p in HEADLINE}})
+        for method, figures in headline_metrics(summary).items():
+            rows.append({"world_seed": seed, "method": method, **{k: figures.get(k) for k in HEADLINE}})
     means: dict[str, Any] = {}
     for method in dict.fromkeys(r["method"] for r in rows):
         mine = [r for r in rows if r["method"] == method]
         out = {}
-        for k, _ in HEADLINE:
+        for k in HEADLINE:
             vals = [r[k] for r in mine if r[k] is not None]
             if vals:
                 out[k], out[f"{k}_sd"] = mean_sd(vals)
@@ -156,3 +170,21 @@ def curve_over_seeds(dirs: dict[int, Path], name: str, keys: Sequence[str],
             row[v], row[f"{v}_sd"] = mean_sd([r[v] for r in mine])
         out.append(row)
     return per_seed, out
+
+
+def failures_markdown(rows: list[dict[str, Any]], methods: list[str], n_seeds: int) -> str:
+    """Share of programs of each kind (mean ± sd over world seeds, %), per method, then per task of the full model."""
+    head = "| {} | " + " | ".join(k.replace("_", " ") for k in KINDS) + " |"
+    sep = "|---|" + "---:|" * len(KINDS)
+    out = [f"Programs by kind, % of each method's closed-loop programs, mean ± sd over {n_seeds} world seeds.", "",
+           head.format("method"), sep]
+    for m in methods:
+        shares = failure_shares(rows, m)
+        out.append(f"| {METHOD_LABELS.get(m, m)} | " + " | ".join(f"{a:.1f} ± {s:.1f}" for a, s in shares.values())
+                   + " |")
+    if "full" in methods:
+        out += ["", "The full model per task:", "", head.format("task"), sep]
+        for task in sorted({r["task"] for r in rows if r["method"] == "full" and r["task"] != "all"}):
+            shares = failure_shares(rows, "full", task)
+            out.append(f"| {task} | " + " | ".join(f"{a:.1f} ± {s:.1f}" for a, s in shares.values()) + " |")
+    return "\n".join(out) + "\n"

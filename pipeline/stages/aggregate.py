@@ -7,11 +7,9 @@ feedback curves and the recipes, each with its spread over world seeds.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
-from ..evaluate.failures import KINDS
 from ..evaluate.methods import METHOD_LABELS
 from ..io import write_json_atomic, write_text_atomic
 from ..report import paper
@@ -19,10 +17,11 @@ from ..report.csvs import csv_text
 from ..report.seeds import (
     crossval_over_seeds,
     curve_over_seeds,
-    failure_shares,
+    failures_markdown,
     failures_over_seeds,
     headline_over_seeds,
-    mean_sd,
+    json_over_seeds,
+    recipes_over_seeds,
     table1_over_seeds,
     world_dirs,
 )
@@ -31,24 +30,6 @@ from ..settings import World
 from ..track.mlflow_runs import NO_RUN, Tracker
 
 RATES = ("sequence_arg", "sequence_prim", "success")
-
-
-def failures_markdown(rows: list[dict[str, Any]], methods: list[str], n_seeds: int) -> str:
-    """Share of programs of each kind (mean ± sd over world seeds, %), per method, then per task of the full model."""
-    head = "| {} | " + " | ".join(k.replace("_", " ") for k in KINDS) + " |"
-    sep = "|---|" + "---:|" * len(KINDS)
-    out = [f"Programs by kind, % of each method's closed-loop programs, mean ± sd over {n_seeds} world seeds.", "",
-           head.format("method"), sep]
-    for m in methods:
-        shares = failure_shares(rows, m)
-        out.append(f"| {METHOD_LABELS.get(m, m)} | " + " | ".join(f"{a:.1f} ± {s:.1f}" for a, s in shares.values())
-                   + " |")
-    if "full" in methods:
-        out += ["", "The full model per task:", "", head.format("task"), sep]
-        for task in sorted({r["task"] for r in rows if r["method"] == "full" and r["task"] != "all"}):
-            shares = failure_shares(rows, "full", task)
-            out.append(f"| {task} | " + " | ".join(f"{a:.1f} ± {s:.1f}" for a, s in shares.values()) + " |")
-    return "\n".join(out) + "\n"
 
 
 def run(world: World, worlds: Path, output: Path, tracker: Tracker = NO_RUN) -> dict[str, Any]:
@@ -111,31 +92,10 @@ def run(world: World, worlds: Path, output: Path, tracker: Tracker = NO_RUN) -> 
                   str(out / "feedback.png"), "Sequence accuracy (arg) with an observer's feedback",
                   "steps with feedback", "% sequences correct", xticks=list(range(len(ns))), xticklabels=ns)
 
-    datasets = {}
-    for seed, d in dirs.items():
-        path = d / "dataset.json"
-        if path.exists():
-            datasets[str(seed)] = json.loads(path.read_text())
+    datasets = {str(s): d for s, d in json_over_seeds(dirs, "dataset.json").items()}
     write_json_atomic(out / "dataset.json", datasets)
 
-    recipes = {}
-    for seed, d in dirs.items():
-        path = d / "recipes.json"
-        if not path.exists():
-            raise FileNotFoundError(f"{path}: missing; run recipes for world seed {seed}")
-        recipes[seed] = json.loads(path.read_text())
-    by_method = {}
-    for m in recipes[world.seeds[0]]["methods"]:
-        totals = {k: [r["methods"][m]["totals"][k] for r in recipes.values()]
-                  for k in ("no_feedback", "feedback_first_step")}
-        by_method[m] = {
-            "recipes": recipes[world.seeds[0]]["methods"][m]["totals"]["recipes"],
-            "per_seed": {str(s): r["methods"][m]["totals"] for s, r in recipes.items()},
-            "mean": {k: mean_sd(v)[0] for k, v in totals.items()},
-            "sd": {k: mean_sd(v)[1] for k, v in totals.items()},
-            "min": {k: min(v) for k, v in totals.items()},
-        }
-    write_json_atomic(out / "recipes.json", {"methods": by_method})
+    write_json_atomic(out / "recipes.json", recipes_over_seeds(dirs))
     for f in ("table1.md", "table1.tex", "metrics.json", "failures.md", "noise.png", "feedback.png", "recipes.json"):
         tracker.artifact(out / f)
     print(to_markdown(table))

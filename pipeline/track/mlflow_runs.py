@@ -103,13 +103,13 @@ class NoRun:
     """What a stage logs when nothing is recorded (`--no-mlflow`, or library use): it is dropped."""
 
     def metrics(self, values: dict[str, float | None], step: int | None = None) -> None:
-        pass
+        """Metrics are dropped."""
 
     def params(self, values: dict[str, Any]) -> None:
-        pass
+        """Parameters are dropped."""
 
     def artifact(self, path: Path | str, folder: str | None = None) -> None:
-        pass
+        """The file stays where the stage wrote it; nothing is copied."""
 
     @contextmanager
     def child(self, name: str, params: dict[str, Any] | None = None) -> Iterator[NoRun]:
