@@ -105,8 +105,8 @@ def dispatch(args: argparse.Namespace, tracker) -> int:
         stage.run(_settings(S.Feedback, args), _fold_crossval(args), _learner(args), args.features,
                   args.processed, args.output, _store(args.model_store), args.n_jobs, tracker)
     elif c == "recipes":
-        stage.run(S.Crossval(max_steps=args.max_steps), _learner(args), args.features, args.output,
-                  _store(args.model_store), tracker)
+        stage.run(S.Crossval(max_steps=args.max_steps), _learner(args), args.features, args.processed,
+                  args.output, _store(args.model_store), tracker)
     elif c == "report":
         stage.run(args.reports, args.output, tracker)
     elif c == "replay":
@@ -131,7 +131,7 @@ def dispatch(args: argparse.Namespace, tracker) -> int:
         from .io import write_json_atomic
         from .logs.benchmark import load_benchmark
 
-        result = run_bench(load_benchmark(args.processed).records, **vars(_learner(args)),
+        result = run_bench(load_benchmark(args.processed).records, **_learner(args).ssvm,
                            repeats=args.repeats)
         write_json_atomic(args.output, result)
         print(format_bench(result))
@@ -201,6 +201,9 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--n-slacks", type=int, default=T.n_slacks,
                        help="slack groups of the cutting plane, one cut each per iteration; 1 is the classic "
                             f"1-slack algorithm, the optimum is the same for every value (default {T.n_slacks})")
+        p.add_argument("--dagger-rounds", type=int, default=T.dagger_rounds,
+                       help="rounds of on-policy data (roll out, ask the demonstrator, refit) of the methods "
+                            f"that use DAgger (default {T.dagger_rounds})")
 
         p.add_argument("--selection", type=Path, default=None,
                        help="take C from this file written by `taskseq select` (overrides --C)")
@@ -288,7 +291,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="steps with feedback (a number or 'all')")
 
     p = add("recipes", "chain programs into recipes in environments held out from training")
-    p.add_argument("--features", type=Path, default=Path("data/worlds/0/features"), help="feature folder")
+    data_options(p)
     training_options(p)
     store_option(p)
     p.add_argument("--max-steps", type=int, default=C.max_steps, help="step cap of each program")

@@ -37,12 +37,18 @@ class Select:
 
 @dataclass(frozen=True)
 class Learner:
-    """The cutting-plane structural SVM (`train` section, without the feature set)."""
+    """The cutting-plane structural SVM, and DAgger's rounds (`train` section, without the feature set)."""
 
     C: float = 3.0  # slack weight: 0.5 ||w||^2 + C * sum of slacks; the pipeline takes it from `select`
     tol: float = 1e-3  # relative primal-dual gap to stop at
     max_iter: int = 2000  # cutting-plane iterations at most
     n_slacks: int = 4  # slack groups, one cut each per iteration (1: classic 1-slack)
+    dagger_rounds: int = 1  # DAgger rounds (roll out, ask the demonstrator, refit) of the `dagger` method
+
+    @property
+    def ssvm(self) -> dict[str, float | int]:
+        """The structural SVM's own settings (what `fit_mrf` takes)."""
+        return {"C": self.C, "tol": self.tol, "max_iter": self.max_iter, "n_slacks": self.n_slacks}
 
 
 @dataclass(frozen=True)
@@ -51,7 +57,7 @@ class Train(Learner):
 
     @property
     def learner(self) -> Learner:
-        return Learner(self.C, self.tol, self.max_iter, self.n_slacks)
+        return Learner(self.C, self.tol, self.max_iter, self.n_slacks, self.dagger_rounds)
 
 
 @dataclass(frozen=True)

@@ -48,7 +48,7 @@ class Recorder:
 
     name, predicts_args = "recorder", True
 
-    def fit(self, contexts, meta):
+    def fit(self, contexts, meta, scenarios=None):
         self.trained = contexts
         Recorder.last = self
         return self

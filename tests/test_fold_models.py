@@ -5,17 +5,21 @@ from functools import partial
 import pytest
 
 import pipeline.evaluate.methods as methods_module
+import pipeline.imitation.dagger as dagger_module
 from pipeline.evaluate.crossval import cross_validate
 from pipeline.evaluate.fold_models import train_fold_models, training_jobs
-from pipeline.evaluate.methods import MRFMethod
+from pipeline.evaluate.methods import MRFMethod, mrf_methods
 from pipeline.evaluate.recipes import evaluate_recipes
 from pipeline.evaluate.robustness import Condition, evaluate_conditions
 from pipeline.features.dataset import build_steps
 from pipeline.learn.train import fit_mrf
 from pipeline.logs.benchmark import Benchmark
-from pipeline.settings import Folds
+from pipeline.settings import Folds, Learner
 
-SETTINGS = {"C": 3.0, "tol": 1e-2, "max_iter": 300, "n_slacks": 2}
+SETTINGS = {"C": 3.0, "tol": 1e-2, "max_iter": 2000, "n_slacks": 2}
+# two of the paper's models and both that consult the demonstrator (chained starts, DAgger)
+METHODS = {name: make for name, make in mrf_methods(Learner(**SETTINGS, dagger_rounds=1)).items()
+           if name in ("full", "only_edge", "chained", "dagger")}
 
 
 @pytest.fixture(scope="module")
@@ -28,9 +32,9 @@ def small(benchmark_tables):
 @pytest.fixture(scope="module")
 def store(small, tmp_path_factory):
     records, contexts, meta, scenarios = small
-    jobs = training_jobs(meta, scenarios, n_folds=2, seed=0, group_by="scenario")
+    jobs = training_jobs(METHODS, meta, scenarios, n_folds=2, seed=0, group_by="scenario")
     out = tmp_path_factory.mktemp("store") / "folds"
-    fitted = train_fold_models(partial(MRFMethod, **SETTINGS), contexts, meta, jobs, out, n_jobs=1)
+    fitted = train_fold_models(METHODS, contexts, meta, scenarios, jobs, out, n_jobs=1)
     return out, jobs, fitted
 
 
@@ -43,12 +47,13 @@ def count_fits(monkeypatch):
         return fit_mrf(*args, **kwargs)
 
     monkeypatch.setattr(methods_module, "fit_mrf", counting)
+    monkeypatch.setattr(dagger_module, "fit_mrf", counting)
     return calls
 
 
 def test_each_distinct_model_is_trained_once_and_indexed(store):
     out, jobs, fitted = store
-    assert len(jobs) == 4 * 2 + 2 * 4  # four MRF methods x two folds; full and relations x four recipe kinds
+    assert len(jobs) == 4 * 2 + 2 * 4  # four MRF methods x two folds; full and chained x four recipe kinds
     assert len({r["key"] for r in fitted}) == len(fitted)
     assert sum(len(r["uses"]) for r in fitted) == len(jobs)  # identical training sets share one model
     assert all(r["converged"] for r in fitted)
@@ -63,7 +68,10 @@ def test_evaluation_stages_load_the_stored_models_without_training(small, store,
     cross_validate(methods, contexts, meta, Benchmark.from_records(records), n_folds=2)
     evaluate_conditions(partial(mrf, "full"), contexts, meta, scenarios, [Condition("noise", 0.1, 0)],
                         Folds(folds=2), max_steps=20)
-    evaluate_recipes(partial(mrf, "full"), contexts, meta)
+    evaluate_recipes(partial(mrf, "full"), contexts, meta, scenarios)
+    evaluate_recipes(partial(METHODS["chained"], store=str(out)), contexts, meta, scenarios)
+    cross_validate({"dagger": partial(METHODS["dagger"], store=str(out))}, contexts, meta,
+                   Benchmark.from_records(records), n_folds=2)
     assert count_fits == []
 
 
@@ -80,6 +88,6 @@ def test_the_store_is_the_same_bytes_whether_trained_serially_or_in_parallel(sma
     records, contexts, meta, scenarios = small
     out, jobs, _ = store
     again = tmp_path / "folds"
-    train_fold_models(partial(MRFMethod, **SETTINGS), contexts, meta, jobs, again, n_jobs=2)
+    train_fold_models(METHODS, contexts, meta, scenarios, jobs, again, n_jobs=2)
     for path in out.iterdir():
         assert (again / path.name).read_bytes() == path.read_bytes(), path.name

@@ -34,7 +34,7 @@ class Fake:
 
     seen: list = []
 
-    def fit(self, contexts, meta):
+    def fit(self, contexts, meta, scenarios=None):
         Fake.seen.append({m.scenario_id.split("/")[0] for m in meta})
         self.model_ = MRFModel("full")
         self.w_ = np.zeros(self.model_.size_joint_feature)
@@ -44,7 +44,7 @@ class Fake:
 def test_recipes_run_on_models_trained_without_their_environments(benchmark_steps):
     contexts, meta = benchmark_steps
     Fake.seen = []
-    outcomes = evaluate_recipes(Fake, contexts, meta, max_steps=3)
+    outcomes = evaluate_recipes(Fake, contexts, meta, {}, max_steps=3)
     assert len(outcomes) == 24 and {o.feedback for o in outcomes} == {False, True}
     for seen, name in zip(Fake.seen, dict.fromkeys(r.name for r in RECIPES), strict=True):
         held_out = {r.env_id for r in RECIPES if r.name == name}

@@ -69,14 +69,14 @@ def evaluated(tiny) -> Path:
                  "--output", str(w), "--n-jobs", "1"]) == 0
     assert main(["feedback", *data(tiny), *fold, *LEARN, *sel, "--k", "2", "--n", "0", "all",
                  "--output", str(w), "--n-jobs", "1"]) == 0
-    assert main(["recipes", "--features", str(tiny / "features"), *LEARN, *sel, "--output", str(w)]) == 0
+    assert main(["recipes", *data(tiny), *LEARN, *sel, "--output", str(w)]) == 0
     return w
 
 
 def test_crossval_writes_table1_with_every_method_and_classified_programs(evaluated, tiny):
     summary = json.loads((evaluated / "crossval.json").read_text())
     assert set(summary) == {"chance", "multiclass", "symb_plan_svm", "symb_plan_manual", "only_edge",
-                            "only_clique", "full", "relations"}
+                            "only_clique", "full", "relations", "chained", "dagger"}
     rows = list(csv.DictReader((evaluated / "crossval_sequences.csv").open()))
     full = [r for r in rows if r["method"] == "full"]
     assert len(full) == summary["full"]["n_scenarios"]
@@ -118,7 +118,7 @@ def test_aggregate_and_report_over_worlds(evaluated, tiny):
     assert seeds == {"0", "5"}
     assert "The full model per task" in (out / "failures.md").read_text()
     recipes = json.loads((out / "recipes.json").read_text())["methods"]
-    assert recipes.keys() == {"full", "relations"} and recipes["full"]["per_seed"].keys() == {"0", "5"}
+    assert recipes.keys() == {"full", "chained"} and recipes["full"]["per_seed"].keys() == {"0", "5"}
     (out / "selection.json").write_text(json.dumps({"C": 2.0, "dev_seed": 100, "criterion": "sequence_arg",
                                                     "candidates": [{"C": 2.0, "sequence_arg": 50.0}]}))
     assert main(["report", "--reports", str(out), "--output", str(out / "summary.md")]) == 0

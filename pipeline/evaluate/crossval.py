@@ -72,7 +72,7 @@ def run_fold(make: Callable[[], Method], fold: int, contexts: list[StepContext],
 def _run_fold(make, fold, contexts, meta, scenarios, test_scenarios, max_steps, demos, keep_programs) -> FoldResult:
     train_index = training_index(meta, test_scenarios)
     test_index = [i for i, m in enumerate(meta) if m.scenario_id in test_scenarios]
-    method = make().fit([contexts[i] for i in train_index], [meta[i] for i in train_index])
+    method = make().fit([contexts[i] for i in train_index], [meta[i] for i in train_index], scenarios)
     predictions = method.predict_steps([contexts[i] for i in test_index], [meta[i] for i in test_index], demos)
     outcomes: list[SequenceOutcome] | None = []
     programs = {}

@@ -7,8 +7,8 @@ is run closed-loop in the simulator from a scenario's initial state.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, replace
 from functools import partial
 from typing import Protocol
 
@@ -17,6 +17,7 @@ from sklearn.svm import LinearSVC
 
 from ..features.context import N_PRIM, OBJECT_COLUMNS, StepContext, candidate_index, step_context
 from ..features.dataset import StepMeta
+from ..imitation.dagger import fit_imitation
 from ..learn.mrf import MRFModel
 from ..learn.store import ModelStore, training_key
 from ..learn.train import fit_mrf
@@ -34,12 +35,14 @@ Y = tuple[int, int, int]
 
 
 class Method(Protocol):
-    """`meta` says which sequence and step each context is; `demos` holds their world states and actions."""
+    """`meta` says which sequence and step each context is; `scenarios` holds (at least) the training
+    scenarios, which methods that consult the demonstrator need; `demos` holds world states and actions."""
 
     name: str
     predicts_args: bool
 
-    def fit(self, contexts: list[StepContext], meta: list[StepMeta]) -> Method: ...
+    def fit(self, contexts: list[StepContext], meta: list[StepMeta],
+            scenarios: Mapping[str, Scenario] | None = None) -> Method: ...
 
     def predict_steps(self, contexts: list[StepContext], meta: list[StepMeta], demos: Benchmark) -> list[Y]: ...
 
@@ -55,7 +58,7 @@ class ChanceMethod:
     name: str = "chance"
     predicts_args: bool = True
 
-    def fit(self, contexts: list[StepContext], meta: list[StepMeta]) -> ChanceMethod:
+    def fit(self, contexts: list[StepContext], meta: list[StepMeta], scenarios=None) -> ChanceMethod:
         return self
 
     def _draw(self, n: int, rng: np.random.Generator) -> Y:
@@ -96,7 +99,7 @@ class MulticlassMethod:
     name: str = "multiclass"
     predicts_args: bool = False
 
-    def fit(self, contexts: list[StepContext], meta: list[StepMeta]) -> MulticlassMethod:
+    def fit(self, contexts: list[StepContext], meta: list[StepMeta], scenarios=None) -> MulticlassMethod:
         X = np.array([multiclass_features(x) for x in contexts])
         y = np.array([x.gold[0] for x in contexts])
         self.svm_ = LinearSVC(multi_class="crammer_singer", C=self.C, max_iter=200000, random_state=0).fit(X, y)
@@ -112,10 +115,15 @@ class MulticlassMethod:
 
 @dataclass
 class MRFMethod:
-    """The paper's model with a choice of feature families.
+    """The paper's model with a choice of feature families, and optional training data beyond the logs.
 
-    With a `store` folder (written by the `folds` stage), a model already
-    trained on the same steps with the same settings is loaded, not retrained.
+    `chained_starts` adds, per training scenario, a demonstration that starts
+    where it ended (`imitation.starts`); `dagger_rounds` rolls the planner out
+    on the training scenarios that many times and adds the demonstrator's
+    answers in the states it reached (`imitation.dagger`). Both need the
+    training scenarios at `fit`. With a `store` folder (written by the `folds`
+    stage), a model already trained on the same steps with the same settings
+    is loaded, not retrained.
     """
 
     features: str = "full"
@@ -123,25 +131,40 @@ class MRFMethod:
     tol: float = 1e-3
     max_iter: int = 2000
     n_slacks: int = 4
+    chained_starts: bool = False
+    dagger_rounds: int = 0
     name: str = "full"
     predicts_args: bool = True
     store: str | None = None
 
     def learner_params(self) -> dict[str, float | int]:
         """The settings that change the weights (and so address a stored model)."""
-        return {"C": self.C, "tol": self.tol, "max_iter": self.max_iter, "n_slacks": self.n_slacks}
+        return {"C": self.C, "tol": self.tol, "max_iter": self.max_iter, "n_slacks": self.n_slacks,
+                "chained_starts": self.chained_starts, "dagger_rounds": self.dagger_rounds}
 
     def key(self, contexts: list[StepContext]) -> str:
         return training_key(self.features, self.learner_params(), contexts)
 
-    def fit(self, contexts: list[StepContext], meta: list[StepMeta]) -> MRFMethod:
+    def fit(self, contexts: list[StepContext], meta: list[StepMeta],
+            scenarios: Mapping[str, Scenario] | None = None) -> MRFMethod:
         stored = ModelStore(self.store).load(self.key(contexts)) if self.store else None
         if stored is not None:
             self.model_, self.w_ = stored
             self.fit_ = None
             return self
-        fit = fit_mrf(contexts, self.features, C=self.C, tol=self.tol, max_iter=self.max_iter,
-                      n_slacks=self.n_slacks)
+        ssvm = {"C": self.C, "tol": self.tol, "max_iter": self.max_iter, "n_slacks": self.n_slacks}
+        if self.chained_starts or self.dagger_rounds:
+            if scenarios is None:
+                raise ValueError(f"method {self.name}: chained starts and DAgger need the training scenarios")
+            training = [scenarios[s] for s in dict.fromkeys(m.scenario_id for m in meta)]
+            base = None
+            if self.dagger_rounds and self.store:  # DAgger starts from the model without it, stored or not
+                before = replace(self, dagger_rounds=0).fit(contexts, meta, scenarios)
+                base = (before.model_, before.w_)
+            fit = fit_imitation(contexts, training, self.features, self.dagger_rounds, self.chained_starts,
+                                base=base, **ssvm)
+        else:
+            fit = fit_mrf(contexts, self.features, **ssvm)
         self.model_: MRFModel = fit.model
         self.w_ = fit.w
         self.fit_ = fit
@@ -179,7 +202,7 @@ class SymbolicMethod:
     name: str = "symb_plan_manual"
     predicts_args: bool = True
 
-    def fit(self, contexts: list[StepContext], meta: list[StepMeta]) -> SymbolicMethod:
+    def fit(self, contexts: list[StepContext], meta: list[StepMeta], scenarios=None) -> SymbolicMethod:
         if self.goals == "manual":
             return self
         by_sequence: dict[str, list[StepContext]] = {}
@@ -231,17 +254,18 @@ METHOD_LABELS = {
     "only_edge": "only edge features",
     "only_clique": "only clique features",
     "full": "ours - full",
+    # beyond the paper: relation features, then those with one kind of training data beyond the logs each;
+    # their rows sit below the paper-faithful ones in every table
     "relations": "ours + relations",
+    "chained": "ours + relations + chained starts",
+    "dagger": "ours + relations + dagger",
 }
-# Methods beyond the paper, each the paper's model with one addition; noise, feedback and recipes run
-# them beside `full`. Their rows sit below the paper-faithful ones in every table.
-ADDED_METHODS = ("relations",)
 
 
 def table1_methods(settings: Crossval, learner: Learner, horizon: int = Pddl().horizon,
                    store: str | None = None) -> dict[str, Callable[[], Method]]:
     """Every method of Table I, by name, as factories of unfitted methods; `horizon` is the symbolic planners'."""
-    mrf = partial(MRFMethod, **asdict(learner), store=store)
+    mrf = partial(MRFMethod, **learner.ssvm, store=store)
     return {
         "chance": partial(ChanceMethod, seed=settings.chance_seed),
         "multiclass": partial(MulticlassMethod, C=settings.multiclass_C),
@@ -252,4 +276,12 @@ def table1_methods(settings: Crossval, learner: Learner, horizon: int = Pddl().h
         "only_clique": partial(mrf, features="clique", name="only_clique"),
         "full": partial(mrf, features="full", name="full"),
         "relations": partial(mrf, features="relations", name="relations"),
+        "chained": partial(mrf, features="relations", chained_starts=True, name="chained"),
+        "dagger": partial(mrf, features="relations", dagger_rounds=learner.dagger_rounds, name="dagger"),
     }
+
+
+def mrf_methods(learner: Learner) -> dict[str, Callable[[], MRFMethod]]:
+    """The MRF methods of Table I (the ones the `folds` stage trains), by name, without a store."""
+    every = table1_methods(Crossval(), learner)
+    return {name: make for name, make in every.items() if isinstance(make(), MRFMethod)}

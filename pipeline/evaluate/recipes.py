@@ -9,7 +9,7 @@ following what the demonstrator would do from that state.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -21,6 +21,7 @@ from ..plan.planner import plan
 from ..sim.catalog import ENVIRONMENTS_BY_ID, build_environment
 from ..sim.demonstrator import NoDemonstration, choose_vessel, demonstrate
 from ..sim.primitives import PreconditionError
+from ..sim.scenarios import Scenario
 from ..sim.state import WorldState
 from ..sim.tasks import Task
 from .methods import MRFMethod
@@ -123,12 +124,15 @@ def recipe_training_sets(meta: list[StepMeta]) -> dict[str, list[int]]:
 
 
 def evaluate_recipes(make: Callable[[], MRFMethod], contexts: list[StepContext], meta: list[StepMeta],
-                     max_steps: int = 20) -> list[RecipeOutcome]:
-    """Train (or load) once per recipe kind, without the kind's three environments, and run each recipe."""
+                     scenarios: Mapping[str, Scenario], max_steps: int = 20) -> list[RecipeOutcome]:
+    """Train (or load) once per recipe kind, without the kind's three environments, and run each recipe.
+
+    `scenarios` are the benchmark's (methods that consult the demonstrator read the training ones).
+    """
     out = []
     with threadpool_limits(limits=1):  # the same sums, so the same bytes, in any process (see learn/train.py)
         for name, train in recipe_training_sets(meta).items():
-            method = make().fit([contexts[i] for i in train], [meta[i] for i in train])
+            method = make().fit([contexts[i] for i in train], [meta[i] for i in train], scenarios)
             for recipe in (r for r in RECIPES if r.name == name):
                 for feedback in (False, True):
                     out.append(run_recipe(method, recipe, feedback, max_steps))

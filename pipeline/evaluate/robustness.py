@@ -78,7 +78,7 @@ def _fold(make, contexts, meta, scenarios, test, conditions, max_steps, seed):
 
 def _replay(make, contexts, meta, scenarios, test, conditions, max_steps, seed):
     train = training_index(meta, test)
-    method: MRFMethod = make().fit([contexts[i] for i in train], [meta[i] for i in train])
+    method: MRFMethod = make().fit([contexts[i] for i in train], [meta[i] for i in train], scenarios)
     out = []
     for c in conditions:
         for sid in sorted(test):

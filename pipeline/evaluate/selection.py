@@ -9,7 +9,7 @@ to the higher success rate, then to the smaller C (the simpler model).
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, replace
+from dataclasses import replace
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -30,7 +30,7 @@ def select_C(grid: tuple[float, ...], learner: Learner, folds: Folds, contexts: 
     if not grid:
         raise ValueError("select: the grid of C values is empty")
     names = {f"C={c:g}": c for c in grid}
-    methods = {name: partial(MRFMethod, features="full", **asdict(replace(learner, C=c)), name=name)
+    methods = {name: partial(MRFMethod, features="full", **replace(learner, C=c).ssvm, name=name)
                for name, c in names.items()}
     results = cross_validate(methods, contexts, meta, bench, n_folds=folds.folds, seed=folds.seed,
                              group_by=folds.group_by, max_steps=max_steps, n_jobs=n_jobs, verbose=verbose)

@@ -38,6 +38,9 @@ from ..features.context import (
     N_PRIM,
     OBJECT_COLUMNS,
     RELATION_COLUMNS,
+    RELATION_KINDS,
+    RELATION_REFERENCES,
+    STATE_COLUMNS,
     TASK_REL_COLUMNS,
     StepContext,
     candidate_index,
@@ -52,6 +55,21 @@ FEATURE_SETS = {"full": EDGE_FAMILIES + CLIQUE_FAMILIES, "edge": EDGE_FAMILIES, 
                 "relations": EDGE_FAMILIES + CLIQUE_FAMILIES + (RELATION_FAMILY,)}
 
 N_TASK = len(TASKS)
+# An argument's row for the relation family, crossed with task and primitive: its relations to the
+# reference objects and to the task's arguments (place on the task's target, grasp what rests on the
+# task's object), its state, and its state again where it is the task's object or that object's
+# container (clear the object before grasping it, fetch the cup off the shelf before the spoon).
+_KEYED = ("object", "container")
+REL_ROW = (RELATION_COLUMNS + TASK_REL_COLUMNS + STATE_COLUMNS
+           + tuple(f"{c}_if_{r}" for r in _KEYED for c in STATE_COLUMNS))
+_IS_REF = [RELATION_REFERENCES.index(r) * len(RELATION_KINDS) for r in _KEYED]  # the "is" column of each
+
+
+def rel_row(objects: np.ndarray, task_rel: np.ndarray, relations: np.ndarray) -> np.ndarray:
+    """(..., n, len(REL_ROW)) from the (..., n, columns) arrays of one step or a padded batch."""
+    state = objects[..., : len(STATE_COLUMNS)]
+    keyed = [state * relations[..., [j]] for j in _IS_REF]
+    return np.concatenate([relations, task_rel, state, *keyed], axis=-1)
 N_OBJ = len(OBJECT_COLUMNS)
 _AE_COLS = (0, 1)  # held, distance
 _PREV = ALL_PRIMITIVES + ("none",)
@@ -88,8 +106,8 @@ def _blocks() -> list[Block]:
     for s in (1, 2):
         out.append(Block(f"paae{s}", "paae", (N_PRIM, 4), (p, HISTORY_ARG_COLUMNS)))
     for s in (1, 2):
-        out.append(Block(f"rel{s}", RELATION_FAMILY, (N_TASK, 2, len(RELATION_COLUMNS)),
-                         (t, ("holding", "empty_hand"), RELATION_COLUMNS)))
+        out.append(Block(f"rel{s}", RELATION_FAMILY, (N_TASK, N_PRIM, len(REL_ROW)), (t, p, REL_ROW)))
+    out.append(Block("rel_pair", RELATION_FAMILY, (N_TASK, N_PRIM, 4, 4), (t, p, TASK_REL_COLUMNS, TASK_REL_COLUMNS)))
     return out
 
 
@@ -103,7 +121,7 @@ class StepBatch:
     steps: list[StepContext]
     objects: np.ndarray  # (S, N, K)
     task_rel: np.ndarray  # (S, N, 4)
-    relations: np.ndarray  # (S, N, R); zeros for steps without relations
+    rel_rows: np.ndarray  # (S, N, len(REL_ROW)): relations, then task relations; relations 0 where absent
     hist: np.ndarray  # (S, N, 4)
     collide: np.ndarray  # (S, N, N)
     valid: np.ndarray  # (S, N) bool
@@ -131,7 +149,8 @@ class StepBatch:
         pair_valid = valid[:, :, None] & valid[:, None, :] & ~np.eye(N, dtype=bool)[None]
         valid_neg = np.where(valid, 0.0, -np.inf)
         pair_neg = np.where(pair_valid, 0.0, -np.inf)
-        return cls(steps, objects, rel, relations, hist, collide, valid, pair_valid, valid_neg, pair_neg, task, prev)
+        return cls(steps, objects, rel, rel_row(objects, rel, relations), hist, collide, valid, pair_valid,
+                   valid_neg, pair_neg, task, prev)
 
 
 class _Batched:
@@ -160,6 +179,7 @@ class _Batched:
             if (wt := self._w(w, name)) is not None:
                 P += wt[b.task, b.prev[:, k]]
         holding = (b.objects[:, :, 0] > 0.5).any(axis=1)
+
         K = b.objects.shape[2]
         flat_objects, flat_hist = b.objects.reshape(S * N, K), b.hist.reshape(S * N, -1)
         U = []  # per slot, (S, N_PRIM, N) as views of (S, N, N_PRIM) tables
@@ -169,8 +189,6 @@ class _Batched:
                 unary += b.objects[:, :, list(_AE_COLS)] @ wt
             if (wt := self._w(w, f"aet_rel{s}")) is not None:
                 unary += np.matmul(b.task_rel, wt[b.task][:, :, None])[:, :, 0]
-            if (wt := self._w(w, f"rel{s}")) is not None:
-                unary += np.matmul(b.relations, wt[b.task, np.where(holding, 0, 1)][:, :, None])[:, :, 0]
             if (wt := self._w(w, f"aet_obj{s}")) is not None:
                 unary += np.matmul(b.objects, wt[b.task, np.where(holding, 0, 1)][:, :, None])[:, :, 0]
             table = np.repeat(unary[:, :, None], N_PRIM, axis=2)
@@ -178,6 +196,8 @@ class _Batched:
                 table += (flat_objects @ wt.T).reshape(S, N, N_PRIM)
             if (wt := self._w(w, f"paae{s}")) is not None:
                 table += (flat_hist @ wt.T).reshape(S, N, N_PRIM)
+            if (wt := self._w(w, f"rel{s}")) is not None:
+                table += np.matmul(b.rel_rows, wt[b.task].transpose(0, 2, 1))
             U.append(table.transpose(0, 2, 1))
         pair = None
         if (wt := self._w(w, "ae_pair")) is not None:
@@ -197,6 +217,7 @@ class _Batched:
         # a step's primitive term does not move its argmax over arguments: it is added to the maximum only
         base = b.pair_neg if pair is None else pair + b.pair_neg
         buf = np.empty((S, N, N))
+        w_pair = self._w(w, "rel_pair")
         for p, arity in enumerate(ARITIES):
             if arity == 0:
                 best[:, p] = P[:, p] + none1 + none2
@@ -207,6 +228,8 @@ class _Batched:
             else:
                 np.add(base, (U[1][:, p] + l2)[:, None, :], out=buf)
                 buf += (U[0][:, p] + l1)[:, :, None]
+                if w_pair is not None:  # task relations of a1 and a2, crossed (bilinear in the two rows)
+                    buf += np.matmul(np.matmul(b.task_rel, w_pair[b.task, p]), b.task_rel.transpose(0, 2, 1))
                 flat = buf.reshape(S, -1)
                 a = flat.argmax(axis=1)
                 best[:, p] = P[:, p] + flat[rows, a]
@@ -251,15 +274,19 @@ class _Batched:
             if (v := view(f"aet_rel{s}")) is not None:
                 np.add.at(v, (g_sel, t_sel), b.task_rel[r, a_sel])
             if (v := view(f"rel{s}")) is not None:
-                np.add.at(v, (g_sel, t_sel, np.where(holding[r], 0, 1)), b.relations[r, a_sel])
+                np.add.at(v, (g_sel, t_sel, p_sel), b.rel_rows[r, a_sel])
             if (v := view(f"aet_obj{s}")) is not None:
                 np.add.at(v, (g_sel, t_sel, np.where(holding[r], 0, 1)), obj)
             if (v := view(f"pae{s}")) is not None:
                 np.add.at(v, (g_sel, p_sel), obj)
             if (v := view(f"paae{s}")) is not None:
                 np.add.at(v, (g_sel, p_sel), b.hist[r, a_sel])
+        both = (y[:, 1] >= 0) & (y[:, 2] >= 0)
+        if (v := view("rel_pair")) is not None:
+            r = rows[both]
+            outer = b.task_rel[r, y[both, 1]][:, :, None] * b.task_rel[r, y[both, 2]][:, None, :]
+            np.add.at(v, (grp[both], b.task[both], p[both]), outer)
         if (v := view("ae_pair")) is not None:
-            both = (y[:, 1] >= 0) & (y[:, 2] >= 0)
             np.add.at(v[:, 0], grp[both], b.collide[rows[both], y[both, 1], y[both, 2]].astype(float))
         return out[0] if groups is None else out
 
@@ -305,6 +332,9 @@ class MRFModel(_Batched):
             raise ValueError("the relations model needs steps with relations (build them with step_context)")
         return x.relations
 
+    def _rel_rows(self, x: StepContext) -> np.ndarray:
+        return rel_row(x.objects, x.task_rel, self._relations(x))
+
     def _check_relations(self, X: list[StepContext]) -> None:
         if RELATION_FAMILY in self.families:
             for x in X:
@@ -337,17 +367,18 @@ class MRFModel(_Batched):
             put(f"ae{s}", slice(None), row[list(_AE_COLS)])
             put(f"aet_rel{s}", (g, slice(None)), x.task_rel[a])
             if RELATION_FAMILY in self.families:
-                put(f"rel{s}", (g, 0 if x.holding else 1, slice(None)), self._relations(x)[a])
+                put(f"rel{s}", (g, p, slice(None)), self._rel_rows(x)[a])
             put(f"aet_obj{s}", (g, 0 if x.holding else 1, slice(None)), row)
             put(f"pae{s}", (p, slice(None)), row)
             put(f"paae{s}", (p, slice(None)), hist[a])
         if a1 >= 0 and a2 >= 0:
             put("ae_pair", (0,), float(x.collide[a1, a2]))
+            put("rel_pair", (g, p), np.outer(x.task_rel[a1], x.task_rel[a2]))
         return out
 
     # --- factor tables and scores --------------------------------------------
     def tables(self, x: StepContext, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """P (N_PRIM,), U1 and U2 (N_PRIM, n), pair (n, n): the score's factors."""
+        """P (N_PRIM,), U1 and U2 (N_PRIM, n), pair (N_PRIM, n, n): the score's factors."""
         n, g = x.n, x.task
         P = np.zeros(N_PRIM)
         if (wt := self._w(w, "pt")) is not None:
@@ -363,8 +394,6 @@ class MRFModel(_Batched):
                 unary += x.objects[:, list(_AE_COLS)] @ wt
             if (wt := self._w(w, f"aet_rel{s}")) is not None:
                 unary += x.task_rel @ wt[g]
-            if (wt := self._w(w, f"rel{s}")) is not None:
-                unary += self._relations(x) @ wt[g, 0 if x.holding else 1]
             if (wt := self._w(w, f"aet_obj{s}")) is not None:
                 unary += x.objects @ wt[g, 0 if x.holding else 1]
             table = np.broadcast_to(unary, (N_PRIM, n)).copy()
@@ -372,10 +401,14 @@ class MRFModel(_Batched):
                 table += wt @ x.objects.T
             if (wt := self._w(w, f"paae{s}")) is not None:
                 table += wt @ hist.T
+            if (wt := self._w(w, f"rel{s}")) is not None:
+                table += wt[g] @ self._rel_rows(x).T
             U.append(table)
-        pair = np.zeros((n, n))
+        pair = np.zeros((N_PRIM, n, n))
         if (wt := self._w(w, "ae_pair")) is not None:
-            pair = wt[0] * x.collide
+            pair += wt[0] * x.collide
+        if (wt := self._w(w, "rel_pair")) is not None:
+            pair += x.task_rel @ wt[g] @ x.task_rel.T
         return P, U[0], U[1], pair
 
     def scores(self, x: StepContext, w: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], np.ndarray]:
@@ -384,7 +417,7 @@ class MRFModel(_Batched):
         cp, ca1, ca2 = candidate_index(x.n)
         has1, has2 = ca1 >= 0, ca2 >= 0
         i1, i2 = np.where(has1, ca1, 0), np.where(has2, ca2, 0)
-        s = P[cp] + np.where(has1, U1[cp, i1], 0.0) + np.where(has2, U2[cp, i2] + pair[i1, i2], 0.0)
+        s = P[cp] + np.where(has1, U1[cp, i1], 0.0) + np.where(has2, U2[cp, i2] + pair[cp, i1, i2], 0.0)
         return (cp, ca1, ca2), s
 
     def _hamming(self, cands: tuple[np.ndarray, np.ndarray, np.ndarray], y: Y) -> np.ndarray:

@@ -18,7 +18,8 @@ from .ssvm import CuttingPlaneSSVM
 class Fit:
     model: MRFModel
     ssvm: CuttingPlaneSSVM
-    seconds: float
+    seconds: float  # wall time of every fit that led to this one
+    steps: int  # training steps of the last fit
 
     @property
     def w(self) -> np.ndarray:
@@ -45,4 +46,4 @@ def fit_mrf(contexts: list[StepContext], features: str = "full", C: float = 3.0,
             ssvm.fit(contexts, [x.gold for x in contexts])
     finally:
         bar.close()
-    return Fit(model, ssvm, time.perf_counter() - start)
+    return Fit(model, ssvm, time.perf_counter() - start, len(contexts))

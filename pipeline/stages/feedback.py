@@ -1,6 +1,6 @@
 """Stage `feedback`: sequence accuracy when an observer picks among the top k candidates at the first n steps.
 
-Run for the paper's full model and for each added method (`ROBUSTNESS_METHODS`).
+Run for the paper's full model and the best added method (`ROBUSTNESS_METHODS`).
 """
 
 from __future__ import annotations

@@ -3,13 +3,11 @@
 from __future__ import annotations
 
 import time
-from dataclasses import asdict
-from functools import partial
 from pathlib import Path
 from typing import Any
 
 from ..evaluate.fold_models import train_fold_models, training_jobs
-from ..evaluate.methods import MRFMethod
+from ..evaluate.methods import mrf_methods
 from ..features.dataset import read_features
 from ..io import write_json_atomic
 from ..logs.benchmark import load_benchmark
@@ -21,19 +19,19 @@ def run(folds: Folds, learner: Learner, features: Path, processed: Path, output:
         n_jobs: int = 1, tracker: Tracker = NO_RUN) -> dict[str, Any]:
     contexts, meta = read_features(features)
     bench = load_benchmark(processed)
-    jobs = training_jobs(meta, bench.scenarios, folds.folds, folds.seed, folds.group_by)
-    make = partial(MRFMethod, **asdict(learner))
+    methods = mrf_methods(learner)
+    jobs = training_jobs(methods, meta, bench.scenarios, folds.folds, folds.seed, folds.group_by)
     print(f"training {len(jobs)} fold models ({folds.folds} folds grouped by {folds.group_by}, recipes) "
           f"with {n_jobs} jobs")
     start = time.perf_counter()
-    records = train_fold_models(make, contexts, meta, jobs, output, n_jobs=n_jobs, verbose=5)
+    records = train_fold_models(methods, contexts, meta, bench.scenarios, jobs, output, n_jobs=n_jobs, verbose=5)
     wall = time.perf_counter() - start
     out = {"models": len(records), "wall_seconds": wall, "fit_seconds": sum(r["seconds"] for r in records),
            "iterations": sum(r["iterations"] for r in records),
            "all_converged": all(r["converged"] for r in records)}
     if metrics:
         write_json_atomic(metrics, {**out, "per_model": [
-            {k: r[k] for k in ("features", "uses", "steps", "iterations", "converged", "seconds",
+            {k: r[k] for k in ("features", "uses", "steps", "fitted_steps", "iterations", "converged", "seconds",
                                "primal_objective", "dual_objective")} for r in records]})
     tracker.metrics({k: float(v) for k, v in out.items()})
     print(f"trained {len(records)} models in {wall:.1f} s ({out['fit_seconds']:.1f} s of fitting, "

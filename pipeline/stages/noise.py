@@ -1,6 +1,6 @@
 """Stage `noise`: closed-loop sequence accuracy with binary attributes flipped at test time.
 
-Run for the paper's full model and for each added method (`ROBUSTNESS_METHODS`).
+Run for the paper's full model and the best added method (`ROBUSTNESS_METHODS`).
 """
 
 from __future__ import annotations

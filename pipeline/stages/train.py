@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
@@ -19,8 +18,8 @@ from ..track.mlflow_runs import NO_RUN, Tracker
 def run(settings: Train, features: Path, model: Path, metrics: Path | None = None, curve: Path | None = None,
         tracker: Tracker = NO_RUN) -> dict[str, Any]:
     contexts, _ = read_features(features)
-    fit = fit_mrf(contexts, settings.feature_set, **asdict(settings.learner), progress=True)
-    save_model(model, fit.model, fit.w, {**asdict(settings.learner), "n_steps": len(contexts)})
+    fit = fit_mrf(contexts, settings.feature_set, **settings.ssvm, progress=True)
+    save_model(model, fit.model, fit.w, {**settings.ssvm, "n_steps": len(contexts)})
     acc = step_accuracy(contexts, fit.ssvm.predict(contexts))
     last = fit.ssvm.history_[-1]
     out = {

@@ -1,0 +1,100 @@
+"""On-policy training data (DAgger; Ross, Gordon and Bagnell, 2011).
+
+The planner trained on demonstrations only ever saw the demonstrator's
+states; once it strays it is somewhere no example shows. DAgger rolls the
+learned planner out on the training scenarios, asks the demonstrator what it
+would do in each state the planner reached that no demonstration passes
+through, adds those labelled steps to the training set and refits; `rounds`
+times. Every rollout follows the learner alone (the demonstrations are round
+zero).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import replace
+
+import numpy as np
+
+from ..features.context import StepContext, step_context
+from ..learn.mrf import MRFModel
+from ..learn.train import Fit, fit_mrf
+from ..plan.planner import Rank, run_loop
+from ..sim.primitives import Action, PreconditionError, execute
+from ..sim.scenarios import Scenario
+from ..sim.state import WorldState
+from .expert import next_actions
+from .starts import chained_scenarios, demonstration_contexts
+
+ROLLOUT_STEPS = 20  # step cap of a training rollout, the evaluation's
+
+Expert = Callable[[Scenario, Sequence[Action], WorldState], tuple[Action, ...]]
+
+
+def _on_demonstration(scenario: Scenario, history: tuple[Action, ...]) -> bool:
+    return any(d[: len(history)] == history for d in scenario.demonstrations if len(d) >= len(history))
+
+
+def rollout_contexts(rank: Rank, scenario: Scenario, seen: set[tuple[Action, ...]],
+                     expert: Expert | None = None) -> list[StepContext]:
+    """Labelled steps of the states a rollout of `rank` reaches off every demonstration of `scenario`.
+
+    `seen` holds the histories already labelled in earlier rounds; it is updated.
+    `expert` defaults to the demonstrator (`expert.next_actions`).
+    """
+    expert = expert or next_actions
+    program = run_loop(rank, scenario.initial, scenario.task, ROLLOUT_STEPS)
+    state, history, out = scenario.initial, (), []
+    for action in [*program.actions, None]:
+        if not _on_demonstration(scenario, history) and history not in seen:
+            seen.add(history)
+            labels = expert(scenario, history, state)
+            if not labels:
+                break
+            out += [step_context(state, scenario.task, list(history), gold=a) for a in labels]
+        if action is None:
+            break
+        try:
+            state = execute(state, action)
+        except PreconditionError:
+            break
+        history = (*history, action)
+    return out
+
+
+def fit_imitation(contexts: list[StepContext], scenarios: Sequence[Scenario], features: str, rounds: int,
+                  chained: bool, expert: Expert | None = None, base: tuple[MRFModel, np.ndarray] | None = None,
+                  **learner) -> Fit:
+    """Fit on the demonstrations' `contexts` (of `scenarios`), with chained starts and DAgger rounds added.
+
+    `learner` holds the SSVM settings of `fit_mrf`. `base` is the model (and
+    weights) already fitted with these settings on the data before any DAgger
+    round, when the caller has it: the first rollouts use it instead of
+    fitting it again. The result is the same either way.
+    """
+    data = list(contexts)
+    scenarios = sorted(scenarios, key=lambda s: s.id)
+    if chained:
+        extra = chained_scenarios(scenarios)
+        data += [x for sc in extra for x in demonstration_contexts(sc)]
+        scenarios += extra
+    fit = None if base is not None and rounds else fit_mrf(data, features, **learner)
+    model, w = base if fit is None else (fit.model, fit.w)
+    seconds = 0.0 if fit is None else fit.seconds
+    seen: list[set[tuple[Action, ...]]] = [set() for _ in scenarios]
+    for _ in range(rounds):
+        rank = _greedy(model, w)
+        new = [x for sc, s in zip(scenarios, seen, strict=True) for x in rollout_contexts(rank, sc, s, expert)]
+        if not new:
+            break
+        data += new
+        fit = fit_mrf(data, features, **learner)
+        model, w, seconds = fit.model, fit.w, seconds + fit.seconds
+    if fit is None:  # the rollouts found nothing to add: the base is the answer, fitted here for its record
+        fit = fit_mrf(data, features, **learner)
+        seconds += fit.seconds
+    return replace(fit, seconds=seconds)
+
+
+def _greedy(model: MRFModel, w: np.ndarray) -> Rank:
+    return lambda ctx: model.top_k(ctx, w, 1)

@@ -1,0 +1,202 @@
+"""Training data beyond the logs: the demonstrator as an expert, chained starts, DAgger."""
+
+from __future__ import annotations
+
+from functools import partial
+
+import numpy as np
+import pytest
+
+import pipeline.imitation.dagger as dagger_module
+import pipeline.imitation.starts as starts_module
+from pipeline.evaluate.crossval import run_fold, scenario_folds
+from pipeline.evaluate.methods import MRFMethod
+from pipeline.features.context import NO_PRIM, candidate_index, step_context
+from pipeline.features.dataset import build_steps
+from pipeline.imitation.dagger import fit_imitation, rollout_contexts
+from pipeline.imitation.expert import DONE, next_actions
+from pipeline.imitation.starts import chained_scenarios, demonstration_contexts
+from pipeline.learn.train import fit_mrf
+from pipeline.logs.benchmark import Benchmark
+from pipeline.sim.primitives import Action, PreconditionError, execute
+from pipeline.sim.tasks import goal_reached
+
+SSVM = {"C": 3.0, "tol": 1e-2, "max_iter": 300, "n_slacks": 2}
+ENVS = ("env01", "env02", "env03")
+
+
+@pytest.fixture(scope="module")
+def small(benchmark_tables):
+    records = [i.record for i in benchmark_tables[1] if i.record["env_id"] in ENVS]
+    contexts, meta = build_steps(records)
+    return contexts, meta, Benchmark.from_records(records).scenarios
+
+
+def follow_expert(scenario, history, state, cap=25):
+    """Take the expert's first answer until it says done; returns (history, state, stopped)."""
+    for _ in range(cap):
+        answers = next_actions(scenario, history, state)
+        if not answers:
+            return history, state, False
+        if answers[0] == DONE:
+            return history, state, True
+        state = execute(state, answers[0])
+        history = (*history, answers[0])
+    return history, state, False
+
+
+def test_on_a_demonstration_the_expert_answers_with_the_log(small):
+    _, _, scenarios = small
+    for sc in scenarios.values():
+        for demo in sc.demonstrations:
+            state = sc.initial
+            for k in range(len(demo) + 1):
+                want = demo[k] if k < len(demo) else DONE
+                assert want in next_actions(sc, demo[:k], state), (sc.id, k)
+                if k < len(demo):
+                    state = execute(state, demo[k])
+
+
+def test_the_expert_finishes_the_task_after_a_detour(small):
+    """Off every demonstration (a wrong first step), following the expert still reaches the goal."""
+    _, _, scenarios = small
+    tried = finished = 0
+    for sc in scenarios.values():
+        ctx = step_context(sc.initial, sc.task, [])
+        first = {d[0] for d in sc.demonstrations}
+        for y in zip(*candidate_index(ctx.n), strict=True):
+            detour = ctx.action(tuple(int(v) for v in y))
+            if detour.primitive != "move_close" or detour in first:
+                continue
+            try:
+                state = execute(sc.initial, detour)
+            except PreconditionError:
+                continue
+            tried += 1
+            history, final, stopped = follow_expert(sc, (detour,), state)
+            finished += stopped and goal_reached(sc.task, sc.initial, final)
+            break
+    assert tried >= 10
+    assert finished == tried
+
+
+def test_chained_scenarios_start_where_a_given_scenario_ended(small):
+    _, _, scenarios = small
+    given = list(scenarios.values())
+    ends = []
+    for sc in given:
+        state = sc.initial
+        for a in sc.demonstrations[0]:
+            state = execute(state, a)
+        ends.append(state)
+    chained = chained_scenarios(given)
+    assert len(chained) >= len(given) // 2
+    tasks_by_env = {(sc.env_id, sc.task) for sc in given}
+    for sc in chained:
+        assert (sc.env_id, sc.task) in tasks_by_env  # a task of the same environment
+        assert any(sc.initial == e for e in ends)  # starts where a demonstration ended
+        for demo in sc.demonstrations:
+            state = sc.initial
+            for a in demo:
+                state = execute(state, a)
+            assert goal_reached(sc.task, sc.initial, state)
+    assert any(sc.initial.held is not None for sc in chained)  # some start with something in hand
+
+
+def test_demonstration_contexts_equal_the_feature_pipelines(small, benchmark_tables):
+    contexts, meta, scenarios = small
+    sid = meta[0].scenario_id
+    mine = demonstration_contexts(scenarios[sid])
+    logged = [x for x, m in zip(contexts, meta, strict=True) if m.scenario_id == sid]
+    assert [x.gold for x in mine] == [x.gold for x in logged]
+    for a, b in zip(mine, logged, strict=True):
+        np.testing.assert_array_equal(a.objects, b.objects)
+        np.testing.assert_array_equal(a.relations, b.relations)
+
+
+def test_rollouts_label_only_states_off_the_demonstrations(small):
+    contexts, _, scenarios = small
+    fit = fit_mrf(contexts, "full", **SSVM)
+    sc = next(iter(scenarios.values()))
+    detour = next(a for a in (Action("move_close", (o,)) for o in sorted(sc.initial.specs))
+                  if a not in {d[0] for d in sc.demonstrations} and _feasible(sc.initial, a))
+
+    def rank(ctx):  # a planner that first goes somewhere no demonstration goes, then follows the model
+        if ctx.prev_prims[0] == NO_PRIM:
+            return [(ctx.encode(detour), 0.0)]
+        return fit.model.top_k(ctx, fit.w, 1)
+
+    asked = []
+
+    def spy(scenario, history, state):
+        asked.append(tuple(history))
+        assert not any(d[: len(history)] == tuple(history) for d in scenario.demonstrations)
+        return next_actions(scenario, history, state)
+
+    seen: set = set()
+    out = rollout_contexts(rank, sc, seen, spy)
+    assert asked and asked[0] == (detour,) and out
+    assert {x.prev_args[0] for x in out[:1]} == {out[0].object_ids.index(detour.args[0])}
+    assert rollout_contexts(rank, sc, seen, spy) == []  # a history labelled once is not labelled again
+
+
+def _feasible(state, action):
+    try:
+        execute(state, action)
+    except PreconditionError:
+        return False
+    return True
+
+
+def test_no_augmentation_is_the_plain_fit(small):
+    contexts, _, scenarios = small
+    plain = fit_mrf(contexts, "full", **SSVM)
+    same = fit_imitation(contexts, list(scenarios.values()), "full", rounds=0, chained=False, **SSVM)
+    assert plain.w.tobytes() == same.w.tobytes()
+
+
+def test_augmented_fits_are_deterministic_and_grow_the_data(small):
+    contexts, _, scenarios = small
+    a = fit_imitation(contexts, list(scenarios.values()), "full", rounds=1, chained=True, **SSVM)
+    b = fit_imitation(contexts, list(scenarios.values()), "full", rounds=1, chained=True, **SSVM)
+    assert a.w.tobytes() == b.w.tobytes()
+    assert a.steps > len(contexts)
+
+
+def test_the_expert_never_sees_a_test_scenario(small, monkeypatch):
+    """DAgger's rollouts and chained starts consult the demonstrator on training scenarios only."""
+    contexts, meta, scenarios = small
+    asked: list[str] = []
+    real_expert, real_chain = dagger_module.next_actions, starts_module._chain
+
+    def spy_expert(scenario, history, state):
+        asked.append(scenario.id)
+        return real_expert(scenario, history, state)
+
+    def spy_chain(env_id, state, task):
+        asked.append(f"{env_id}/{task}")
+        return real_chain(env_id, state, task)
+
+    monkeypatch.setattr(dagger_module, "next_actions", spy_expert)
+    monkeypatch.setattr(starts_module, "_chain", spy_chain)
+    test = scenario_folds(scenarios, 3, 0, "scenario")[0]
+    make = partial(MRFMethod, "full", **SSVM, chained_starts=True, dagger_rounds=1, name="all")
+    result = run_fold(make, 0, contexts, meta, scenarios, test, max_steps=20)
+    assert result.sequences is not None and asked
+    assert not set(asked) & test
+    assert set(asked) <= set(scenarios) - test
+
+
+def test_augmented_methods_need_the_scenarios(small):
+    contexts, meta, _ = small
+    with pytest.raises(ValueError, match="training scenarios"):
+        MRFMethod("full", **SSVM, dagger_rounds=1).fit(contexts, meta)
+
+
+def test_dagger_from_a_given_base_equals_dagger_from_scratch(small):
+    contexts, _, scenarios = small
+    base = fit_mrf(contexts, "full", **SSVM)
+    given = fit_imitation(contexts, list(scenarios.values()), "full", rounds=1, chained=False,
+                          base=(base.model, base.w), **SSVM)
+    scratch = fit_imitation(contexts, list(scenarios.values()), "full", rounds=1, chained=False, **SSVM)
+    assert given.w.tobytes() == scratch.w.tobytes()
