@@ -7,9 +7,12 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from jsonschema import Draft202012Validator
+
 from .learn.persist import load_model
-from .logs.records import spec_from_dict, state_from_dict
+from .logs.records import load_schema, spec_from_dict, state_from_dict
 from .logs.validate import LogError, check_record, check_references, check_schema, log_files, read_records
+from .logs.validate import _field as field_name  # the log checks' way of writing a field's path
 from .plan.planner import Program, plan
 from .sim.tasks import Task
 
@@ -44,10 +47,39 @@ def load_environment(path: Path, record: int) -> tuple[list[dict[str, Any]], dic
         env = json.loads(path.read_text())
     except (OSError, ValueError) as err:
         raise ValueError(f"{path}: cannot read the environment: {err}") from None
-    for key in ("objects", "state"):
-        if key not in env:
-            raise LogError(path, 1, key, "an environment file needs 'objects' and 'state' (as in the log format)")
+    _check_environment(path, env)
     return env["objects"], env["state"]
+
+
+def _environment_validator() -> Draft202012Validator:
+    """The log schema's rules for `objects` and a step's `state`, applied to an environment file."""
+    log = load_schema()
+    schema = {"type": "object", "required": ["objects", "state"],
+              "properties": {"objects": log["properties"]["objects"], "state": {"$ref": "#/$defs/state"}},
+              "$defs": log["$defs"]}
+    return Draft202012Validator(schema)
+
+
+def _check_environment(path: Path, env: Any) -> None:
+    """Schema, then references: every error names the file and the field."""
+    errors = sorted(_environment_validator().iter_errors(env), key=lambda e: list(e.absolute_path))
+    if errors:
+        raise LogError(path, 1, field_name(errors[0].absolute_path), errors[0].message)
+    known = {o["id"] for o in env["objects"]}
+    state = env["state"]
+    for field in sorted(known - set(state["objects"])):
+        raise LogError(path, 1, f"state.objects.{field}", "object listed in 'objects' has no state")
+    for obj, entry in state["objects"].items():
+        if obj not in known:
+            raise LogError(path, 1, f"state.objects.{obj}", f"unknown object {obj!r} (not in 'objects')")
+        if entry["support"] is not None and entry["support"] not in known:
+            raise LogError(path, 1, f"state.objects.{obj}.support", f"unknown object {entry['support']!r}")
+    for key in ("held", "held_above"):
+        if state[key] is not None and state[key] not in known:
+            raise LogError(path, 1, f"state.{key}", f"unknown object {state[key]!r}")
+
+
+LIQUID_TASKS = ("pour", "pour_to", "stir")  # tasks whose first argument is a liquid
 
 
 def plan_task(model_path: Path, env: Path, record: int, task_text: str, max_steps: int,
@@ -59,6 +91,9 @@ def plan_task(model_path: Path, env: Path, record: int, task_text: str, max_step
     state = state_from_dict(specs, state_dict)
     task = Task.parse(task_text)
     task.check_objects(state)
+    if task.name in LIQUID_TASKS and not state.specs[task.args[0]].has("liquid"):
+        raise ValueError(f"task {task}: {task.args[0]} ({state.specs[task.args[0]].name}) is not a liquid; "
+                         f"{task.name} takes the liquid, e.g. the water, not its bottle")
     return plan(model, w, state, task, max_steps=max_steps, top_k=top_k), {o: s.name for o, s in specs.items()}
 
 

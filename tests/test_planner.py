@@ -1,6 +1,7 @@
 """Training end to end on a few demonstrations, planning in closed loop, model files, the plan command."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -128,3 +129,47 @@ def test_plan_command_fails_clearly(model_file, benchmark_logs, capsys, task, me
     code = main(["plan", "--model", str(model_file), "--env", str(benchmark_logs / "env01.jsonl"), "--task", task])
     assert code == 2
     assert message in capsys.readouterr().err
+
+
+def _env_file(benchmark_logs, tmp_path, edit) -> Path:
+    record = json.loads((benchmark_logs / "env01.jsonl").read_text().splitlines()[0])
+    env = {"objects": record["objects"], "state": record["steps"][0]["state"]}
+    edit(env)
+    path = tmp_path / "env.json"
+    path.write_text(json.dumps(env))
+    return path
+
+
+def _drop_size(env):
+    del env["objects"][0]["size"]
+
+
+def _unknown_support(env):
+    first = next(iter(env["state"]["objects"]))
+    env["state"]["objects"][first]["support"] = "obj99"
+
+
+@pytest.mark.parametrize("edit, message", [
+    (_drop_size, "env.json:1: objects[0]: 'size' is a required property"),
+    (_unknown_support, "support: unknown object 'obj99'"),
+])
+def test_plan_command_names_the_field_of_a_bad_environment_file(model_file, benchmark_logs, tmp_path, capsys,
+                                                                edit, message):
+    env = _env_file(benchmark_logs, tmp_path, edit)
+    code = main(["plan", "--model", str(model_file), "--env", str(env), "--task", "pour(obj27)"])
+    assert code == 2 and message in capsys.readouterr().err
+
+
+def test_plan_command_refuses_to_pour_a_container(model_file, benchmark_logs, capsys):
+    record = json.loads((benchmark_logs / "env01.jsonl").read_text().splitlines()[0])
+    cup = next(o["id"] for o in record["objects"] if o["attributes"]["liquid"] == 0)
+    code = main(["plan", "--model", str(model_file), "--env", str(benchmark_logs / "env01.jsonl"),
+                 "--task", f"pour({cup})"])
+    assert code == 2 and "is not a liquid" in capsys.readouterr().err
+
+
+def test_plan_command_names_a_truncated_model_file(model_file, benchmark_logs, tmp_path, capsys):
+    cut = tmp_path / "cut.npz"
+    cut.write_bytes(model_file.read_bytes()[:200])
+    code = main(["plan", "--model", str(cut), "--env", str(benchmark_logs / "env01.jsonl"), "--task", "pour(obj27)"])
+    assert code == 2 and f"{cut}: not a readable taskseq model file" in capsys.readouterr().err
