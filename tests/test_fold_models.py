@@ -91,3 +91,21 @@ def test_the_store_is_the_same_bytes_whether_trained_serially_or_in_parallel(sma
     train_fold_models(METHODS, contexts, meta, scenarios, jobs, again, n_jobs=2)
     for path in out.iterdir():
         assert (again / path.name).read_bytes() == path.read_bytes(), path.name
+
+
+def test_a_dask_cluster_trains_the_same_bytes_as_local_processes(small, store, tmp_path, monkeypatch):
+    """The backend is a machine setting: a local Dask cluster (two worker processes) gives the loky store."""
+    distributed = pytest.importorskip("distributed")
+    from pipeline.evaluate.dispatch import SCHEDULER_ENV
+
+    records, contexts, meta, scenarios = small
+    out, jobs, _ = store
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+                                  host="127.0.0.1") as cluster:
+        monkeypatch.setenv(SCHEDULER_ENV, cluster.scheduler_address)
+        again = tmp_path / "folds"
+        fitted = train_fold_models(METHODS, contexts, meta, scenarios, jobs, again, n_jobs=1)
+        assert cluster.scheduler.transition_counter > 0  # the jobs went through the cluster's scheduler
+    assert len(fitted) == len(store[2])
+    for path in out.iterdir():
+        assert (again / path.name).read_bytes() == path.read_bytes(), path.name

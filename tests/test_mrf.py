@@ -43,9 +43,11 @@ def test_batched_inference_and_joint_features_equal_the_per_step_ones(some_steps
     w = np.random.default_rng(3).normal(size=model.size_joint_feature)
     gold = [x.gold for x in some_steps]
     assert model.batch_inference(some_steps, w) == [model.inference(x, w) for x in some_steps]
-    assert model.batch_loss_augmented_inference(some_steps, gold, w) == [
-        model.loss_augmented_inference(x, y, w) for x, y in zip(some_steps, gold, strict=True)
-    ]
+    y_hat = model.batch_loss_augmented_inference(some_steps, gold, w)
+    assert y_hat.tolist() == [list(model.loss_augmented_inference(x, y, w)) for x, y in zip(some_steps, gold,
+                                                                                            strict=True)]
+    assert model.batch_loss(gold, y_hat).tolist() == [model.loss(y, tuple(r)) for y, r in zip(gold, y_hat,
+                                                                                               strict=True)]
     total = sum(model.joint_feature(x, y) for x, y in zip(some_steps, gold, strict=True))
     np.testing.assert_allclose(model.batch_joint_feature(some_steps, gold), total, atol=1e-12)
 

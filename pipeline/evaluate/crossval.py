@@ -5,13 +5,13 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from joblib import Parallel, delayed
 from threadpoolctl import threadpool_limits
 
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
 from ..logs.benchmark import Benchmark
 from ..sim.scenarios import Scenario
+from .dispatch import run_jobs
 from .failures import classify
 from .folds import grouped_folds
 from .methods import Method
@@ -110,8 +110,5 @@ def cross_validate(methods: dict[str, Callable[[], Method]], contexts: list[Step
     folds = scenario_folds(scenarios, n_folds, seed, group_by)
     jobs = [(name, k) for name in methods for k in range(n_folds)]
     keep = keep_programs or {}
-    return Parallel(n_jobs=n_jobs, verbose=verbose if n_jobs != 1 else 0)(  # joblib fails on verbose serial runs
-        delayed(run_fold)(methods[name], k, contexts, meta, scenarios, folds[k], max_steps, bench,
-                          keep.get(name, frozenset()))
-        for name, k in jobs
-    )
+    return run_jobs(((run_fold, (methods[name], k, contexts, meta, scenarios, folds[k], max_steps, bench,
+                                 keep.get(name, frozenset()))) for name, k in jobs), n_jobs, verbose)

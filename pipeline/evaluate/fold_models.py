@@ -15,14 +15,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from joblib import Parallel, delayed
-
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
 from ..io import atomic_directory, write_json_atomic
 from ..learn.store import ModelStore
 from ..sim.scenarios import Scenario
 from .crossval import scenario_folds, training_index
+from .dispatch import run_jobs
 from .methods import MRFMethod
 from .recipes import recipe_training_sets
 
@@ -87,10 +86,8 @@ def train_fold_models(methods: Mapping[str, MakeMRF], contexts: list[StepContext
         store = ModelStore(tmp)
         for phase in (False, True):
             keys = [k for k in keyed if bool(methods[keyed[k][0].method]().dagger_rounds) == phase]
-            fitted = Parallel(n_jobs=n_jobs, verbose=verbose if n_jobs != 1 else 0)(  # joblib: no verbose serial runs
-                delayed(_fit)(methods[keyed[k][0].method], contexts, meta, scenarios, keyed[k][0].index,
-                              tmp if phase else None) for k in keys
-            )
+            fitted = run_jobs(((_fit, (methods[keyed[k][0].method], contexts, meta, scenarios, keyed[k][0].index,
+                                         tmp if phase else None)) for k in keys), n_jobs, verbose)
             for key, method in zip(keys, fitted, strict=True):
                 ssvm = method.fit_.ssvm
                 record = {

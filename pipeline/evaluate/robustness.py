@@ -10,7 +10,6 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-from joblib import Parallel, delayed
 from threadpoolctl import threadpool_limits
 
 from ..features.context import OBJECT_COLUMNS, StepContext
@@ -21,6 +20,7 @@ from ..sim.objects import BINARY_ATTRIBUTES
 from ..sim.primitives import Action
 from ..sim.scenarios import Scenario
 from .crossval import SequenceOutcome, judge, scenario_folds, training_index
+from .dispatch import run_jobs
 from .methods import MRFMethod
 
 BINARY_COLUMNS = np.array([OBJECT_COLUMNS.index(a) for a in BINARY_ATTRIBUTES])
@@ -103,10 +103,8 @@ def evaluate_conditions(make, contexts: list[StepContext], meta: list[StepMeta],
                         n_jobs: int = 1) -> list[tuple[Condition, SequenceOutcome]]:
     """Each condition's outcome on every scenario, from the full model of the scenario's test fold."""
     tests = scenario_folds(scenarios, folds.folds, folds.seed, folds.group_by)
-    parts = Parallel(n_jobs=n_jobs)(
-        delayed(_fold)(make, contexts, meta, scenarios, tests[k], conditions, max_steps, seed)
-        for k in range(folds.folds)
-    )
+    parts = run_jobs(((_fold, (make, contexts, meta, scenarios, tests[k], conditions, max_steps, seed))
+                      for k in range(folds.folds)), n_jobs)
     return [item for part in parts for item in part]
 
 

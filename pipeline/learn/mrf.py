@@ -31,6 +31,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from ..features.context import (
     ARITIES,
@@ -130,6 +131,10 @@ class StepBatch:
     pair_neg: np.ndarray  # (S, N, N): 0 where `pair_valid`, else -inf
     task: np.ndarray  # (S,)
     prev: np.ndarray  # (S, 2)
+    # (task, its steps, their rel_rows as one (steps * N, len(REL_ROW)) matrix): a weight block indexed by task
+    # multiplies each task's rows in one matrix product
+    by_task: list[tuple[int, np.ndarray, np.ndarray]]
+
 
     @classmethod
     def of(cls, steps: list[StepContext]) -> StepBatch:
@@ -149,8 +154,13 @@ class StepBatch:
         pair_valid = valid[:, :, None] & valid[:, None, :] & ~np.eye(N, dtype=bool)[None]
         valid_neg = np.where(valid, 0.0, -np.inf)
         pair_neg = np.where(pair_valid, 0.0, -np.inf)
-        return cls(steps, objects, rel, rel_row(objects, rel, relations), hist, collide, valid, pair_valid,
-                   valid_neg, pair_neg, task, prev)
+        rel_rows = rel_row(objects, rel, relations)
+        by_task = []
+        for t in np.unique(task):
+            rows = np.flatnonzero(task == t)
+            by_task.append((int(t), rows, rel_rows[rows].reshape(len(rows) * N, -1)))
+        return cls(steps, objects, rel, rel_rows, hist, collide, valid, pair_valid, valid_neg, pair_neg, task, prev,
+                   by_task)
 
 
 class _Batched:
@@ -164,8 +174,8 @@ class _Batched:
             self._batch_cache = cached
         return cached[1]
 
-    def _batch_best(self: MRFModel, b: StepBatch, w: np.ndarray, gold: np.ndarray | None = None) -> list[Y]:  # type: ignore[misc]
-        """The best candidate of every step; with `gold` (S, 3), of score plus Hamming loss.
+    def _batch_best(self: MRFModel, b: StepBatch, w: np.ndarray, gold: np.ndarray | None = None) -> np.ndarray:  # type: ignore[misc]
+        """(S, 3): the best candidate of every step; with `gold` (S, 3), of score plus Hamming loss.
 
         Each primitive's best candidate is found over its own (a1) or (a1, a2)
         array, then the best primitive wins; ties go to the earlier primitive,
@@ -197,7 +207,8 @@ class _Batched:
             if (wt := self._w(w, f"paae{s}")) is not None:
                 table += (flat_hist @ wt.T).reshape(S, N, N_PRIM)
             if (wt := self._w(w, f"rel{s}")) is not None:
-                table += np.matmul(b.rel_rows, wt[b.task].transpose(0, 2, 1))
+                for t, rows, flat_rel in b.by_task:
+                    table[rows] += (flat_rel @ wt[t].T).reshape(len(rows), N, N_PRIM)
             U.append(table.transpose(0, 2, 1))
         pair = None
         if (wt := self._w(w, "ae_pair")) is not None:
@@ -216,8 +227,8 @@ class _Batched:
         arg2 = np.full((S, N_PRIM), -1)
         # a step's primitive term does not move its argmax over arguments: it is added to the maximum only
         base = b.pair_neg if pair is None else pair + b.pair_neg
-        buf = np.empty((S, N, N))
         w_pair = self._w(w, "rel_pair")
+        no_rank = np.zeros((S, N, 0))
         for p, arity in enumerate(ARITIES):
             if arity == 0:
                 best[:, p] = P[:, p] + none1 + none2
@@ -226,22 +237,26 @@ class _Batched:
                 a = sc.argmax(axis=1)
                 best[:, p], arg1[:, p] = P[:, p] + sc[rows, a] + none2, a
             else:
-                np.add(base, (U[1][:, p] + l2)[:, None, :], out=buf)
-                buf += (U[0][:, p] + l1)[:, :, None]
-                if w_pair is not None:  # task relations of a1 and a2, crossed (bilinear in the two rows)
-                    buf += np.matmul(np.matmul(b.task_rel, w_pair[b.task, p]), b.task_rel.transpose(0, 2, 1))
-                flat = buf.reshape(S, -1)
-                a = flat.argmax(axis=1)
-                best[:, p] = P[:, p] + flat[rows, a]
+                # the task relations of a1 and a2, crossed, are a rank-4 term: (task_rel W_p) task_rel^T
+                left, right = (no_rank, no_rank) if w_pair is None else (
+                    np.matmul(b.task_rel, w_pair[b.task, p]), b.task_rel)
+                value, a = _best_pairs(base, U[1][:, p] + l2, U[0][:, p] + l1, left, right)
+                best[:, p] = P[:, p] + value
                 arg1[:, p], arg2[:, p] = np.divmod(a, N)
         prim = best.argmax(axis=1)
-        return [(int(prim[s]), int(arg1[s, prim[s]]), int(arg2[s, prim[s]])) for s in rows]
+        return np.stack([prim, arg1[rows, prim], arg2[rows, prim]], axis=1)
 
     def batch_inference(self: MRFModel, X: list[StepContext], w: np.ndarray) -> list[Y]:  # type: ignore[misc]
-        return self._batch_best(self._batch(X), w)
+        return [(int(p), int(a1), int(a2)) for p, a1, a2 in self._batch_best(self._batch(X), w)]
 
-    def batch_loss_augmented_inference(self: MRFModel, X: list[StepContext], Y_: list[Y], w: np.ndarray) -> list[Y]:  # type: ignore[misc]
+    def batch_loss_augmented_inference(self: MRFModel, X: list[StepContext], Y_: list[Y] | np.ndarray,  # type: ignore[misc]
+                                       w: np.ndarray) -> np.ndarray:
+        """(S, 3) int array: the learner's oracle, one row per step."""
         return self._batch_best(self._batch(X), w, np.asarray(Y_, dtype=np.int64))
+
+    def batch_loss(self: MRFModel, Y_: list[Y] | np.ndarray, Y_hat: list[Y] | np.ndarray) -> np.ndarray:  # type: ignore[misc]
+        """Hamming losses of many steps at once, as `loss` one by one."""
+        return (np.asarray(Y_, dtype=np.int64) != np.asarray(Y_hat, dtype=np.int64)).sum(axis=1).astype(float)
 
     def batch_joint_feature(self: MRFModel, X: list[StepContext], Y_: list[Y], groups: np.ndarray | None = None,  # type: ignore[misc]
                             n_groups: int = 1) -> np.ndarray:
@@ -289,6 +304,33 @@ class _Batched:
         if (v := view("ae_pair")) is not None:
             np.add.at(v[:, 0], grp[both], b.collide[rows[both], y[both, 1], y[both, 2]].astype(float))
         return out[0] if groups is None else out
+
+
+@njit(cache=True)
+def _best_pairs(base: np.ndarray, u2: np.ndarray, u1: np.ndarray, left: np.ndarray,
+                right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per step s, max and flat argmax over (a1, a2) of base[a1, a2] + u2[a2] + u1[a1] + left[a1] . right[a2].
+
+    The same sum NumPy would broadcast into an (S, N, N) array, fused so that
+    array is never written: the oracle reads `base` once per primitive. Ties go
+    to the first (a1, a2) in row-major order, as `argmax` does.
+    """
+    S, N, R = base.shape[0], base.shape[1], left.shape[2]
+    value, arg = np.empty(S), np.zeros(S, np.int64)
+    for s in range(S):
+        best, at = -np.inf, 0
+        for i in range(N):
+            for j in range(N):
+                v = base[s, i, j] + u2[s, j] + u1[s, i]
+                if R:
+                    low = 0.0
+                    for r in range(R):
+                        low += left[s, i, r] * right[s, j, r]
+                    v += low
+                if v > best:
+                    best, at = v, i * N + j
+        value[s], arg[s] = best, at
+    return value, arg
 
 
 class MRFModel(_Batched):

