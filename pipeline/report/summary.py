@@ -122,7 +122,8 @@ def build_summary(reports: Path, labels: dict[str, str]) -> str:
                                f"group{'s' if r['n_slacks'] > 1 else ''})" for r in bench["train"]["runs"])
             latency = ", ".join(f"{v['inference_ms']:.2f} ms at {n} objects"
                                 for n, v in sorted(bench["latency"].items(), key=lambda item: int(item[0])))
-            out.append(f"`taskseq bench` (its own run, {bench['machine']['cpus']} CPUs): training {timing}; "
+            out.append(f"`taskseq bench` (its own run, {bench['machine']['cpus']} CPUs, C = {bench['train']['C']:g}): "
+                       f"training {timing}; "
                        f"per-step inference {latency}.")
         out.append("")
     return "\n".join(out)
