@@ -15,7 +15,9 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import signal
 import sys
+import threading
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -108,7 +110,7 @@ def dispatch(args: argparse.Namespace, tracker) -> int:
         stage.run(S.Crossval(max_steps=args.max_steps), _learner(args), args.features, args.processed,
                   args.output, _store(args.model_store), tracker)
     elif c == "report":
-        stage.run(args.reports, args.output, tracker)
+        stage.run(args.reports, args.output, args.plots_template, tracker)
     elif c == "replay":
         from .tools import replay
 
@@ -241,6 +243,9 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--features", type=Path, default=Path("data/worlds/0/features"), help="feature folder")
         p.add_argument("--processed", type=Path, default=Path("data/worlds/0/processed"),
                        help="folder of Parquet tables")
+        p.add_argument("--world-seed", type=int, default=None,
+                       help="the seed of the world these data were drawn with, given to every MLflow child run "
+                            "as a param so runs of several worlds can be compared; changes no result")
 
     def fold_options(p: argparse.ArgumentParser, seed: str = "--seed") -> None:
         """The fold assignment, shared by every stage that evaluates on folds so their folds agree."""
@@ -326,6 +331,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = add("report", "write reports/summary.md: every result next to the paper's figures")
     p.add_argument("--reports", type=Path, default=Path("reports"), help="folder of the stages' results")
     p.add_argument("--output", type=Path, required=True, help="Markdown file to write")
+    p.add_argument("--plots-template", type=Path, default=None,
+                   help="also write the offline page template of `dvc plots show` here (default: not written)")
 
     p = add("pddl", "write the PDDL domain, a problem per scenario and its shortest plan (SAT)")
     p.add_argument("--processed", type=Path, default=Path("data/worlds/0/processed"), help="folder of Parquet tables")
@@ -368,8 +375,35 @@ def _run(args: argparse.Namespace, tracker) -> int:
         return 2
 
 
+class Stopped(KeyboardInterrupt):
+    """SIGTERM (what `dvc queue kill`, CI and schedulers send), handled as Ctrl-C is."""
+
+
+def _stop(signum: int, frame: object) -> None:
+    raise Stopped(signal.Signals(signum).name)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run one command; Ctrl-C or SIGTERM ends it with one line, its run KILLED and no output replaced."""
     args = build_parser().parse_args(argv)
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _stop)
+    # workers stopped mid-job leave semaphores the resource tracker (a child process) warns about at exit
+    os.environ.setdefault("PYTHONWARNINGS", "ignore:resource_tracker:UserWarning")
+    try:
+        return _main(args)
+    except KeyboardInterrupt as err:
+        from .io import WRITTEN
+
+        how = "SIGTERM" if isinstance(err, Stopped) else "Ctrl-C"
+        run = "; its MLflow run is marked KILLED" if args.command in STAGES and not args.no_mlflow else ""
+        written = "nothing was written" if not WRITTEN else (
+            f"{len(WRITTEN)} of its files were already replaced (each whole): run it again")
+        print(f"taskseq {args.command}: stopped by {how}; {written}{run}", file=sys.stderr)
+        return 143 if isinstance(err, Stopped) else 130
+
+
+def _main(args: argparse.Namespace) -> int:
     if getattr(args, "n_jobs", 0) is None:
         args.n_jobs = default_jobs()
     if args.command not in STAGES or args.no_mlflow:
@@ -381,7 +415,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     params = {k: v for k, v in vars(args).items() if k not in ("command", "no_mlflow")}
     inputs = [Path(getattr(args, k)) for k in ("input", "features", "processed") if getattr(args, k, None)]
     try:
-        with stage_run(args.command, params, inputs) as run:
+        labels = {"world_seed": args.world_seed} if getattr(args, "world_seed", None) is not None else None
+        with stage_run(args.command, params, inputs, labels) as run:
             code = _run(args, run)
             if code:
                 raise _StageFailed(code)  # the run is marked FAILED on the way out

@@ -1,4 +1,8 @@
-"""Atomic output: a reader sees the old result or the new one, never half of one."""
+"""Atomic output: a reader sees the old result or the new one, never half of one.
+
+`WRITTEN` lists what this process has replaced, so a command stopped part way
+can say whether it left its outputs as they were.
+"""
 
 from __future__ import annotations
 
@@ -10,6 +14,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
+
+WRITTEN: list[Path] = []
 
 
 @contextmanager
@@ -28,6 +34,7 @@ def atomic_directory(target: Path | str) -> Iterator[Path]:
         old = target.with_name(f".{target.name}.old.{os.getpid()}")
         os.replace(target, old)
     os.replace(tmp, target)
+    WRITTEN.append(target)
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)
 
@@ -40,6 +47,7 @@ def write_text_atomic(path: Path | str, text: str) -> None:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text)
         os.replace(tmp, path)
+        WRITTEN.append(path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise

@@ -33,3 +33,28 @@ def test_a_recording_holds_the_objects_robot_plan_and_demonstration_per_step(tmp
     assert steps_seen["/plan/chosen"] == {0, 1, 2, 3, 4}
     flat = [t[0] if isinstance(t, list) else t for t in texts]
     assert "move_close(obj20) score 1.50" in flat and "end: done" in flat
+
+
+def test_a_recording_opens_framed_on_the_furniture_with_few_labels(tmp_path):
+    from pipeline.track.recordings import FURNITURE, framing
+
+    state = world({2: 0.0}, [(14, 2, 0, 0.3), (20, 2, 0, -0.3), (27, 20)])
+    position, target = framing(state)
+    boxes = [state.box(o) for o in state.specs if state.specs[o].category in FURNITURE]
+    low = [min(b[i] for b in boxes) for i in range(3)]
+    high = [max(b[i + 3] for b in boxes) for i in range(3)]
+    assert all(lo <= t <= hi for lo, t, hi in zip(low, target, high, strict=True))  # looks at the furniture
+    assert 1.0 < float(((position - target) ** 2).sum() ** 0.5) < 10.0  # from near it, not from across the floor
+    action = Action.parse("move_close(obj20)")
+    path = tmp_path / "rec.rrd"
+    record_program(path, "env/pour", state, Task("pour", ("obj27",)), [PlanStep(action, 1.0, [])], "done", (action,))
+    shown = {}
+    for chunk in RrdReader(path).store().stream().to_chunks():
+        batch = chunk.to_record_batch()
+        for name in batch.schema.names:
+            if name.endswith("show_labels"):
+                shown.setdefault(chunk.entity_path, []).extend(batch.column(name).to_pylist())
+    flat = {e.rsplit("/", 1)[-1]: any(v[0] if isinstance(v, list) else v for v in vals) for e, vals in shown.items()
+            if e.startswith("/world/objects/")}
+    assert flat["obj27"] and flat["obj20"]  # the task's object and the step's argument
+    assert not flat["obj14"]  # an object the program does not touch

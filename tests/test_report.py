@@ -10,7 +10,7 @@ def test_summary_sets_our_numbers_beside_the_papers(tmp_path):
     (tmp_path / "dataset.json").write_text(json.dumps({"0": {"steps": 759}, "3": {"steps": 741}}))
     (tmp_path / "selection.json").write_text(json.dumps({"C": 3.0, "dev_seed": 100, "criterion": "sequence_arg",
                                                          "candidates": [{"C": 3.0, "sequence_arg": 61.1}]}))
-    (tmp_path / "metrics.json").write_text(json.dumps({
+    (tmp_path / "crossval_means.json").write_text(json.dumps({
         "full": {"average_prim": 96.8, "average_prim_sd": 0.4, "average_arg": 88.4, "average_arg_sd": 1.0,
                  "sequence_prim": 69.9, "sequence_prim_sd": 2.0, "sequence_arg": 56.6, "sequence_arg_sd": 7.5,
                  "success": 77.0, "success_sd": 3.0},
@@ -21,7 +21,7 @@ def test_summary_sets_our_numbers_beside_the_papers(tmp_path):
     header = "method,rate,sequence_arg,sequence_arg_sd,sequence_prim,sequence_prim_sd,success,success_sd\n"
     (tmp_path / "noise.csv").write_text(header + "full,0.1,42.8,3.0,59,1,59,1\nrelations,0.1,50.0,2.0,59,1,59,1\n")
     fb = "method,k,n,sequence_arg,sequence_arg_sd,sequence_prim,sequence_prim_sd,success,success_sd\n"
-    (tmp_path / "feedback.csv").write_text(fb + "full,2,1,62.8,1.0,75,1,78,1\nfull,3,20,85.8,2.0,87,1,91,1\n")
+    (tmp_path / "feedback.csv").write_text(fb + "full,2,1,62.8,1.0,75,1,78,1\nfull,3,all,85.8,2.0,87,1,91,1\n")
     (tmp_path / "recipes.json").write_text(json.dumps({"methods": {"full": {"recipes": 12, "per_seed": {
         "0": {"no_feedback": 1, "feedback_first_step": 2}, "3": {"no_feedback": 4, "feedback_first_step": 5}}}}}))
     text = build_summary(tmp_path, METHOD_LABELS)

@@ -99,8 +99,26 @@ def test_noise_at_rate_zero_equals_the_clean_cross_validation(evaluated):
 def test_feedback_at_every_step_is_never_worse_than_none(evaluated):
     rows = {(r["method"], r["n"]): float(r["sequence_arg"])
             for r in csv.DictReader((evaluated / "feedback.csv").open())}
-    assert set(rows) == {(m, n) for m in ("full", "relations") for n in ("0", "20")}
-    assert all(rows[(m, "20")] >= rows[(m, "0")] for m in ("full", "relations"))
+    assert set(rows) == {(m, n) for m in ("full", "relations") for n in ("0", "all")}  # "all" stays "all"
+    assert all(rows[(m, "all")] >= rows[(m, "0")] for m in ("full", "relations"))
+
+
+def test_every_evaluation_stage_keeps_each_program_it_ran(evaluated):
+    """The per-program tables (DVC-cached) hold one row per scenario and condition, and agree with the rates."""
+    summary = json.loads((evaluated / "crossval.json").read_text())
+    n = summary["full"]["n_scenarios"]
+    noise = list(csv.DictReader((evaluated / "noise_sequences.csv").open()))
+    assert len(noise) == 2 * 2 * 2 * n  # methods x rates x draws x scenarios
+    clean = [r for r in noise if r["method"] == "full" and r["rate"] == "0.0" and r["draw"] == "0"]
+    assert 100 * sum(r["arg_correct"] == "1" for r in clean) / n == pytest.approx(summary["full"]["sequence/arg"])
+    feedback = list(csv.DictReader((evaluated / "feedback_sequences.csv").open()))
+    assert {(r["k"], r["n"]) for r in feedback} == {("2", "0"), ("2", "all")} and len(feedback) == 2 * 2 * n
+    programs = list(csv.DictReader((evaluated / "recipes_programs.csv").open()))
+    report = json.loads((evaluated / "recipes.json").read_text())["methods"]
+    for method, r in report.items():
+        firsts = [p for p in programs if p["method"] == method and p["position"] == "0"]
+        assert len(firsts) == len(r["runs"])  # every recipe run starts with a program
+        assert sum(p["recipe_success"] == "1" for p in firsts) == sum(x["success"] for x in r["runs"])
 
 
 def test_aggregate_and_report_over_worlds(evaluated, tiny):
@@ -109,10 +127,23 @@ def test_aggregate_and_report_over_worlds(evaluated, tiny):
     out = tiny / "reports"
     assert main(["aggregate", "--seeds", "0", "5", "--dev_seed", "100", "--worlds", str(tiny / "worlds"),
                  "--output", str(out)]) == 0
-    metrics = json.loads((out / "metrics.json").read_text())
+    means = json.loads((out / "crossval_means.json").read_text())
     single = json.loads((evaluated / "crossval.json").read_text())["full"]
-    assert metrics["full"]["sequence_arg"] == pytest.approx(single["sequence/arg"])
-    assert metrics["full"]["sequence_arg_sd"] == 0.0
+    assert means["full"]["sequence_arg"] == pytest.approx(single["sequence/arg"])
+    assert means["full"]["sequence_arg_sd"] == 0.0
+    metrics = json.loads((out / "metrics.json").read_text())  # the headline figures, grouped by experiment
+    assert set(metrics) == {"crossval", "noise", "feedback", "recipes"}
+    assert metrics["crossval"]["full"]["sequence_arg"] == pytest.approx(single["sequence/arg"])
+    assert "multiclass" not in metrics["crossval"]  # it runs no programs
+    assert set(metrics["feedback"]["full"]) == {"top2_nall"}  # n = 0 and all were run: only "all" is a headline
+    assert set(metrics["noise"]["relations"]) == {"rate_0", "rate_0.3"}
+    header = (out / "plots" / "feedback.csv").read_text().splitlines()
+    assert header[0] == "n,ours - full top 2,ours + relations top 2" and [h.split(",")[0] for h in header[1:]] == [
+        "0", "all"]
+    assert (out / "plots" / "noise.csv").read_text().startswith("rate,ours - full,ours + relations\n")
+    every = list(csv.DictReader((out / "crossval_sequences.csv").open()))
+    assert {r["world_seed"] for r in every} == {"0", "5"} and len(every) == 2 * len(
+        list(csv.DictReader((evaluated / "crossval_sequences.csv").open())))
     assert "± 0.0" in (out / "table1.md").read_text() and "$\\pm$" in (out / "table1.tex").read_text()
     seeds = {r["world_seed"] for r in csv.DictReader((out / "table1_seeds.csv").open())}
     assert seeds == {"0", "5"}
@@ -121,7 +152,10 @@ def test_aggregate_and_report_over_worlds(evaluated, tiny):
     assert recipes.keys() == {"full", "chained"} and recipes["full"]["per_seed"].keys() == {"0", "5"}
     (out / "selection.json").write_text(json.dumps({"C": 2.0, "dev_seed": 100, "criterion": "sequence_arg",
                                                     "candidates": [{"C": 2.0, "sequence_arg": 50.0}]}))
-    assert main(["report", "--reports", str(out), "--output", str(out / "summary.md")]) == 0
+    assert main(["report", "--reports", str(out), "--output", str(out / "summary.md"),
+                 "--plots-template", str(out / "page.html")]) == 0
+    page = (out / "page.html").read_text()
+    assert "{plot_divs}" in page and "window.vegaEmbed" in page and "cdn.jsdelivr" not in page  # works offline
     text = (out / "summary.md").read_text()
     for heading in ("## Dataset", "## Settings", "## Table I", "## Why programs fail", "## Attribute noise",
                     "## Human feedback", "## Recipes"):

@@ -2,6 +2,7 @@
 
 import json
 import os
+from pathlib import Path
 
 import pytest
 from mlflow.tracking import MlflowClient
@@ -69,3 +70,46 @@ def test_no_mlflow_flag_records_nothing(store, benchmark_logs, tmp_path):
                  "--metrics", str(tmp_path / "m.json")]) == 0
     assert store.get_experiment_by_name(EXPERIMENT) is None
     assert os.environ["MLFLOW_TRACKING_URI"].startswith("sqlite:///")
+
+
+def test_child_runs_carry_what_tells_them_apart_and_their_programs(store, benchmark_tables, benchmark_steps,
+                                                                    tmp_path):
+    write_tables(benchmark_tables[0], tmp_path / "processed")
+    write_features(*benchmark_steps, tmp_path / "features")
+    code = main(["crossval", "--features", str(tmp_path / "features"), "--processed", str(tmp_path / "processed"),
+                 "--folds", "2", "--methods", "multiclass", "only_edge", "--C", "2.5", "--world-seed", "7",
+                 "--recordings", "0", "--output", str(tmp_path / "reports")])
+    assert code == 0
+    (parent,) = runs(store, "crossval")
+    assert parent.data.tags["git.dirty"] in ("true", "false", "unknown")
+    assert len(parent.data.tags["dvc.lock.md5"]) in (4, 32)  # "none" outside a DVC repository
+    exp = store.get_experiment_by_name(EXPERIMENT)
+    assert exp.tags["mlflow.experimentKind"] == "custom_model_development"  # the UI opens on the runs table
+    children = {r.info.run_name: r for r in runs(store) if r.data.tags.get("mlflow.parentRunId") == parent.info.run_id}
+    edge = children["only_edge"].data.params
+    assert edge["method"] == "only_edge" and edge["feature_set"] == "edge" and edge["C"] == "2.5"
+    assert edge["world_seed"] == children["multiclass"].data.params["world_seed"] == "7"
+    local = store.download_artifacts(children["only_edge"].info.run_id, "sequences.json", str(tmp_path / "dl"))
+    table = json.loads(Path(local).read_text())
+    with (tmp_path / "reports" / "crossval_sequences.csv").open() as fh:
+        written = [line for line in fh if line.startswith("only_edge,")]
+    assert "scenario" in table["columns"] and len(table["data"]) == len(written) > 100  # every program of it
+
+
+def test_train_logs_the_objective_and_gap_of_every_iteration(store, benchmark_steps, tmp_path):
+    write_features(*benchmark_steps, tmp_path / "features")
+    assert main(["train", "--features", str(tmp_path / "features"), "--feature-set", "edge",
+                 "--model", str(tmp_path / "m.npz")]) == 0
+    (run,) = runs(store, "train")
+    gaps = store.get_metric_history(run.info.run_id, "gap")
+    assert len(gaps) == int(run.data.metrics["iterations"]) and [m.step for m in gaps] == list(range(len(gaps)))
+    assert gaps[-1].value <= gaps[0].value
+
+
+def test_under_dvc_the_store_is_the_repositorys_even_from_a_temporary_copy(monkeypatch, tmp_path):
+    from pipeline.track.mlflow_runs import tracking_uri
+
+    monkeypatch.delenv("MLFLOW_TRACKING_URI")
+    monkeypatch.setenv("DVC_ROOT", str(tmp_path / "repo"))
+    monkeypatch.chdir(tmp_path)
+    assert tracking_uri() == f"sqlite:///{tmp_path / 'repo' / 'mlflow.db'}"

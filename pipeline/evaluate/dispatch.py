@@ -39,3 +39,4 @@ def run_jobs(jobs: Iterable[Job], n_jobs: int = 1, verbose: int = 0) -> list[Any
             return Parallel(verbose=verbose)(calls)
     # joblib refuses `verbose` on serial runs
     return Parallel(n_jobs=n_jobs, verbose=verbose if n_jobs != 1 else 0)(calls)
+

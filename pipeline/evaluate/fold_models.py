@@ -18,6 +18,7 @@ from typing import Any
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
 from ..io import atomic_directory, write_json_atomic
+from ..learn.ssvm import learning_curve
 from ..learn.store import ModelStore
 from ..sim.scenarios import Scenario
 from .crossval import scenario_folds, training_index
@@ -74,14 +75,15 @@ def train_fold_models(methods: Mapping[str, MakeMRF], contexts: list[StepContext
     DAgger are fitted first and stored; DAgger's then start from the stored
     model of the same data without it, so that model is never fitted twice.
     Returns one record per model: key, uses (method, training set), steps,
-    settings, iterations, objective, and the seconds it took; `index.json` in
-    the store holds all but the seconds, so the same inputs give the same bytes.
+    settings, iterations, objective, the seconds it took and its learning curve;
+    `index.json` in the store holds all but the seconds and the curve, so the
+    same inputs give the same bytes.
     """
     keyed: dict[str, list[TrainingJob]] = {}
     for job in jobs:
         key = methods[job.method]().key([contexts[i] for i in job.index])
         keyed.setdefault(key, []).append(job)
-    records, seconds = [], []
+    records, seconds, curves = [], [], []
     with atomic_directory(output) as tmp:
         store = ModelStore(tmp)
         for phase in (False, True):
@@ -105,5 +107,7 @@ def train_fold_models(methods: Mapping[str, MakeMRF], contexts: list[StepContext
                 store.save(key, method.model_, method.w_, {k: v for k, v in record.items() if k != "uses"})
                 records.append(record)
                 seconds.append(method.fit_.seconds)
+                curves.append(learning_curve(ssvm.history_))
         write_json_atomic(tmp / "index.json", {"models": records})
-    return [{**r, "seconds": t} for r, t in zip(records, seconds, strict=True)]
+    return [{**r, "seconds": t, "curve": c} for r, t, c in zip(records, seconds, curves, strict=True)]
+

@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from functools import partial
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 from sklearn.svm import LinearSVC
@@ -285,3 +285,16 @@ def mrf_methods(learner: Learner) -> dict[str, Callable[[], MRFMethod]]:
     """The MRF methods of Table I (the ones the `folds` stage trains), by name, without a store."""
     every = table1_methods(Crossval(), learner)
     return {name: make for name, make in every.items() if isinstance(make(), MRFMethod)}
+
+
+def method_params(name: str, method: Method) -> dict[str, Any]:
+    """What tells one method's run from another's in MLflow: name, feature set, C and the options it has."""
+    out: dict[str, Any] = {"method": name}
+    if isinstance(method, MRFMethod):
+        out.update(feature_set=method.features, C=method.C, chained_starts=method.chained_starts,
+                   dagger_rounds=method.dagger_rounds)
+    elif isinstance(method, MulticlassMethod):
+        out.update(C=method.C)
+    elif isinstance(method, SymbolicMethod):
+        out.update(goals=method.goals, horizon=method.horizon, **({"C": method.C} if method.goals == "svm" else {}))
+    return out

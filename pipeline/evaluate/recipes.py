@@ -148,3 +148,13 @@ def recipe_report(outcomes: list[RecipeOutcome]) -> dict[str, Any]:
     totals = {"no_feedback": sum(o.success for o in outcomes if not o.feedback),
               "feedback_first_step": sum(o.success for o in outcomes if o.feedback), "recipes": len(RECIPES)}
     return {"totals": totals, "runs": rows}
+
+
+PROGRAM_COLUMNS = ("recipe", "env_id", "feedback", "position", "task", "status", "success", "recipe_success")
+
+
+def program_rows(outcomes: list[RecipeOutcome]) -> list[dict[str, Any]]:
+    """Every program a recipe ran, in order, one row each (a failed program is a recipe's last)."""
+    return [{"recipe": o.recipe, "env_id": o.env_id, "feedback": o.feedback, "position": i, "task": task,
+             "status": status, "success": ok, "recipe_success": o.success}
+            for o in outcomes for i, (task, status, ok) in enumerate(o.programs)]

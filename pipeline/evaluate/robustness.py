@@ -142,6 +142,6 @@ def feedback_steps(settings: Feedback, max_steps: int) -> list[int]:
 
 def feedback_rows(settings: Feedback, max_steps: int,
                   results: list[tuple[Condition, SequenceOutcome]]) -> list[dict[str, float]]:
-    """One row per (k, n) over all scenarios."""
-    return [{"k": k, "n": n, **rates([o for c, o in results if c == Condition("feedback", k, n)])}
-            for k in settings.k for n in feedback_steps(settings, max_steps)]
+    """One row per (k, n) over all scenarios; n as the settings write it, so `all` stays `all`."""
+    return [{"k": k, "n": label, **rates([o for c, o in results if c == Condition("feedback", k, n)])}
+            for k in settings.k for label, n in zip(settings.n, feedback_steps(settings, max_steps), strict=True)]

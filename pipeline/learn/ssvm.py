@@ -185,3 +185,9 @@ class CuttingPlaneSSVM:
         if hasattr(self.model, "batch_inference"):
             return self.model.batch_inference(X, self.w_)
         return [self.model.inference(x, self.w_) for x in X]
+
+
+def learning_curve(history: list[Iteration]) -> dict[str, list[float]]:
+    """The objectives and gap per iteration (`CuttingPlaneSSVM.history_`), by name."""
+    return {"primal": [it.primal for it in history], "best_primal": [it.best_primal for it in history],
+            "dual": [it.dual for it in history], "gap": [it.gap for it in history]}

@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import io
 from collections.abc import Iterable, Sequence
+from pathlib import Path
 from typing import Any
 
 
@@ -30,14 +31,26 @@ def csv_text(columns: Sequence[str], rows: Iterable[dict[str, Any]], decimals: d
     return buf.getvalue()
 
 
-SEQUENCE_COLUMNS = ("method", "fold", "scenario", "task", "status", "prim_correct", "arg_correct", "goal_reached",
-                    "safe", "success", "failure", "program")
+OUTCOME_COLUMNS = ("scenario", "task", "status", "prim_correct", "arg_correct", "goal_reached", "safe", "success",
+                   "failure", "program")
+SEQUENCE_COLUMNS = ("method", "fold", *OUTCOME_COLUMNS)
 
 
-def sequences_csv(results: list) -> str:
+def outcome_row(s) -> dict[str, Any]:
+    """One closed-loop program (a `SequenceOutcome`) as a table row."""
+    return {"scenario": s.scenario_id, "task": s.task, "status": s.status, "prim_correct": s.prim_correct,
+            "arg_correct": s.arg_correct, "goal_reached": s.goal_reached, "safe": s.safe, "success": s.success,
+            "failure": s.failure, "program": " ".join(s.actions)}
+
+
+def sequence_rows(results: list) -> list[dict[str, Any]]:
     """Every closed-loop program of a cross-validation, one row each (crossval `FoldResult`s)."""
-    rows = ({"method": r.method, "fold": r.fold, "scenario": s.scenario_id, "task": s.task, "status": s.status,
-             "prim_correct": s.prim_correct, "arg_correct": s.arg_correct, "goal_reached": s.goal_reached,
-             "safe": s.safe, "success": s.success, "failure": s.failure, "program": " ".join(s.actions)}
-            for r in results for s in r.sequences or [])
-    return csv_text(SEQUENCE_COLUMNS, rows)
+    return [{"method": r.method, "fold": r.fold, **outcome_row(s)} for r in results for s in r.sequences or []]
+
+
+def read_csv_rows(path: Path) -> list[dict[str, str]]:
+    """A stage's CSV as rows of strings; a missing file names the stage to run."""
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: missing; run the stage that writes it for this world seed")
+    with path.open(newline="") as fh:
+        return list(csv.DictReader(fh))

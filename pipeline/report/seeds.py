@@ -7,7 +7,6 @@ drawn again, which is what a reader of one table needs to know.
 
 from __future__ import annotations
 
-import csv
 import json
 from collections.abc import Sequence
 from pathlib import Path
@@ -18,6 +17,7 @@ import numpy as np
 from ..evaluate.failures import KINDS
 from ..evaluate.methods import METHOD_LABELS
 from ..evaluate.metrics import headline_metrics
+from .csvs import read_csv_rows
 
 HEADLINE = ("average_prim", "average_arg", "sequence_prim", "sequence_arg", "success", "goal_reached")
 
@@ -28,13 +28,6 @@ def mean_sd(values: Sequence[float]) -> tuple[float, float]:
         raise ValueError("mean_sd: no values")
     v = np.asarray(values, dtype=float)
     return float(v.mean()), float(v.std(ddof=1)) if len(v) > 1 else 0.0
-
-
-def _csv(path: Path) -> list[dict[str, str]]:
-    if not path.exists():
-        raise FileNotFoundError(f"{path}: missing; run the stage that writes it for this world seed")
-    with path.open(newline="") as fh:
-        return list(csv.DictReader(fh))
 
 
 def _num(path: Path, row: int, field: str, text: str) -> float | None:
@@ -55,7 +48,7 @@ def table1_over_seeds(dirs: dict[int, Path]) -> tuple[list[dict[str, Any]], list
     per_seed: list[dict[str, Any]] = []
     for seed, d in dirs.items():
         path = d / "table1.csv"
-        for i, r in enumerate(_csv(path), start=2):
+        for i, r in enumerate(read_csv_rows(path), start=2):
             per_seed.append({"world_seed": seed, "method": r["method"], "column": r["column"],
                              "prim": _num(path, i, "prim", r["prim"]), "arg": _num(path, i, "arg", r["arg"])})
     keys = list(dict.fromkeys((r["method"], r["column"]) for r in per_seed))
@@ -159,7 +152,7 @@ def curve_over_seeds(dirs: dict[int, Path], name: str, keys: Sequence[str],
     per_seed = []
     for seed, d in dirs.items():
         path = d / name
-        for i, r in enumerate(_csv(path), start=2):
+        for i, r in enumerate(read_csv_rows(path), start=2):
             per_seed.append({"world_seed": seed, **{k: r[k] for k in keys},
                              **{v: _num(path, i, v, r[v]) for v in values}})
     out = []
@@ -188,3 +181,36 @@ def failures_markdown(rows: list[dict[str, Any]], methods: list[str], n_seeds: i
             shares = failure_shares(rows, "full", task)
             out.append(f"| {task} | " + " | ".join(f"{a:.1f} ± {s:.1f}" for a, s in shares.values()) + " |")
     return "\n".join(out) + "\n"
+
+
+def headline_groups(means: dict[str, Any], noise: list[dict[str, Any]], feedback: list[dict[str, Any]],
+                    recipes: dict[str, Any]) -> dict[str, Any]:
+    """The figures a reader looks for first, mean over world seeds, grouped by experiment (`reports/metrics.json`).
+
+    Closed-loop sequence accuracy (arg) of every method with its sd and success; the
+    noise curve; feedback with one step and at every step; recipes succeeded. The
+    other figures and their spreads stay in the files they come from.
+    """
+    return {
+        "crossval": {m: {k: f[k] for k in ("sequence_arg", "sequence_arg_sd", "success") if k in f}
+                     for m, f in means.items() if "sequence_arg" in f},
+        "noise": {m: {f"rate_{float(r['rate']):g}": r["sequence_arg"] for r in noise if r["method"] == m}
+                  for m in dict.fromkeys(r["method"] for r in noise)},
+        "feedback": {m: {f"top{r['k']}_n{r['n']}": r["sequence_arg"] for r in feedback
+                         if r["method"] == m and r["n"] in ("1", "all")}
+                     for m in dict.fromkeys(r["method"] for r in feedback)},
+        "recipes": {m: r["mean"] for m, r in recipes["methods"].items()},
+    }
+
+
+def plot_columns(rows: list[dict[str, Any]], x: str, series: Sequence[str], value: str,
+                 labels: dict[str, str]) -> tuple[list[str], list[dict[str, Any]]]:
+    """Long rows as one column per series (e.g. per method and k) against `x`: one line each in `dvc plots`."""
+    def name(r: dict[str, Any]) -> str:
+        return " ".join(labels.get(str(r[k]), f"{k} {r[k]}") for k in series)
+
+    columns = list(dict.fromkeys(name(r) for r in rows))
+    wide: dict[Any, dict[str, Any]] = {}
+    for r in rows:
+        wide.setdefault(r[x], {x: r[x]})[name(r)] = r[value]
+    return [x, *columns], list(wide.values())

@@ -53,7 +53,7 @@ def build_summary(reports: Path, labels: dict[str, str]) -> str:
         out += ["## Settings", "", f"C = {sel['C']:g}, chosen by 6-fold cross-validation of the full model on the "
                 f"development world (seed {sel['dev_seed']}, never reported), by {sel['criterion']} "
                 f"(sequence arg per C: {tried}).", ""]
-    metrics = _load(reports / "metrics.json")
+    metrics = _load(reports / "crossval_means.json")
     if metrics:
         out += ["## Table I (6-fold cross-validation, mean ± sd over world seeds)", "",
                 "| method | avg prim | paper | avg arg | paper | seq prim | paper | seq arg | paper | success |",
@@ -92,11 +92,9 @@ def build_summary(reports: Path, labels: dict[str, str]) -> str:
         out += ["## Human feedback (sequence arg, mean ± sd over world seeds)", "",
                 "| method | top k | steps with feedback | here | paper |", "|---|---:|---:|---:|---:|"]
         for r in rows:
-            n = r["n"]
-            key_n = "all" if int(n) >= 20 else n
-            out.append(f"| {labels.get(r['method'], r['method'])} | {r['k']} | {key_n} | "
+            out.append(f"| {labels.get(r['method'], r['method'])} | {r['k']} | {r['n']} | "
                        f"{float(r['sequence_arg']):.1f} ± {float(r['sequence_arg_sd']):.1f} | "
-                       f"{_f(paper.FEEDBACK.get((int(r['k']), key_n)))} |")
+                       f"{_f(paper.FEEDBACK.get((int(r['k']), r['n'])))} |")
         out += ["", "![feedback](feedback.png)", ""]
     rec = _load(reports / "recipes.json")
     if rec:

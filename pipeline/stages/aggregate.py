@@ -13,14 +13,16 @@ from typing import Any
 from ..evaluate.methods import METHOD_LABELS
 from ..io import write_json_atomic, write_text_atomic
 from ..report import paper
-from ..report.csvs import csv_text
+from ..report.csvs import SEQUENCE_COLUMNS, csv_text, read_csv_rows
 from ..report.seeds import (
     crossval_over_seeds,
     curve_over_seeds,
     failures_markdown,
     failures_over_seeds,
+    headline_groups,
     headline_over_seeds,
     json_over_seeds,
+    plot_columns,
     recipes_over_seeds,
     table1_over_seeds,
     world_dirs,
@@ -51,7 +53,7 @@ def run(world: World, worlds: Path, output: Path, tracker: Tracker = NO_RUN) -> 
     rows, means = headline_over_seeds(summaries)
     write_text_atomic(out / "crossval_seeds.csv", csv_text(["world_seed", "method"] + [k for k in rows[0]
                                                            if k not in ("world_seed", "method")], rows))
-    write_json_atomic(out / "metrics.json", means)
+    write_json_atomic(out / "crossval_means.json", means)
     for r in rows:
         with tracker.child(f"{r['method']} seed={r['world_seed']}",
                            {"method": r["method"], "world_seed": r["world_seed"]}) as child:
@@ -93,11 +95,23 @@ def run(world: World, worlds: Path, output: Path, tracker: Tracker = NO_RUN) -> 
                   str(out / "feedback.png"), "Sequence accuracy (arg) with an observer's feedback",
                   "steps with feedback", "% sequences correct", xticks=list(range(len(ns))), xticklabels=ns)
 
+    # every program of every world in one table, for whoever reads programs rather than rates (DVC-cached)
+    write_text_atomic(out / "crossval_sequences.csv", csv_text(["world_seed", *SEQUENCE_COLUMNS], [
+        {"world_seed": seed, **r} for seed, d in dirs.items() for r in read_csv_rows(d / "crossval_sequences.csv")]))
+
     datasets = {str(s): d for s, d in json_over_seeds(dirs, "dataset.json").items()}
     write_json_atomic(out / "dataset.json", datasets)
 
-    write_json_atomic(out / "recipes.json", recipes_over_seeds(dirs))
-    for f in ("table1.md", "table1.tex", "metrics.json", "failures.md", "noise.png", "feedback.png", "recipes.json"):
+    recipes = recipes_over_seeds(dirs)
+    write_json_atomic(out / "recipes.json", recipes)
+    write_json_atomic(out / "metrics.json", headline_groups(means, noise, fb, recipes))
+    # the curves again, one column per line, for `dvc plots show` (it draws one line per column)
+    plot_labels = {**METHOD_LABELS, **{str(k): f"top {k}" for k in ks}}
+    for name, rows, x, series in (("noise", noise, "rate", ["method"]), ("feedback", fb, "n", ["method", "k"])):
+        columns, wide = plot_columns(rows, x, series, "sequence_arg", plot_labels)
+        write_text_atomic(out / "plots" / f"{name}.csv", csv_text(columns, wide, dict.fromkeys(columns[1:], 2)))
+    for f in ("table1.md", "table1.tex", "metrics.json", "crossval_means.json", "failures.md", "noise.png",
+              "feedback.png", "recipes.json"):
         tracker.artifact(out / f)
     print(to_markdown(table))
     print(f"over world seeds {seeds_text}; failure kinds in {out / 'failures.md'}")

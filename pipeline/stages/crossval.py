@@ -1,8 +1,9 @@
 """Stage `crossval`: every method of Table I over grouped folds, teacher-forced and closed-loop.
 
 Writes Table I (long CSV, Markdown, LaTeX), the per-method summary, the metrics
-DVC tracks, every closed-loop program, a confusion matrix of the full model and,
-when asked, Rerun recordings of some of its programs.
+DVC tracks, every closed-loop program (also each method's own in its MLflow
+child run, as a table), a confusion matrix of the full model and, when asked,
+Rerun recordings of some of its programs.
 """
 
 from __future__ import annotations
@@ -11,13 +12,13 @@ from pathlib import Path
 from typing import Any
 
 from ..evaluate.crossval import cross_validate
-from ..evaluate.methods import METHOD_LABELS, table1_methods
+from ..evaluate.methods import METHOD_LABELS, method_params, table1_methods
 from ..evaluate.metrics import confusion, headline_metrics, summarize
 from ..features.dataset import read_features
 from ..io import write_json_atomic, write_text_atomic
 from ..logs.benchmark import load_benchmark
 from ..plan.symbolic.files import file_stem
-from ..report.csvs import sequences_csv
+from ..report.csvs import SEQUENCE_COLUMNS, csv_text, sequence_rows
 from ..report.tables import confusion_png, table_rows, to_csv, to_latex, to_markdown
 from ..settings import Crossval, Learner, Pddl
 from ..track.mlflow_runs import NO_RUN, Tracker
@@ -51,12 +52,14 @@ def run(settings: Crossval, learner: Learner, pddl: Pddl, features: Path, proces
     write_text_atomic(out / "table1.tex", to_latex(rows, caption))
     write_json_atomic(out / "crossval.json", summary)
     write_json_atomic(out / "metrics.json", headline_metrics(summary))
-    write_text_atomic(out / "crossval_sequences.csv", sequences_csv(results))
+    sequences = sequence_rows(results)
+    write_text_atomic(out / "crossval_sequences.csv", csv_text(SEQUENCE_COLUMNS, sequences))
     for name, entry in summary.items():
-        with tracker.child(name, {"method": name}) as child:
+        with tracker.child(name, method_params(name, factories[name]())) as child:
             child.metrics({k.replace("/", "_"): v for k, v in entry["steps"].items()})
             child.metrics({k: v for k, v in entry.items() if k in ("sequence/prim", "sequence/arg", "success",
                                                                     "goal_reached")})
+            child.table([r for r in sequences if r["method"] == name], "sequences")
     if "full" in factories:
         full = [r for r in results if r.method == "full"]
         index = [i for r in full for i in r.step_index]

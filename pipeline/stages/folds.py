@@ -34,6 +34,15 @@ def run(folds: Folds, learner: Learner, features: Path, processed: Path, output:
             {k: r[k] for k in ("features", "uses", "steps", "fitted_steps", "iterations", "converged", "seconds",
                                "primal_objective", "dual_objective")} for r in records]})
     tracker.metrics({k: float(v) for k, v in out.items()})
+    for r in records:  # one child per model: its settings, and its objectives and gap per iteration
+        uses = r["uses"]
+        with tracker.child(f"{r['features']} {uses[0]['training_set']}", {
+                "method": ",".join(dict.fromkeys(u["method"] for u in uses)), "feature_set": r["features"],
+                "C": r["C"], "chained_starts": r["chained_starts"], "dagger_rounds": r["dagger_rounds"],
+                "training_set": uses[0]["training_set"], "steps": r["steps"]}) as child:
+            child.metrics({"iterations": r["iterations"], "seconds": r["seconds"],
+                           "primal_objective": r["primal_objective"], "dual_objective": r["dual_objective"]})
+            child.curve(r["curve"])
     print(f"trained {len(records)} models in {wall:.1f} s ({out['fit_seconds']:.1f} s of fitting, "
           f"{out['iterations']} iterations); written to {output}")
     return out

@@ -1,6 +1,9 @@
 """Stage `noise`: closed-loop sequence accuracy with binary attributes flipped at test time.
 
 Run for the paper's full model and the best added method (`ROBUSTNESS_METHODS`).
+noise_sequences.csv holds every program
+of every rate and noise draw (DVC-cached, not in git), each rate's also in its
+MLflow child run as a table.
 """
 
 from __future__ import annotations
@@ -9,13 +12,13 @@ from pathlib import Path
 from typing import Any
 
 from ..evaluate.fold_models import ROBUSTNESS_METHODS
-from ..evaluate.methods import METHOD_LABELS, table1_methods
+from ..evaluate.methods import METHOD_LABELS, method_params, table1_methods
 from ..evaluate.robustness import Condition, evaluate_conditions, noise_curve, noise_runs
 from ..features.dataset import read_features
 from ..io import write_text_atomic
 from ..logs.benchmark import load_benchmark
 from ..report import paper
-from ..report.csvs import csv_text
+from ..report.csvs import OUTCOME_COLUMNS, csv_text, outcome_row
 from ..report.tables import line_plot_png
 from ..settings import Crossval, Learner, Noise
 from ..track.mlflow_runs import NO_RUN, Tracker
@@ -29,22 +32,28 @@ def run(settings: Noise, crossval: Crossval, learner: Learner, features: Path, p
     bench = load_benchmark(processed)
     methods = table1_methods(crossval, learner, store=None if store is None else str(store))
     conditions = [Condition("noise", r, s) for r in settings.rates for s in range(settings.seeds)]
-    runs, curve = [], []
+    runs, curve, sequences = [], [], []
     for name in ROBUSTNESS_METHODS:
         results = evaluate_conditions(methods[name], contexts, meta, bench.scenarios, conditions,
                                       crossval.fold_settings, crossval.max_steps, settings.seed, n_jobs)
         mine = noise_runs(settings, results)
         runs += [{"method": name, **r} for r in mine]
         curve += [{"method": name, **r} for r in noise_curve(settings, mine)]
+        sequences += [{"method": name, "rate": c.a, "draw": c.b, **outcome_row(o)} for c, o in results]
     out = Path(output)
     write_text_atomic(out / "noise_runs.csv", csv_text(["method", "rate", "seed", "sequence_arg", "sequence_prim",
                                                         "success"], runs, RATE))
+    write_text_atomic(out / "noise_sequences.csv", csv_text(["method", "rate", "draw", *OUTCOME_COLUMNS],
+                                                            sequences, {"rate": 1}))
     text = csv_text(["method", *RATE], curve, RATE)
     write_text_atomic(out / "noise.csv", text)
     for row in curve:
-        with tracker.child(f"noise {row['method']} r={row['rate']}", {"method": row["method"],
-                                                                       "rate": row["rate"]}) as child:
-            child.metrics({"sequence_arg": row["sequence_arg"], "sequence_arg_std": row["sequence_arg_std"]})
+        name = row["method"]
+        with tracker.child(f"noise {name} r={row['rate']}",
+                           {**method_params(name, methods[name]()), "rate": row["rate"]}) as child:
+            child.metrics({"sequence_arg": row["sequence_arg"], "sequence_arg_std": row["sequence_arg_std"],
+                           "sequence_prim": row["sequence_prim"], "success": row["success"]})
+            child.table([r for r in sequences if r["method"] == name and r["rate"] == row["rate"]], "sequences")
     series = {f"{METHOD_LABELS[m]} (mean, std over noise draws)":
               (list(settings.rates), [r["sequence_arg"] for r in curve if r["method"] == m],
                [r["sequence_arg_std"] for r in curve if r["method"] == m]) for m in ROBUSTNESS_METHODS}

@@ -1,6 +1,9 @@
 """Stage `recipes`: programs chained into recipes, in environments held out from training.
 
 Run for the paper's full model and the added method that chains programs best (`RECIPE_METHODS`).
+recipes_programs.csv holds every program of
+every recipe run (DVC-cached, not in git), each recipe's also in its MLflow
+child run as a table.
 """
 
 from __future__ import annotations
@@ -9,11 +12,12 @@ from pathlib import Path
 from typing import Any
 
 from ..evaluate.fold_models import RECIPE_METHODS
-from ..evaluate.methods import METHOD_LABELS, table1_methods
-from ..evaluate.recipes import RECIPES, evaluate_recipes, recipe_report
+from ..evaluate.methods import METHOD_LABELS, method_params, table1_methods
+from ..evaluate.recipes import PROGRAM_COLUMNS, RECIPES, evaluate_recipes, program_rows, recipe_report
 from ..features.dataset import read_features
-from ..io import write_json_atomic
+from ..io import write_json_atomic, write_text_atomic
 from ..logs.benchmark import load_benchmark
+from ..report.csvs import csv_text
 from ..settings import Crossval, Learner
 from ..track.mlflow_runs import NO_RUN, Tracker
 
@@ -23,15 +27,19 @@ def run(crossval: Crossval, learner: Learner, features: Path, processed: Path, o
     contexts, meta = read_features(features)
     scenarios = load_benchmark(processed).scenarios
     methods = table1_methods(crossval, learner, store=None if store is None else str(store))
-    reports = {}
+    reports, programs = {}, []
     for method in RECIPE_METHODS:
         outcomes = evaluate_recipes(methods[method], contexts, meta, scenarios, max_steps=crossval.max_steps)
         reports[method] = report = recipe_report(outcomes)
+        mine = [{"method": method, **r} for r in program_rows(outcomes)]
+        programs += mine
         for name in dict.fromkeys(o.recipe for o in outcomes):
-            mine = [o for o in outcomes if o.recipe == name]
-            with tracker.child(f"{method} {name}", {"method": method, "recipe": name}) as child:
-                child.metrics({"success_no_feedback": sum(o.success for o in mine if not o.feedback),
-                               "success_feedback": sum(o.success for o in mine if o.feedback)})
+            runs = [o for o in outcomes if o.recipe == name]
+            with tracker.child(f"{method} {name}", {**method_params(method, methods[method]()),
+                                                    "recipe": name}) as child:
+                child.metrics({"success_no_feedback": sum(o.success for o in runs if not o.feedback),
+                               "success_feedback": sum(o.success for o in runs if o.feedback)})
+                child.table([r for r in mine if r["recipe"] == name], "programs")
         totals = report["totals"]
         tracker.metrics({f"{method}.{k}": float(v) for k, v in totals.items()})
         print(f"== {METHOD_LABELS[method]}")
@@ -42,5 +50,6 @@ def run(crossval: Crossval, learner: Learner, features: Path, processed: Path, o
         print(f"success: {totals['no_feedback']}/{len(RECIPES)} without feedback, "
               f"{totals['feedback_first_step']}/{len(RECIPES)} with one feedback at the start of each program")
     write_json_atomic(Path(output) / "recipes.json", {"methods": reports})
+    write_text_atomic(Path(output) / "recipes_programs.csv", csv_text(["method", *PROGRAM_COLUMNS], programs))
     tracker.artifact(Path(output) / "recipes.json")
     return reports

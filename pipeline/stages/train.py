@@ -9,6 +9,7 @@ from ..evaluate.metrics import step_accuracy
 from ..features.dataset import read_features
 from ..io import write_json_atomic, write_text_atomic
 from ..learn.persist import save_model
+from ..learn.ssvm import learning_curve
 from ..learn.train import fit_mrf
 from ..report.csvs import csv_text
 from ..settings import Train
@@ -40,6 +41,7 @@ def run(settings: Train, features: Path, model: Path, metrics: Path | None = Non
             ({"iteration": it.iteration, "primal": it.primal, "best_primal": it.best_primal, "dual": it.dual,
               "gap": it.gap, "n_constraints": it.n_constraints} for it in fit.ssvm.history_)))
     tracker.metrics({**{k: float(v) for k, v in out.items()}, "seconds": fit.seconds})
+    tracker.curve(learning_curve(fit.ssvm.history_))  # MLflow charts them against the iteration
     for path in (curve, model):
         if path:
             tracker.artifact(path)

@@ -1,11 +1,17 @@
 """One MLflow run per stage execution, child runs per method, noise rate or condition.
 
-The embedded default is a SQLite store, `sqlite:///mlflow.db` in the working
-folder (the repository root under DVC), with artifacts in `mlartifacts/`
-beside it; `MLFLOW_TRACKING_URI` points the runs at a team's server instead.
+The embedded default is a SQLite store, `mlflow.db` at the repository root,
+with artifacts in `mlartifacts/` beside it. The root is DVC's `DVC_ROOT` when
+DVC runs the stage (queued experiments run in temporary copies of the
+repository, and DVC points `DVC_ROOT` back at the original, so their runs land
+in the same store), else the working folder. `MLFLOW_TRACKING_URI` points the
+runs at a team's server instead.
+
 DVC's lock file records what produced the files; a run records one execution:
-its parameters, metrics, artifacts and tags (git commit, DVC stage, input hash).
-A stage that fails leaves its run marked FAILED.
+its parameters, metrics, artifacts and tags (git commit and whether the tree
+had uncommitted changes, the `dvc.lock` it started from, DVC stage, input
+hash). A stage that fails leaves its run FAILED; one stopped by Ctrl-C or
+SIGTERM leaves it KILLED.
 """
 
 from __future__ import annotations
@@ -13,6 +19,7 @@ from __future__ import annotations
 import hashlib
 import os
 import subprocess
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -23,16 +30,39 @@ import yaml
 EXPERIMENT = "taskseq"
 
 
+# The experiment shows its runs table when opened, not the GenAI traces page (MLflow 3 infers a kind otherwise).
+EXPERIMENT_KIND = {"mlflow.experimentKind": "custom_model_development"}
+
+
+def repository_root() -> Path:
+    """Where the store lives: DVC's repository root while DVC runs a stage, else the working folder."""
+    return Path(os.environ.get("DVC_ROOT") or ".").resolve()
+
+
 def tracking_uri() -> str:
-    return os.environ.get("MLFLOW_TRACKING_URI") or f"sqlite:///{Path('mlflow.db').resolve()}"
+    return os.environ.get("MLFLOW_TRACKING_URI") or f"sqlite:///{repository_root() / 'mlflow.db'}"
+
+
+def _git(*args: str) -> str | None:
+    try:
+        out = subprocess.run(["git", *args], capture_output=True, text=True, check=True, timeout=10)
+        return out.stdout
+    except (OSError, subprocess.SubprocessError):
+        return None
 
 
 def git_commit() -> str:
-    try:
-        out = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True, timeout=10)
-        return out.stdout.strip()
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
+    out = _git("rev-parse", "HEAD")
+    return out.strip() if out else "unknown"
+
+
+def provenance(stage: str, inputs: list[Path]) -> dict[str, str]:
+    """Tags that say what a run started from: commit, uncommitted changes, lock file, stage, inputs."""
+    status = _git("status", "--porcelain", "--untracked-files=no")
+    lock = Path("dvc.lock")
+    return {"git.commit": git_commit(), "git.dirty": "unknown" if status is None else str(bool(status.strip())).lower(),
+            "dvc.lock.md5": hashlib.md5(lock.read_bytes()).hexdigest() if lock.exists() else "none",
+            "dvc.stage": os.environ.get("DVC_STAGE") or stage, "data.hash": hash_inputs(inputs)}
 
 
 def hash_inputs(paths: list[Path]) -> str:
@@ -69,14 +99,15 @@ def _experiment_id(client) -> str:
     artifacts = None
     if tracking_uri().startswith("sqlite:///"):
         artifacts = (Path(tracking_uri()[len("sqlite:///") :]).parent / "mlartifacts").resolve().as_uri()
-    return client.create_experiment(EXPERIMENT, artifact_location=artifacts)
+    return client.create_experiment(EXPERIMENT, artifact_location=artifacts, tags=EXPERIMENT_KIND)
 
 
 class StageRun:
-    """What a stage logs into its run."""
+    """What a stage logs into its run; `labels` (e.g. the world seed) go to every child run as params."""
 
-    def __init__(self, mlflow_module) -> None:
+    def __init__(self, mlflow_module, labels: dict[str, Any] | None = None) -> None:
         self._mlflow = mlflow_module
+        self._labels = labels or {}
 
     def metrics(self, values: dict[str, float | None], step: int | None = None) -> None:
         clean = {k.replace("/", "_"): float(v) for k, v in values.items() if v is not None}
@@ -84,19 +115,39 @@ class StageRun:
             self._mlflow.log_metrics(clean, step=step)
 
     def params(self, values: dict[str, Any]) -> None:
-        self._mlflow.log_params({k: str(v)[:500] for k, v in values.items()})
+        if values:
+            self._mlflow.log_params({k: str(v)[:500] for k, v in values.items()})
 
     def artifact(self, path: Path | str, folder: str | None = None) -> None:
         if Path(path).exists():
             self._mlflow.log_artifact(str(path), artifact_path=folder)
 
+    def table(self, rows: list[dict[str, Any]], name: str) -> None:
+        """Rows as an MLflow table artifact (`name`.json), which the UI's artifact view shows as a table."""
+        if rows:
+            columns = list(rows[0])
+            self._mlflow.log_table({c: [r.get(c) for r in rows] for c in columns}, artifact_file=f"{name}.json")
+
+    def curve(self, series: dict[str, list[float]]) -> None:
+        """Per-step values (e.g. the SSVM's objective and gap per iteration) as metric histories."""
+        from mlflow.entities import Metric
+
+        now = int(time.time() * 1000)
+        points = [Metric(k, float(v), now, step) for k, values in series.items() for step, v in enumerate(values)]
+        client, run_id = self._mlflow.MlflowClient(), self._mlflow.active_run().info.run_id
+        for start in range(0, len(points), 1000):  # MLflow takes at most 1000 metrics per batch
+            client.log_batch(run_id, metrics=points[start : start + 1000], synchronous=True)
+
     @contextmanager
     def child(self, name: str, params: dict[str, Any] | None = None) -> Iterator[StageRun]:
         with self._mlflow.start_run(run_name=name, nested=True, tags={"taskseq.child": name}):
-            child = StageRun(self._mlflow)
-            if params:
-                child.params(params)
-            yield child
+            child = StageRun(self._mlflow, self._labels)
+            child.params({**self._labels, **(params or {})})
+            try:
+                yield child
+            except KeyboardInterrupt:
+                self._mlflow.end_run("KILLED")
+                raise
 
 
 class NoRun:
@@ -111,6 +162,12 @@ class NoRun:
     def artifact(self, path: Path | str, folder: str | None = None) -> None:
         """The file stays where the stage wrote it; nothing is copied."""
 
+    def table(self, rows: list[dict[str, Any]], name: str) -> None:
+        """The table is dropped."""
+
+    def curve(self, series: dict[str, list[float]]) -> None:
+        """The curve is dropped."""
+
     @contextmanager
     def child(self, name: str, params: dict[str, Any] | None = None) -> Iterator[NoRun]:
         yield self
@@ -121,16 +178,21 @@ NO_RUN = NoRun()
 
 
 @contextmanager
-def stage_run(stage: str, params: dict[str, Any], inputs: list[Path] | None = None) -> Iterator[StageRun]:
+def stage_run(stage: str, params: dict[str, Any], inputs: list[Path] | None = None,
+              labels: dict[str, Any] | None = None) -> Iterator[StageRun]:
     """Open the stage's run; parameters from params.yaml and the command line, tags for provenance."""
     import mlflow
 
     mlflow.set_tracking_uri(tracking_uri())
     client = mlflow.MlflowClient()
-    tags = {"git.commit": git_commit(), "dvc.stage": stage, "data.hash": hash_inputs(inputs or [])}
     experiment = _experiment_id(client)
     mlflow.set_experiment(experiment_id=experiment)  # child runs land in the same experiment
-    with mlflow.start_run(experiment_id=experiment, run_name=stage, tags=tags):
-        run = StageRun(mlflow)
+    with mlflow.start_run(experiment_id=experiment, run_name=stage, tags=provenance(stage, inputs or [])):
+        run = StageRun(mlflow, labels)
         run.params({**params_yaml(), **{f"cli.{k}": v for k, v in params.items()}})
-        yield run
+        try:
+            yield run
+        except KeyboardInterrupt:  # Ctrl-C, or SIGTERM turned into one by the command line
+            while mlflow.active_run() is not None:  # children first, then the stage's own run
+                mlflow.end_run("KILLED")
+            raise
