@@ -151,3 +151,25 @@ def test_help_lists_every_subcommand():
     text = build_parser().format_help()
     for command in ("generate", "replay", "ingest"):
         assert command in text
+
+
+def test_ingest_and_train_run_by_hand_write_only_where_they_are_told(benchmark_logs, benchmark_steps, tmp_path,
+                                                                      monkeypatch):
+    """In a checkout, running the commands on one's own data leaves the pipeline's reports/ and data/ alone."""
+    from pipeline.cli import main
+    from pipeline.features.dataset import write_features
+
+    checkout = tmp_path / "checkout"
+    (checkout / "reports").mkdir(parents=True)
+    (checkout / "reports" / "dataset.json").write_text('{"committed": true}\n')
+    (checkout / "reports" / "train.json").write_text('{"committed": true}\n')
+    mine = tmp_path / "mine"
+    write_features(*benchmark_steps, mine / "features")
+    monkeypatch.chdir(checkout)
+    before = {p: p.read_bytes() for p in checkout.rglob("*") if p.is_file()}
+    assert main(["ingest", "--input", str(benchmark_logs), "--output", str(mine / "processed")]) == 0
+    assert main(["train", "--features", str(mine / "features"), "--feature-set", "edge",
+                 "--model", str(mine / "model.npz")]) == 0
+    after = {p: p.read_bytes() for p in checkout.rglob("*") if p.is_file()}
+    assert after == before
+    assert (mine / "processed").is_dir() and (mine / "model.npz").exists()
