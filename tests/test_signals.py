@@ -21,6 +21,12 @@ def data(benchmark_tables, benchmark_steps, tmp_path_factory):
     return root
 
 
+def _default_sigint() -> None:
+    """A shell's background jobs start with SIGINT ignored, and Python then installs no Ctrl-C handler;
+    give the stage the SIGINT a terminal's foreground job has."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _working(stdout) -> bool:
     """The stage has opened its run and started training (it prints that line once set up)."""
     return stdout.exists() and "training" in stdout.read_text()
@@ -35,7 +41,8 @@ def test_a_stopped_stage_marks_its_run_killed_and_writes_nothing(data, tmp_path,
     with log.open("w") as fh, said.open("w") as sh:
         proc = subprocess.Popen([sys.executable, "-u", "-m", "pipeline.cli", "folds", "--features",
                                  str(data / "features"), "--processed", str(data / "processed"), "--output", str(out),
-                                 "--metrics", str(metrics)], env=env, stdout=sh, stderr=fh)
+                                 "--metrics", str(metrics)], env=env, stdout=sh, stderr=fh,
+                                preexec_fn=_default_sigint)
         while proc.poll() is None and not _working(said):
             time.sleep(0.2)
         assert proc.poll() is None, "the stage ended before it could be stopped"
