@@ -15,14 +15,13 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
-import signal
 import sys
-import threading
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from . import settings as S
+from . import stopping
 from .stages import STAGES
 
 RECORDINGS = 6  # Rerun recordings of the full model's programs written by crossval
@@ -375,19 +374,10 @@ def _run(args: argparse.Namespace, tracker) -> int:
         return 2
 
 
-class Stopped(KeyboardInterrupt):
-    """SIGTERM (what `dvc queue kill`, CI and schedulers send), handled as Ctrl-C is."""
-
-
-def _stop(signum: int, frame: object) -> None:
-    raise Stopped(signal.Signals(signum).name)
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one command; Ctrl-C or SIGTERM ends it with one line, its run KILLED and no output replaced."""
     args = build_parser().parse_args(argv)
-    if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, _stop)
+    stopping.install()
     # workers stopped mid-job leave semaphores the resource tracker (a child process) warns about at exit
     os.environ.setdefault("PYTHONWARNINGS", "ignore:resource_tracker:UserWarning")
     try:
@@ -395,12 +385,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt as err:
         from .io import WRITTEN
 
-        how = "SIGTERM" if isinstance(err, Stopped) else "Ctrl-C"
+        how = "SIGTERM" if isinstance(err, stopping.Stopped) else "Ctrl-C"
         run = "; its MLflow run is marked KILLED" if args.command in STAGES and not args.no_mlflow else ""
         written = "nothing was written" if not WRITTEN else (
             f"{len(WRITTEN)} of its files were already replaced (each whole): run it again")
         print(f"taskseq {args.command}: stopped by {how}; {written}{run}", file=sys.stderr)
-        return 143 if isinstance(err, Stopped) else 130
+        return 143 if isinstance(err, stopping.Stopped) else 130
 
 
 def _main(args: argparse.Namespace) -> int:

@@ -57,3 +57,53 @@ def test_a_stopped_stage_marks_its_run_killed_and_writes_nothing(data, tmp_path,
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".store")]  # no half-written temporary folder
     with sqlite3.connect(db) as conn:
         assert conn.execute("select name, status from runs").fetchall() == [("folds", "KILLED")]
+
+
+@pytest.fixture
+def handlers():
+    """The stopping handlers installed for the test, the previous ones back afterwards."""
+    from pipeline import stopping
+
+    before = signal.getsignal(signal.SIGTERM), signal.getsignal(signal.SIGINT)
+    stopping.install()
+    yield stopping
+    signal.signal(signal.SIGTERM, before[0])
+    signal.signal(signal.SIGINT, before[1])
+
+
+@pytest.mark.parametrize(("sig", "kind"), [(signal.SIGTERM, "Stopped"), (signal.SIGINT, "KeyboardInterrupt")])
+def test_a_signal_inside_a_held_block_is_raised_when_the_block_is_done(handlers, sig, kind):
+    done = []
+    with pytest.raises(KeyboardInterrupt) as stop:
+        with handlers.held():
+            os.kill(os.getpid(), sig)
+            time.sleep(0.1)  # the handler runs here, between two bytecodes of the block
+            done.append("rest of the block")
+        done.append("after the block")
+    assert done == ["rest of the block"]
+    assert type(stop.value).__name__ == kind
+
+
+def test_a_signal_while_the_run_is_being_opened_still_leaves_it_killed(handlers, tmp_path, monkeypatch):
+    """The race of a signal landing inside MLflow's own writes: the run must end KILLED, not RUNNING or FAILED."""
+    import mlflow
+
+    from pipeline.track.mlflow_runs import stage_run
+
+    monkeypatch.setenv("MLFLOW_TRACKING_URI", f"sqlite:///{tmp_path / 'mlflow.db'}")
+    real_start = mlflow.start_run
+
+    def start_then_signal(*args, **kwargs):
+        run = real_start(*args, **kwargs)
+        os.kill(os.getpid(), signal.SIGTERM)  # lands as start_run returns, before the stage's block is entered
+        time.sleep(0.1)
+        return run
+
+    monkeypatch.setattr(mlflow, "start_run", start_then_signal)
+    reached = []
+    with pytest.raises(handlers.Stopped), stage_run("folds", {}) as run:
+        reached.append(run)
+    assert not reached  # the stage's work never started
+    assert mlflow.active_run() is None
+    with sqlite3.connect(tmp_path / "mlflow.db") as conn:
+        assert conn.execute("select name, status from runs").fetchall() == [("folds", "KILLED")]

@@ -11,7 +11,9 @@ DVC's lock file records what produced the files; a run records one execution:
 its parameters, metrics, artifacts and tags (git commit and whether the tree
 had uncommitted changes, the `dvc.lock` it started from, DVC stage, input
 hash). A stage that fails leaves its run FAILED; one stopped by Ctrl-C or
-SIGTERM leaves it KILLED.
+SIGTERM leaves it KILLED. Every write to the store is made whole
+(`stopping.held`): a signal that lands while a run is being opened, logged to
+or closed takes effect once that write is done.
 """
 
 from __future__ import annotations
@@ -26,6 +28,8 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+
+from ..stopping import held
 
 EXPERIMENT = "taskseq"
 
@@ -112,21 +116,25 @@ class StageRun:
     def metrics(self, values: dict[str, float | None], step: int | None = None) -> None:
         clean = {k.replace("/", "_"): float(v) for k, v in values.items() if v is not None}
         if clean:
-            self._mlflow.log_metrics(clean, step=step)
+            with held():
+                self._mlflow.log_metrics(clean, step=step)
 
     def params(self, values: dict[str, Any]) -> None:
         if values:
-            self._mlflow.log_params({k: str(v)[:500] for k, v in values.items()})
+            with held():
+                self._mlflow.log_params({k: str(v)[:500] for k, v in values.items()})
 
     def artifact(self, path: Path | str, folder: str | None = None) -> None:
         if Path(path).exists():
-            self._mlflow.log_artifact(str(path), artifact_path=folder)
+            with held():
+                self._mlflow.log_artifact(str(path), artifact_path=folder)
 
     def table(self, rows: list[dict[str, Any]], name: str) -> None:
         """Rows as an MLflow table artifact (`name`.json), which the UI's artifact view shows as a table."""
         if rows:
             columns = list(rows[0])
-            self._mlflow.log_table({c: [r.get(c) for r in rows] for c in columns}, artifact_file=f"{name}.json")
+            with held():
+                self._mlflow.log_table({c: [r.get(c) for r in rows] for c in columns}, artifact_file=f"{name}.json")
 
     def curve(self, series: dict[str, list[float]]) -> None:
         """Per-step values (e.g. the SSVM's objective and gap per iteration) as metric histories."""
@@ -136,18 +144,17 @@ class StageRun:
         points = [Metric(k, float(v), now, step) for k, values in series.items() for step, v in enumerate(values)]
         client, run_id = self._mlflow.MlflowClient(), self._mlflow.active_run().info.run_id
         for start in range(0, len(points), 1000):  # MLflow takes at most 1000 metrics per batch
-            client.log_batch(run_id, metrics=points[start : start + 1000], synchronous=True)
+            with held():
+                client.log_batch(run_id, metrics=points[start : start + 1000], synchronous=True)
 
     @contextmanager
     def child(self, name: str, params: dict[str, Any] | None = None) -> Iterator[StageRun]:
-        with self._mlflow.start_run(run_name=name, nested=True, tags={"taskseq.child": name}):
-            child = StageRun(self._mlflow, self._labels)
-            child.params({**self._labels, **(params or {})})
-            try:
-                yield child
-            except KeyboardInterrupt:
-                self._mlflow.end_run("KILLED")
-                raise
+        with _ending(self._mlflow, every=False):
+            with held():  # a signal held here is raised inside `_ending`, which marks the run KILLED
+                self._mlflow.start_run(run_name=name, nested=True, tags={"taskseq.child": name})
+                child = StageRun(self._mlflow, self._labels)
+                child.params({**self._labels, **(params or {})})
+            yield child
 
 
 class NoRun:
@@ -187,12 +194,32 @@ def stage_run(stage: str, params: dict[str, Any], inputs: list[Path] | None = No
     client = mlflow.MlflowClient()
     experiment = _experiment_id(client)
     mlflow.set_experiment(experiment_id=experiment)  # child runs land in the same experiment
-    with mlflow.start_run(experiment_id=experiment, run_name=stage, tags=provenance(stage, inputs or [])):
-        run = StageRun(mlflow, labels)
-        run.params({**params_yaml(), **{f"cli.{k}": v for k, v in params.items()}})
-        try:
-            yield run
-        except KeyboardInterrupt:  # Ctrl-C, or SIGTERM turned into one by the command line
-            while mlflow.active_run() is not None:  # children first, then the stage's own run
-                mlflow.end_run("KILLED")
-            raise
+    with _ending(mlflow, every=True):
+        with held():  # a signal held here is raised inside `_ending`, which marks the run KILLED
+            mlflow.start_run(experiment_id=experiment, run_name=stage, tags=provenance(stage, inputs or []))
+            run = StageRun(mlflow, labels)
+            run.params({**params_yaml(), **{f"cli.{k}": v for k, v in params.items()}})
+        yield run
+
+
+@contextmanager
+def _ending(mlflow_module, every: bool) -> Iterator[None]:
+    """End the active run as its block ends: FINISHED, FAILED on an error, KILLED on Ctrl-C or SIGTERM.
+
+    `every` ends the open child runs too (a stage's run, stopped while a child was open).
+    """
+    try:
+        yield
+    except KeyboardInterrupt:  # Ctrl-C, or SIGTERM (`stopping.Stopped`)
+        with held():
+            while mlflow_module.active_run() is not None:  # children first, then the stage's own run
+                mlflow_module.end_run("KILLED")
+                if not every:
+                    break
+        raise
+    except BaseException:
+        with held():
+            mlflow_module.end_run("FAILED")
+        raise
+    with held():
+        mlflow_module.end_run()

@@ -1,0 +1,64 @@
+"""Stopping a command cleanly: Ctrl-C and SIGTERM become exceptions, held back while a record is written.
+
+SIGTERM (what `dvc queue kill`, CI and schedulers send) raises `Stopped`, a
+`KeyboardInterrupt`, so one `except KeyboardInterrupt` handles both signals.
+Either signal arriving while MLflow opens or closes a run would break off its
+database writes half way and leave the run FAILED or RUNNING instead of
+KILLED; inside `held()` the signal is noted and raised once the block is done.
+Python runs signal handlers in the main thread only, so the flag is all the
+state needed, whichever thread the operating system delivered the signal to.
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+_held = 0  # depth of nested `held()` blocks
+_pending: list[int] = []  # signals that arrived while held, first first
+
+
+class Stopped(KeyboardInterrupt):
+    """SIGTERM, handled as Ctrl-C is."""
+
+
+def _raise(signum: int) -> None:
+    if signum == signal.SIGTERM:
+        raise Stopped(signal.Signals(signum).name)
+    raise KeyboardInterrupt
+
+
+def _handler(signum: int, frame: object) -> None:
+    if _held:
+        _pending.append(signum)
+        return
+    _raise(signum)
+
+
+def install() -> None:
+    """Handle SIGTERM and SIGINT in this process (main thread only, where Python allows handlers).
+
+    SIGINT is installed even where it started ignored: a shell's background
+    jobs start that way, and such a stage would otherwise ignore Ctrl-C sent
+    with `kill -INT`.
+    """
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _handler)
+        signal.signal(signal.SIGINT, _handler)
+
+
+@contextmanager
+def held() -> Iterator[None]:
+    """Run the block whole: a stopping signal that arrives inside it is raised when it ends."""
+    global _held
+    _held += 1
+    try:
+        yield
+    finally:
+        _held -= 1
+        if not _held and _pending:
+            signum = _pending[0]
+            _pending.clear()
+            _raise(signum)
