@@ -48,7 +48,7 @@ def framing(state: WorldState) -> tuple[np.ndarray, np.ndarray]:
     low, high = boxes[:, :3].min(axis=0), boxes[:, 3:].max(axis=0)
     target = (low + high) / 2
     reach = max(float(np.max(high[:2] - low[:2])), 1.0)
-    return target + np.array([-0.35, -0.9, 0.6]) * reach, target
+    return target + np.array([-0.25, -0.7, 0.5]) * reach, target
 
 
 def blueprint(state: WorldState) -> rrb.Blueprint:
@@ -70,10 +70,13 @@ def _log_state(rec: rr.RecordingStream, state: WorldState, named: frozenset[str]
             centers=[[(x0 + x1) / 2, (y0 + y1) / 2, (z0 + z1) / 2]],
             half_sizes=[[(x1 - x0) / 2, (y1 - y0) / 2, (z1 - z0) / 2]],
             labels=[label], colors=[_color(state, o)],
+            # furniture see-through, objects solid so they stand out from what holds them
+            fill_mode="TransparentFillMajorWireframe" if state.specs[o].category in (*FURNITURE, "floor") else "Solid",
             show_labels=o in named or state.specs[o].category in FURNITURE))
     rx, ry = state.robot
     rec.log("world/robot", rr.Boxes3D(centers=[[rx, ry, ROBOT_SIZE[2] / 2]], half_sizes=[np.array(ROBOT_SIZE) / 2],
-                                      labels=["robot"], colors=[(80, 80, 200)]))
+                                      labels=["robot"], colors=[(80, 80, 200)],
+                                      fill_mode="MajorWireframe"))  # an outline: it stands in front of the table
     if state.held is not None:
         x0, y0, z0, x1, y1, z1 = state.box(state.held)
         gripper = [[(x0 + x1) / 2, (y0 + y1) / 2, z1]]
