@@ -121,7 +121,7 @@ def test_rollouts_label_only_states_off_the_demonstrations(small):
     detour = next(a for a in (Action("move_close", (o,)) for o in sorted(sc.initial.specs))
                   if a not in {d[0] for d in sc.demonstrations} and _feasible(sc.initial, a))
 
-    def rank(ctx):  # a planner that first goes somewhere no demonstration goes, then follows the model
+    def rank(ctx, state):  # a planner that first goes somewhere no demonstration goes, then follows the model
         if ctx.prev_prims[0] == NO_PRIM:
             return [(ctx.encode(detour), 0.0)]
         return fit.model.top_k(ctx, fit.w, 1)

@@ -2,20 +2,34 @@
 
 from rerun.chunk import RrdReader
 
-from pipeline.plan.planner import PlanStep
+from pipeline.plan.planner import Program, run_loop
 from pipeline.sim.primitives import Action
 from pipeline.sim.tasks import Task
 from pipeline.track.recordings import record_program
 from tests.conftest import world
 
 
+def rollout(state, task: Task, actions: list[Action]) -> Program:
+    """The rollout loop run by a policy that takes `actions` in turn, then `done`."""
+    taken: list[Action] = []
+
+    def policy(ctx, now):
+        step = len(taken)
+        action = actions[step] if step < len(actions) else Action("done")
+        taken.append(action)
+        return [(ctx.encode(action), 1.5 - step), (ctx.encode(Action.parse("grasp(obj14)")), 0.5 - step)]
+
+    return run_loop(policy, state, task)
+
+
 def test_a_recording_holds_the_objects_robot_plan_and_demonstration_per_step(tmp_path):
     state = world({2: 0.0}, [(14, 2, 0, 0.3), (20, 2, 0, -0.3), (27, 20)])
     actions = [Action.parse(a) for a in ("move_close(obj20)", "grasp(obj20)", "hold_above(obj20,obj14)",
                                          "follow_traj_pour(obj20,obj14)")]
-    steps = [PlanStep(a, 1.5 - k, [(Action.parse("grasp(obj14)"), 0.5 - k)]) for k, a in enumerate(actions)]
+    program = rollout(state, Task("pour_to", ("obj27", "obj14")), actions)
+    assert program.status == "done" and len(program.states) == len(actions) + 1
     path = tmp_path / "rec.rrd"
-    record_program(path, "env/pour", state, Task("pour_to", ("obj27", "obj14")), steps, "done", tuple(actions))
+    record_program(path, "env/pour", program, tuple(actions))
     store = RrdReader(path).store()
     entities = set(store.schema().entity_paths())
     assert {f"/world/objects/{o}" for o in state.specs} <= entities
@@ -47,7 +61,7 @@ def test_a_recording_opens_framed_on_the_furniture_with_few_labels(tmp_path):
     assert 1.0 < float(((position - target) ** 2).sum() ** 0.5) < 10.0  # from near it, not from across the floor
     action = Action.parse("move_close(obj20)")
     path = tmp_path / "rec.rrd"
-    record_program(path, "env/pour", state, Task("pour", ("obj27",)), [PlanStep(action, 1.0, [])], "done", (action,))
+    record_program(path, "env/pour", rollout(state, Task("pour", ("obj27",)), [action]), (action,))
     shown = {}
     for chunk in RrdReader(path).store().stream().to_chunks():
         batch = chunk.to_record_batch()

@@ -7,7 +7,8 @@ from pddl import parse_domain, parse_problem
 
 from pipeline.evaluate.methods import SymbolicMethod
 from pipeline.logs.benchmark import Benchmark
-from pipeline.plan.symbolic.executor import run_symbolic
+from pipeline.plan.planner import run_loop
+from pipeline.plan.symbolic.executor import SymbolicPolicy
 from pipeline.plan.symbolic.files import file_stem, write_pddl
 from pipeline.plan.symbolic.problem import build_problem, ground_actions
 from pipeline.plan.symbolic.roles import demonstrated_roles
@@ -83,7 +84,7 @@ def test_sat_plans_are_as_short_as_breadth_first_search(case):
     result = solve(problem, horizon=8)
     assert result.found
     assert len(result.plan) == bfs_length(problem)
-    program = run_symbolic(state, task, roles)
+    program = run_loop(SymbolicPolicy(task, roles), state, task)
     assert program.status == "done" and program.goal_reached
 
 
@@ -92,7 +93,7 @@ def test_an_unreachable_goal_says_so_within_the_horizon():
     task = Task("pour_to", ("obj27", "obj34"))  # a spoon holds no liquid
     result = solve(build_problem("p", state, task, {}), horizon=6)
     assert not result.found and result.message() == "no plan within horizon 6"
-    program = run_symbolic(state, task, {}, horizon=6)
+    program = run_loop(SymbolicPolicy(task, {}, horizon=6), state, task)
     assert program.status == "infeasible" and program.error == "no plan within horizon 6"
     assert program.steps == []
 

@@ -10,6 +10,7 @@ from threadpoolctl import threadpool_limits
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
 from ..logs.benchmark import Benchmark
+from ..plan.planner import Program
 from ..sim.scenarios import Scenario
 from .dispatch import run_jobs
 from .failures import classify
@@ -40,10 +41,10 @@ class FoldResult:
     step_index: list[int]
     step_predictions: list[Y]
     sequences: list[SequenceOutcome] | None  # None: the method runs no programs
-    programs: dict[str, tuple[list, str]] = field(default_factory=dict)  # kept for recordings: steps, status
+    programs: dict[str, Program] = field(default_factory=dict)  # kept for recordings
 
 
-def judge(scenario: Scenario, program) -> SequenceOutcome:
+def judge(scenario: Scenario, program: Program) -> SequenceOutcome:
     actions = tuple(program.actions)
     prims = tuple(a.primitive for a in actions)
     unsafe = [k for k, s in enumerate(program.steps) if s.unsafe]
@@ -83,7 +84,7 @@ def _run_fold(make, fold, contexts, meta, scenarios, test_scenarios, max_steps, 
             break
         outcomes.append(judge(scenarios[sid], program))
         if sid in keep_programs:
-            programs[sid] = (program.steps, program.status)
+            programs[sid] = program
     return FoldResult(method.name, fold, test_index, predictions, outcomes, programs)
 
 

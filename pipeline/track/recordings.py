@@ -17,10 +17,9 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from ..plan.planner import PlanStep
-from ..sim.primitives import Action, PreconditionError, execute
+from ..plan.planner import Program
+from ..sim.primitives import Action
 from ..sim.state import WorldState
-from ..sim.tasks import Task
 
 COLORS = {
     "floor": (200, 200, 200), "table": (160, 120, 80), "shelf": (120, 90, 60), "bin": (90, 90, 90),
@@ -85,17 +84,20 @@ def _log_state(rec: rr.RecordingStream, state: WorldState, named: frozenset[str]
     rec.log("world/gripper", rr.Points3D(gripper, radii=[0.04], labels=[f"holds {state.held or 'nothing'}"]))
 
 
-def record_program(path: Path | str, recording_id: str, initial: WorldState, task: Task, steps: list[PlanStep],
-                   status: str, demonstration: tuple[Action, ...] = ()) -> None:
-    """Write one .rrd: the world before every step and after the last, with the plan's choices."""
+def record_program(path: Path | str, recording_id: str, program: Program,
+                   demonstration: tuple[Action, ...] = ()) -> None:
+    """Write one .rrd: the world before every step and after the last, with the plan's choices.
+
+    The states are the ones the rollout visited (`Program.states`): nothing is executed again.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     rec = rr.RecordingStream("taskseq", recording_id=recording_id, send_properties=False)
-    rec.save(path, default_blueprint=blueprint(initial))
+    rec.save(path, default_blueprint=blueprint(program.initial))
+    task, steps, status = program.task, program.steps, program.status
     rec.log("task", rr.TextDocument(f"{task}\nstatus: {status}\ndemonstration: "
                                     + " ".join(str(a) for a in demonstration)), static=True)
-    state = initial
-    for k in range(len(steps) + 1):
+    for k, state in enumerate(program.states):
         rec.set_time("step", sequence=k)
         acting = steps[k].action.args if k < len(steps) else ()
         _log_state(rec, state, frozenset((*task.args, *acting, *([state.held] if state.held else []))))
@@ -109,11 +111,8 @@ def record_program(path: Path | str, recording_id: str, initial: WorldState, tas
         warn = f" UNSAFE: {', '.join(step.unsafe)}" if step.unsafe else ""
         rec.log("plan/chosen", rr.TextLog(f"{step.action} score {step.score:.2f}{warn}"))
         rec.log("plan/alternatives", rr.TextLog(alternatives or "-"))
-        try:
-            state = execute(state, step.action)
-        except PreconditionError as err:
-            rec.log("plan/chosen", rr.TextLog(f"infeasible: {err}", level=rr.TextLogLevel.ERROR))
-            break
+        if k == len(program.states) - 1:  # the last step was infeasible: no world after it
+            rec.log("plan/chosen", rr.TextLog(f"infeasible: {program.error}", level=rr.TextLogLevel.ERROR))
     rec.flush()
     del rec
 

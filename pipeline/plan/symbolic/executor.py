@@ -1,13 +1,13 @@
-"""Symbolic planning in the simulator: plan, execute, replan when a step fails."""
+"""Symbolic planning as a policy of the rollout loop: serve a shortest plan, replan when it stops fitting."""
 
 from __future__ import annotations
 
+from ...features.context import StepContext
 from ...settings import Pddl
 from ...sim.primitives import Action, PreconditionError, execute
-from ...sim.safety import violations
 from ...sim.state import WorldState
 from ...sim.tasks import Task
-from ..planner import DONE, INFEASIBLE, STEP_CAP, PlanStep, Program
+from ..planner import Abstain, Ranked
 from .problem import build_problem
 from .sat import PlanResult, solve
 
@@ -27,29 +27,46 @@ def first_action(state: WorldState, task: Task, roles: dict[str, str], horizon: 
     return result.plan[0].primitive() if result.plan else Action("done")
 
 
-def run_symbolic(state: WorldState, task: Task, roles: dict[str, str], max_steps: int = 20,
-                 horizon: int = HORIZON) -> Program:
-    """Execute a shortest plan step by step; if a step turns out infeasible, replan from where the robot is."""
-    initial, steps, replans = state, [], 0
-    result = plan_from(state, task, roles, horizon)
-    queue = list(result.plan or [])
-    while True:
-        if result.plan is None:
-            return Program(task, steps, INFEASIBLE, initial, state, result.message())
-        if not queue:
-            return Program(task, steps, DONE, initial, state)
-        if len(steps) == max_steps:
-            return Program(task, steps, STEP_CAP, initial, state)
-        action = queue.pop(0).primitive()
-        try:
-            after = execute(state, action)
-        except PreconditionError as err:
-            replans += 1
-            if replans > MAX_REPLANS:
-                steps.append(PlanStep(action, 0.0, [], violations(state, action)))
-                return Program(task, steps, INFEASIBLE, initial, state, str(err))
-            result = plan_from(state, task, roles, horizon)
-            queue = list(result.plan or [])
-            continue
-        steps.append(PlanStep(action, 0.0, [], violations(state, action)))
-        state = after
+class SymbolicPolicy:
+    """A shortest plan from the first state, served one step at a time (`done` once it is used up).
+
+    When its next step cannot run in the world as it is (the planner's model of
+    the world is coarser than the simulator), it replans from there, at most
+    `MAX_REPLANS` times; after that the step is offered anyway and the program
+    ends infeasible on it. A state with no plan within the horizon ends the
+    program infeasible with the planner's message. One policy serves one
+    program: it keeps the plan between steps.
+    """
+
+    def __init__(self, task: Task, roles: dict[str, str], horizon: int = HORIZON) -> None:
+        self.task, self.roles, self.horizon = task, roles, horizon
+        self._result: PlanResult | None = None
+        self._queue: list = []
+        self.replans = 0
+
+    def _plan(self, state: WorldState) -> None:
+        self._result = plan_from(state, self.task, self.roles, self.horizon)
+        self._queue = list(self._result.plan or [])
+
+    def __call__(self, ctx: StepContext, state: WorldState) -> Ranked:
+        if self._result is None:
+            self._plan(state)
+        while True:
+            if self._result.plan is None:
+                raise Abstain(self._result.message())
+            if not self._queue:
+                return [(ctx.encode(Action("done")), 0.0)]
+            action = self._queue[0].primitive()
+            if self.replans == MAX_REPLANS or _feasible(state, action):
+                self._queue.pop(0)
+                return [(ctx.encode(action), 0.0)]
+            self.replans += 1
+            self._plan(state)
+
+
+def _feasible(state: WorldState, action: Action) -> bool:
+    try:
+        execute(state, action)
+    except PreconditionError:
+        return False
+    return True
