@@ -1,6 +1,7 @@
 """The symbolic baselines: PDDL files, SAT plans (shortest, executable), role rankers."""
 
 from collections import deque
+from dataclasses import replace
 
 import pytest
 from pddl import parse_domain, parse_problem
@@ -113,3 +114,48 @@ def test_rankers_pick_the_bin_the_vessel_and_the_stirrer(svm_method):
     assert svm_method.roles(Task("stir", ("obj31",)), state, ())["stirrer"] == "obj34"
     vessel = svm_method.roles(Task("pour", ("obj27",)), state, ())["vessel"]
     assert vessel in ("obj14", "obj18")  # an empty vessel, not the bottle, the mug of tea or a table
+
+
+def test_the_symbolic_policy_replans_when_its_next_step_cannot_run(monkeypatch):
+    """A plan whose next step no longer fits the world is dropped for a fresh one from where the robot is."""
+    from pipeline.plan.symbolic import executor
+
+    furniture, items, task, roles = SMALL[0]
+    state = world(furniture, items)
+    real = executor.plan_from
+    calls = []
+
+    def stale_first(now, task_, roles_, horizon):
+        calls.append(now)
+        result = real(now, task_, roles_, horizon)
+        if len(calls) == 1:  # the first plan starts with a grasp the robot cannot make from afar
+            grasp = next(a for a in result.plan if a.name == "grasp")
+            return replace(result, plan=[grasp, *result.plan])
+        return result
+
+    monkeypatch.setattr(executor, "plan_from", stale_first)
+    policy = SymbolicPolicy(task, roles)
+    program = run_loop(policy, state, task)
+    assert policy.replans == 1 and len(calls) == 2
+    assert program.status == "done" and program.goal_reached
+    assert program.actions == [a.primitive() for a in real(state, task, roles, 12).plan]
+
+
+def test_the_symbolic_policy_gives_up_on_a_step_after_its_replans(monkeypatch):
+    from pipeline.plan.symbolic import executor
+
+    furniture, items, task, roles = SMALL[0]
+    state = world(furniture, items)
+    real = executor.plan_from
+
+    def always_stale(now, task_, roles_, horizon):
+        result = real(now, task_, roles_, horizon)
+        grasp = next(a for a in result.plan if a.name == "grasp")
+        return replace(result, plan=[grasp, *result.plan])
+
+    monkeypatch.setattr(executor, "plan_from", always_stale)
+    policy = SymbolicPolicy(task, roles)
+    program = run_loop(policy, state, task)
+    assert policy.replans == executor.MAX_REPLANS
+    assert program.status == "infeasible" and len(program.steps) == 1 and program.steps[0].action.primitive == "grasp"
+    assert len(program.states) == 1 and program.error
