@@ -19,7 +19,7 @@ import numpy as np
 
 from .features.context import step_context
 from .features.dataset import build_steps, write_features
-from .learn.train import Fit, fit_mrf
+from .learn.estimator import MRFPlanner
 from .sim.catalog import OBJECTS
 from .sim.objects import ObjectSpec
 from .sim.state import ON, WorldState
@@ -47,22 +47,22 @@ def synthetic_world(n: int, seed: int = 0) -> tuple[WorldState, Task]:
 
 
 def _train_row(contexts: list, features: str, C: float, tol: float, max_iter: int, n_slacks: int,
-               progress: bool) -> tuple[dict[str, Any], Fit]:
-    fit = fit_mrf(contexts, features, C=C, tol=tol, max_iter=max_iter, n_slacks=n_slacks, progress=progress)
-    ssvm = fit.ssvm
+               progress: bool) -> tuple[dict[str, Any], MRFPlanner]:
+    planner = MRFPlanner(features, C=C, tol=tol, max_iter=max_iter, n_slacks=n_slacks).fit(contexts, progress=progress)
+    ssvm = planner.ssvm_
     return {
         "features": features,
         "tol": tol,
         "n_slacks": n_slacks,
-        "seconds": fit.seconds,
+        "seconds": planner.fit_seconds_,
         "iterations": ssvm.n_iter_,
         "converged": bool(ssvm.converged_),
-        "oracle_share": ssvm.seconds_oracle_ / fit.seconds,
-        "qp_share": ssvm.seconds_qp_ / fit.seconds,
+        "oracle_share": ssvm.seconds_oracle_ / planner.fit_seconds_,
+        "qp_share": ssvm.seconds_qp_ / planner.fit_seconds_,
         "qp_steps": ssvm.n_qp_steps_,
         "primal_objective": ssvm.primal_objective_,
         "dual_objective": ssvm.dual_objective_,
-    }, fit
+    }, planner
 
 
 def run_bench(records: list[dict[str, Any]], C: float, tol: float, max_iter: int, n_slacks: int = 4,
@@ -84,15 +84,15 @@ def run_bench(records: list[dict[str, Any]], C: float, tol: float, max_iter: int
     _, peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
 
-    rows, fit = [], None
+    rows, planner = [], None
     for gap in gaps:
         for slacks in dict.fromkeys((n_slacks, 1)):
             row, f = _train_row(contexts, "full", C, gap, max_iter, slacks, progress)
             rows.append(row)
             if gap == tol and slacks == n_slacks:
-                fit = f
-    if fit is None:  # the configured tolerance is none of `gaps`: train once more with it
-        row, fit = _train_row(contexts, "full", C, tol, max_iter, n_slacks, progress)
+                planner = f
+    if planner is None:  # the configured tolerance is none of `gaps`: train once more with it
+        row, planner = _train_row(contexts, "full", C, tol, max_iter, n_slacks, progress)
         rows.append(row)
     reference, _ = _train_row(contexts, "full", C, reference_gap, max_iter, n_slacks, progress)
     bound = max([reference["dual_objective"]] + [r["dual_objective"] for r in rows])
@@ -105,18 +105,18 @@ def run_bench(records: list[dict[str, Any]], C: float, tol: float, max_iter: int
     for n in SIZES:
         state, task = synthetic_world(n)
         ctx = step_context(state, task, [])
-        fit.model.inference(ctx, fit.w)  # warm caches
+        planner.model_.inference(ctx, planner.w_)  # warm caches
         infer, step = [], []
         for _ in range(repeats):
             t0 = time.perf_counter()
-            fit.model.inference(ctx, fit.w)
+            planner.model_.inference(ctx, planner.w_)
             t1 = time.perf_counter()
-            fit.model.inference(step_context(state, task, []), fit.w)
+            planner.model_.inference(step_context(state, task, []), planner.w_)
             t2 = time.perf_counter()
             infer.append(t1 - t0)
             step.append(t2 - t1)
         latency[str(n)] = {
-            "candidates": int(len(fit.model.scores(ctx, fit.w)[1])),
+            "candidates": int(len(planner.model_.scores(ctx, planner.w_)[1])),
             "inference_ms": 1000 * statistics.median(infer),
             "step_ms": 1000 * statistics.median(step),
         }

@@ -47,7 +47,7 @@ class Learner:
 
     @property
     def ssvm(self) -> dict[str, float | int]:
-        """The structural SVM's own settings (what `fit_mrf` takes)."""
+        """The structural SVM's own settings (what `MRFPlanner` takes besides its feature set)."""
         return {"C": self.C, "tol": self.tol, "max_iter": self.max_iter, "n_slacks": self.n_slacks}
 
 

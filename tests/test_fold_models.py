@@ -4,15 +4,13 @@ from functools import partial
 
 import pytest
 
-import pipeline.evaluate.methods as methods_module
-import pipeline.imitation.dagger as dagger_module
 from pipeline.evaluate.crossval import cross_validate
 from pipeline.evaluate.fold_models import train_fold_models, training_jobs
 from pipeline.evaluate.methods import MRFMethod, mrf_methods
 from pipeline.evaluate.recipes import evaluate_recipes
 from pipeline.evaluate.robustness import Condition, evaluate_conditions
 from pipeline.features.dataset import build_steps
-from pipeline.learn.train import fit_mrf
+from pipeline.learn.estimator import MRFPlanner
 from pipeline.logs.benchmark import Benchmark
 from pipeline.settings import Folds, Learner
 
@@ -42,12 +40,13 @@ def store(small, tmp_path_factory):
 def count_fits(monkeypatch):
     calls = []
 
-    def counting(*args, **kwargs):
-        calls.append(kwargs.get("n_slacks"))
-        return fit_mrf(*args, **kwargs)
+    real = MRFPlanner.fit
 
-    monkeypatch.setattr(methods_module, "fit_mrf", counting)
-    monkeypatch.setattr(dagger_module, "fit_mrf", counting)
+    def counting(self, *args, **kwargs):
+        calls.append(self.n_slacks)
+        return real(self, *args, **kwargs)
+
+    monkeypatch.setattr(MRFPlanner, "fit", counting)
     return calls
 
 

@@ -16,7 +16,7 @@ from pipeline.features.dataset import build_steps
 from pipeline.imitation.dagger import fit_imitation, rollout_contexts
 from pipeline.imitation.expert import DONE, next_actions
 from pipeline.imitation.starts import chained_scenarios, demonstration_contexts
-from pipeline.learn.train import fit_mrf
+from pipeline.learn.estimator import MRFPlanner
 from pipeline.logs.benchmark import Benchmark
 from pipeline.sim.primitives import Action, PreconditionError, execute
 from pipeline.sim.tasks import goal_reached
@@ -116,7 +116,7 @@ def test_demonstration_contexts_equal_the_feature_pipelines(small, benchmark_tab
 
 def test_rollouts_label_only_states_off_the_demonstrations(small):
     contexts, _, scenarios = small
-    fit = fit_mrf(contexts, "full", **SSVM)
+    fit = MRFPlanner("full", **SSVM).fit(contexts)
     sc = next(iter(scenarios.values()))
     detour = next(a for a in (Action("move_close", (o,)) for o in sorted(sc.initial.specs))
                   if a not in {d[0] for d in sc.demonstrations} and _feasible(sc.initial, a))
@@ -124,7 +124,7 @@ def test_rollouts_label_only_states_off_the_demonstrations(small):
     def rank(ctx, state):  # a planner that first goes somewhere no demonstration goes, then follows the model
         if ctx.prev_prims[0] == NO_PRIM:
             return [(ctx.encode(detour), 0.0)]
-        return fit.model.top_k(ctx, fit.w, 1)
+        return fit.top_k(ctx, 1)
 
     asked = []
 
@@ -150,17 +150,17 @@ def _feasible(state, action):
 
 def test_no_augmentation_is_the_plain_fit(small):
     contexts, _, scenarios = small
-    plain = fit_mrf(contexts, "full", **SSVM)
-    same = fit_imitation(contexts, list(scenarios.values()), "full", rounds=0, chained=False, **SSVM)
-    assert plain.w.tobytes() == same.w.tobytes()
+    plain = MRFPlanner("full", **SSVM).fit(contexts)
+    same = fit_imitation(MRFPlanner("full", **SSVM), contexts, list(scenarios.values()), rounds=0, chained=False)
+    assert plain.w_.tobytes() == same.w_.tobytes()
 
 
 def test_augmented_fits_are_deterministic_and_grow_the_data(small):
     contexts, _, scenarios = small
-    a = fit_imitation(contexts, list(scenarios.values()), "full", rounds=1, chained=True, **SSVM)
-    b = fit_imitation(contexts, list(scenarios.values()), "full", rounds=1, chained=True, **SSVM)
-    assert a.w.tobytes() == b.w.tobytes()
-    assert a.steps > len(contexts)
+    a = fit_imitation(MRFPlanner("full", **SSVM), contexts, list(scenarios.values()), rounds=1, chained=True)
+    b = fit_imitation(MRFPlanner("full", **SSVM), contexts, list(scenarios.values()), rounds=1, chained=True)
+    assert a.w_.tobytes() == b.w_.tobytes()
+    assert a.n_steps_ > len(contexts)
 
 
 def test_the_expert_never_sees_a_test_scenario(small, monkeypatch):
@@ -195,8 +195,8 @@ def test_augmented_methods_need_the_scenarios(small):
 
 def test_dagger_from_a_given_base_equals_dagger_from_scratch(small):
     contexts, _, scenarios = small
-    base = fit_mrf(contexts, "full", **SSVM)
-    given = fit_imitation(contexts, list(scenarios.values()), "full", rounds=1, chained=False,
-                          base=(base.model, base.w), **SSVM)
-    scratch = fit_imitation(contexts, list(scenarios.values()), "full", rounds=1, chained=False, **SSVM)
-    assert given.w.tobytes() == scratch.w.tobytes()
+    base = MRFPlanner("full", **SSVM).fit(contexts)
+    given = fit_imitation(MRFPlanner("full", **SSVM), contexts, list(scenarios.values()), rounds=1, chained=False,
+                          base=base)
+    scratch = fit_imitation(MRFPlanner("full", **SSVM), contexts, list(scenarios.values()), rounds=1, chained=False)
+    assert given.w_.tobytes() == scratch.w_.tobytes()

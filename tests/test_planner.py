@@ -8,8 +8,8 @@ import pytest
 
 from pipeline.cli import main
 from pipeline.features.dataset import build_steps
-from pipeline.learn.persist import load_model, save_model
-from pipeline.learn.train import fit_mrf
+from pipeline.learn.estimator import MRFPlanner
+from pipeline.learn.persist import load_model
 from pipeline.logs.records import parse_record, state_from_dict
 from pipeline.plan.planner import DONE, plan
 
@@ -19,8 +19,8 @@ def small_fit(benchmark_tables):
     """A model trained on the demonstrations of two environments."""
     records = [i.record for i in benchmark_tables[1] if i.record["env_id"] in ("env01", "env02")]
     contexts, _ = build_steps(records)
-    fit = fit_mrf(contexts, "full", C=5.0, tol=1e-3, max_iter=300)
-    return fit, records
+    planner = MRFPlanner("full", C=5.0, tol=1e-3, max_iter=300).fit(contexts)
+    return planner, records
 
 
 def scenario(record):
@@ -31,7 +31,7 @@ def scenario(record):
 def test_training_fits_its_own_demonstrations(small_fit):
     fit, records = small_fit
     contexts, _ = build_steps(records)
-    predicted = fit.ssvm.predict(contexts)
+    predicted = fit.predict(contexts)
     accuracy = np.mean([tuple(p) == tuple(x.gold) for p, x in zip(predicted, contexts, strict=True)])
     assert accuracy > 0.9
 
@@ -41,7 +41,7 @@ def test_planner_reproduces_a_training_demonstration_in_closed_loop(small_fit):
     reproduced = succeeded = 0
     for record in records:
         state, task, actions = scenario(record)
-        program = plan(fit.model, fit.w, state, task)
+        program = plan(fit, state, task)
         succeeded += program.success
         if program.actions == actions:
             reproduced += 1
@@ -53,7 +53,7 @@ def test_planner_reproduces_a_training_demonstration_in_closed_loop(small_fit):
 def test_plan_records_scores_and_alternatives(small_fit):
     fit, records = small_fit
     state, task, _ = scenario(records[0])
-    program = plan(fit.model, fit.w, state, task, top_k=3)
+    program = plan(fit, state, task, top_k=3)
     for step in program.steps:
         assert len(step.alternatives) == 2
         assert all(step.score >= s for _, s in step.alternatives)
@@ -62,7 +62,7 @@ def test_plan_records_scores_and_alternatives(small_fit):
 def test_plan_stops_at_the_step_cap(small_fit):
     fit, records = small_fit
     state, task, _ = scenario(records[0])
-    program = plan(fit.model, np.zeros_like(fit.w), state, task, max_steps=3)
+    program = plan(MRFPlanner.from_weights("full", np.zeros_like(fit.w_)), state, task, max_steps=3)
     # with zero weights every score ties and the first candidate (move_close) always wins
     assert program.status == "step_cap" and len(program.steps) == 3
 
@@ -70,17 +70,34 @@ def test_plan_stops_at_the_step_cap(small_fit):
 def test_saved_and_loaded_model_plans_identically(small_fit, tmp_path):
     fit, records = small_fit
     path = tmp_path / "mrf.npz"
-    save_model(path, fit.model, fit.w, {"C": 1.0})
-    model, w, meta = load_model(path)
-    assert meta["features"] == "full" and meta["C"] == 1.0
-    np.testing.assert_array_equal(w, fit.w)
+    fit.save(path, n_steps=7)
+    loaded = MRFPlanner.load(path)
+    assert loaded.get_params() == fit.get_params()
+    assert loaded.meta_["features"] == "full" and loaded.meta_["C"] == 5.0 and loaded.meta_["n_steps"] == 7
+    np.testing.assert_array_equal(loaded.w_, fit.w_)
     with np.load(path, allow_pickle=False) as z:
         assert set(z.files) == {"w", "feature_names", "meta"}
     for record in records[:5]:
         state, task, _ = scenario(record)
-        a, b = plan(fit.model, fit.w, state, task), plan(model, w, state, task)
+        a, b = plan(fit, state, task), plan(loaded, state, task)
         assert a.actions == b.actions
         assert [s.score for s in a.steps] == [s.score for s in b.steps]
+
+
+def test_the_planner_is_a_scikit_learn_estimator(small_fit):
+    from sklearn.base import clone
+
+    fit, records = small_fit
+    fresh = clone(fit)
+    assert fresh.get_params() == fit.get_params() and not hasattr(fresh, "w_")
+    assert fresh.set_params(C=1.0) is fresh and fresh.C == 1.0
+    with pytest.raises(ValueError, match="not fitted"):
+        fresh.predict(build_steps(records)[0])
+    with pytest.raises(ValueError, match="features must be one of"):
+        MRFPlanner("nonsense").fit(build_steps(records)[0])
+    contexts, _ = build_steps(records[:4])
+    again = clone(fit).fit(contexts)
+    np.testing.assert_array_equal(again.w_, clone(fit).fit(contexts).w_)  # deterministic, bit for bit
 
 
 def test_load_refuses_other_files(tmp_path):
@@ -96,7 +113,7 @@ def test_load_refuses_other_files(tmp_path):
 def model_file(small_fit, tmp_path):
     fit, _ = small_fit
     path = tmp_path / "mrf.npz"
-    save_model(path, fit.model, fit.w, {})
+    fit.save(path)
     return path
 
 

@@ -36,9 +36,9 @@ def test_flip_rate_zero_changes_nothing_and_one_flips_every_binary_attribute(fit
 def test_noise_rate_zero_plans_exactly_as_without_noise(fitted):
     method, scenarios = fitted
     for sc in scenarios[:6]:
-        clean = plan(method.model_, method.w_, sc.initial, sc.task)
+        clean = plan(method.planner_, sc.initial, sc.task)
         masks = flip_masks(sorted(sc.initial.specs), 0.0, np.random.default_rng(1))
-        noisy = plan(method.model_, method.w_, sc.initial, sc.task, perceive=noisy_perception(masks))
+        noisy = plan(method.planner_, sc.initial, sc.task, perceive=noisy_perception(masks))
         assert noisy.actions == clean.actions
         assert [s.score for s in noisy.steps] == [s.score for s in clean.steps]
 
@@ -56,8 +56,8 @@ def test_observer_picks_the_offered_candidate_that_continues_a_demonstration():
 def test_full_feedback_never_does_worse(fitted):
     method, scenarios = fitted
     for sc in scenarios:
-        free = plan(method.model_, method.w_, sc.initial, sc.task)
-        guided = plan(method.model_, method.w_, sc.initial, sc.task, top_k=3, choose=observer(sc.demonstrations, 20))
+        free = plan(method.planner_, sc.initial, sc.task)
+        guided = plan(method.planner_, sc.initial, sc.task, top_k=3, choose=observer(sc.demonstrations, 20))
         if free.actions in [list(d) for d in sc.demonstrations]:
             assert guided.actions in [list(d) for d in sc.demonstrations]
 

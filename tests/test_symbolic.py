@@ -100,9 +100,9 @@ def test_an_unreachable_goal_says_so_within_the_horizon():
 
 
 @pytest.fixture(scope="module")
-def svm_method(benchmark_steps):
+def svm_method(benchmark_steps, scenarios):
     contexts, meta = benchmark_steps
-    return SymbolicMethod(goals="svm", name="symb_plan_svm").fit(contexts, meta)
+    return SymbolicMethod(goals="svm", name="symb_plan_svm").fit(contexts, meta, scenarios)
 
 
 def test_rankers_pick_the_bin_the_vessel_and_the_stirrer(svm_method):

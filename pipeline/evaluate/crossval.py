@@ -66,7 +66,7 @@ def judge(scenario: Scenario, program: Program) -> SequenceOutcome:
 def run_fold(make: Callable[[], Method], fold: int, contexts: list[StepContext], meta: list[StepMeta],
              scenarios: dict[str, Scenario], test_scenarios: set[str], max_steps: int,
              demos: Benchmark | None = None, keep_programs: frozenset[str] = frozenset()) -> FoldResult:
-    with threadpool_limits(limits=1):  # the same sums, so the same bytes, in any process (see learn/train.py)
+    with threadpool_limits(limits=1):  # the same sums, so the same bytes, in any process (see learn/estimator.py)
         return _run_fold(make, fold, contexts, meta, scenarios, test_scenarios, max_steps, demos, keep_programs)
 
 

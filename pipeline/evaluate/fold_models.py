@@ -91,22 +91,23 @@ def train_fold_models(methods: Mapping[str, MakeMRF], contexts: list[StepContext
             fitted = run_jobs(((_fit, (methods[keyed[k][0].method], contexts, meta, scenarios, keyed[k][0].index,
                                          tmp if phase else None)) for k in keys), n_jobs, verbose)
             for key, method in zip(keys, fitted, strict=True):
-                ssvm = method.fit_.ssvm
+                planner = method.planner_
+                ssvm = planner.ssvm_
                 record = {
                     "key": key,
                     "features": method.features,
                     "uses": [{"method": j.method, "training_set": j.training_set} for j in keyed[key]],
                     "steps": len(keyed[key][0].index),
-                    "fitted_steps": method.fit_.steps,
+                    "fitted_steps": planner.n_steps_,
                     **method.learner_params(),
                     "iterations": ssvm.n_iter_,
                     "converged": bool(ssvm.converged_),
                     "primal_objective": ssvm.primal_objective_,
                     "dual_objective": ssvm.dual_objective_,
                 }
-                store.save(key, method.model_, method.w_, {k: v for k, v in record.items() if k != "uses"})
+                store.save(key, planner, {k: v for k, v in record.items() if k != "uses"})
                 records.append(record)
-                seconds.append(method.fit_.seconds)
+                seconds.append(planner.fit_seconds_)
                 curves.append(learning_curve(ssvm.history_))
         write_json_atomic(tmp / "index.json", {"models": records})
     return [{**r, "seconds": t, "curve": c} for r, t, c in zip(records, seconds, curves, strict=True)]

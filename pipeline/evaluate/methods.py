@@ -18,9 +18,8 @@ from sklearn.svm import LinearSVC
 from ..features.context import N_PRIM, OBJECT_COLUMNS, StepContext, candidate_index, step_context
 from ..features.dataset import StepMeta
 from ..imitation.dagger import fit_imitation
-from ..learn.mrf import MRFModel
+from ..learn.estimator import MRFPlanner
 from ..learn.store import ModelStore, training_key
-from ..learn.train import fit_mrf
 from ..logs.benchmark import Benchmark
 from ..plan.planner import Program, plan, run_loop
 from ..plan.symbolic.executor import SymbolicPolicy, first_action
@@ -128,10 +127,10 @@ class MRFMethod:
     """
 
     features: str = "full"
-    C: float = 3.0
-    tol: float = 1e-3
-    max_iter: int = 2000
-    n_slacks: int = 4
+    C: float = Learner.C  # the learner's settings default to the pipeline's (settings.Learner)
+    tol: float = Learner.tol
+    max_iter: int = Learner.max_iter
+    n_slacks: int = Learner.n_slacks
     chained_starts: bool = False
     dagger_rounds: int = 0
     name: str = "full"
@@ -146,45 +145,37 @@ class MRFMethod:
     def key(self, contexts: list[StepContext]) -> str:
         return training_key(self.features, self.learner_params(), contexts)
 
+    def estimator(self) -> MRFPlanner:
+        """The unfitted planner with this method's feature set and learner settings."""
+        return MRFPlanner(self.features, C=self.C, tol=self.tol, max_iter=self.max_iter, n_slacks=self.n_slacks)
+
     def fit(self, contexts: list[StepContext], meta: list[StepMeta],
             scenarios: Mapping[str, Scenario] | None = None) -> MRFMethod:
+        """Sets `planner_`, loaded from the store when it holds these steps and settings, else fitted;
+        `trained_` says which."""
         stored = ModelStore(self.store).load(self.key(contexts)) if self.store else None
+        self.trained_ = stored is None
         if stored is not None:
-            self.model_, self.w_ = stored
-            self.fit_ = None
+            self.planner_ = stored
             return self
-        ssvm = {"C": self.C, "tol": self.tol, "max_iter": self.max_iter, "n_slacks": self.n_slacks}
         if self.chained_starts or self.dagger_rounds:
             if scenarios is None:
                 raise ValueError(f"method {self.name}: chained starts and DAgger need the training scenarios")
             training = [scenarios[s] for s in dict.fromkeys(m.scenario_id for m in meta)]
             base = None
             if self.dagger_rounds and self.store:  # DAgger starts from the model without it, stored or not
-                before = replace(self, dagger_rounds=0).fit(contexts, meta, scenarios)
-                base = (before.model_, before.w_)
-            fit = fit_imitation(contexts, training, self.features, self.dagger_rounds, self.chained_starts,
-                                base=base, **ssvm)
+                base = replace(self, dagger_rounds=0).fit(contexts, meta, scenarios).planner_
+            self.planner_ = fit_imitation(self.estimator(), contexts, training, self.dagger_rounds,
+                                          self.chained_starts, base=base)
         else:
-            fit = fit_mrf(contexts, self.features, **ssvm)
-        self.model_: MRFModel = fit.model
-        self.w_ = fit.w
-        self.fit_ = fit
+            self.planner_ = self.estimator().fit(contexts)
         return self
 
     def predict_steps(self, contexts: list[StepContext], meta=None, demos=None) -> list[Y]:
-        return self.model_.batch_inference(contexts, self.w_)
+        return self.planner_.predict(contexts)
 
     def run(self, scenario: Scenario, max_steps: int) -> Program:
-        return plan(self.model_, self.w_, scenario.initial, scenario.task, max_steps=max_steps)
-
-
-def _task_args(x: StepContext) -> tuple[str, ...]:
-    args = []
-    for k in range(2):
-        rows = np.flatnonzero(x.task_rel[:, k] > 0.5)
-        if len(rows):
-            args.append(x.object_ids[rows[0]])
-    return tuple(args)
+        return plan(self.planner_, scenario.initial, scenario.task, max_steps=max_steps)
 
 
 def _role_candidates(x: StepContext) -> tuple[np.ndarray, list[str]]:
@@ -206,13 +197,14 @@ class SymbolicMethod:
     def fit(self, contexts: list[StepContext], meta: list[StepMeta], scenarios=None) -> SymbolicMethod:
         if self.goals == "manual":
             return self
-        by_sequence: dict[str, list[StepContext]] = {}
+        if scenarios is None:
+            raise ValueError(f"method {self.name}: the role rankers need the training scenarios (their tasks)")
+        by_sequence: dict[str, tuple[str, list[StepContext]]] = {}
         for x, m in zip(contexts, meta, strict=True):
-            by_sequence.setdefault(m.sequence_id, []).append(x)
+            by_sequence.setdefault(m.sequence_id, (m.scenario_id, []))[1].append(x)
         groups: dict[str, list[tuple[np.ndarray, int]]] = {}
-        for steps in by_sequence.values():
-            first = steps[0]
-            task = Task(TASKS[first.task], _task_args(first))
+        for scenario_id, steps in by_sequence.values():
+            first, task = steps[0], scenarios[scenario_id].task
             role = ROLE_OF_TASK.get(task.name)
             if role is None:
                 continue
@@ -236,7 +228,7 @@ class SymbolicMethod:
     def predict_steps(self, contexts: list[StepContext], meta: list[StepMeta], demos: Benchmark) -> list[Y]:
         out = []
         for x, m in zip(contexts, meta, strict=True):
-            task = Task(TASKS[x.task], _task_args(x))
+            task = demos.scenarios[m.scenario_id].task
             roles = self.roles(task, demos.states[(m.sequence_id, 0)], demos.actions[m.sequence_id])
             action = first_action(demos.states[(m.sequence_id, m.step)], task, roles, self.horizon)
             out.append(x.encode(action) if action is not None else (-1, -1, -1))

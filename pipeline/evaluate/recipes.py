@@ -105,7 +105,7 @@ def run_recipe(method: MRFMethod, recipe: Recipe, feedback: bool, max_steps: int
             except (NoDemonstration, PreconditionError):
                 demos = ()
             choose = observer(demos, 1)
-        program = plan(method.model_, method.w_, state, task, max_steps=max_steps, top_k=3, choose=choose)
+        program = plan(method.planner_, state, task, max_steps=max_steps, top_k=3, choose=choose)
         programs.append((str(task), program.status, program.success))
         state = program.final
         if not program.success:
@@ -130,7 +130,7 @@ def evaluate_recipes(make: Callable[[], MRFMethod], contexts: list[StepContext],
     `scenarios` are the benchmark's (methods that consult the demonstrator read the training ones).
     """
     out = []
-    with threadpool_limits(limits=1):  # the same sums, so the same bytes, in any process (see learn/train.py)
+    with threadpool_limits(limits=1):  # the same sums, so the same bytes, in any process (see learn/estimator.py)
         for name, train in recipe_training_sets(meta).items():
             method = make().fit([contexts[i] for i in train], [meta[i] for i in train], scenarios)
             for recipe in (r for r in RECIPES if r.name == name):

@@ -72,7 +72,7 @@ class Condition:
 
 
 def _fold(make, contexts, meta, scenarios, test, conditions, max_steps, seed):
-    with threadpool_limits(limits=1):  # the same sums, so the same bytes, in any process (see learn/train.py)
+    with threadpool_limits(limits=1):  # the same sums, so the same bytes, in any process (see learn/estimator.py)
         return _replay(make, contexts, meta, scenarios, test, conditions, max_steps, seed)
 
 
@@ -92,7 +92,7 @@ def _replay(make, contexts, meta, scenarios, test, conditions, max_steps, seed):
             else:
                 top_k = int(c.a)
                 choose = observer(sc.demonstrations, c.b)
-            program = plan(method.model_, method.w_, sc.initial, sc.task, max_steps=max_steps, top_k=top_k,
+            program = plan(method.planner_, sc.initial, sc.task, max_steps=max_steps, top_k=top_k,
                            perceive=perceive, choose=choose)
             out.append((c, judge(sc, program)))
     return out

@@ -12,13 +12,11 @@ zero).
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import replace
 
-import numpy as np
+from sklearn.base import clone
 
 from ..features.context import StepContext, step_context
-from ..learn.mrf import MRFModel
-from ..learn.train import Fit, fit_mrf
+from ..learn.estimator import MRFPlanner
 from ..plan.planner import Policy, greedy, run_loop
 from ..sim.primitives import Action
 from ..sim.scenarios import Scenario
@@ -56,15 +54,14 @@ def rollout_contexts(policy: Policy, scenario: Scenario, seen: set[tuple[Action,
     return out
 
 
-def fit_imitation(contexts: list[StepContext], scenarios: Sequence[Scenario], features: str, rounds: int,
-                  chained: bool, expert: Expert | None = None, base: tuple[MRFModel, np.ndarray] | None = None,
-                  **learner) -> Fit:
-    """Fit on the demonstrations' `contexts` (of `scenarios`), with chained starts and DAgger rounds added.
+def fit_imitation(planner: MRFPlanner, contexts: list[StepContext], scenarios: Sequence[Scenario], rounds: int,
+                  chained: bool, expert: Expert | None = None, base: MRFPlanner | None = None) -> MRFPlanner:
+    """`planner` (unfitted) fitted on the demonstrations' `contexts` (of `scenarios`), with chained starts and
+    DAgger rounds added; returns the fitted planner of the last round.
 
-    `learner` holds the SSVM settings of `fit_mrf`. `base` is the model (and
-    weights) already fitted with these settings on the data before any DAgger
-    round, when the caller has it: the first rollouts use it instead of
-    fitting it again. The result is the same either way.
+    `base` is the planner already fitted with these settings on the data
+    before any DAgger round, when the caller has it: the first rollouts use it
+    instead of fitting it again. The result is the same either way.
     """
     data = list(contexts)
     scenarios = sorted(scenarios, key=lambda s: s.id)
@@ -72,20 +69,20 @@ def fit_imitation(contexts: list[StepContext], scenarios: Sequence[Scenario], fe
         extra = chained_scenarios(scenarios)
         data += [x for sc in extra for x in demonstration_contexts(sc)]
         scenarios += extra
-    fit = None if base is not None and rounds else fit_mrf(data, features, **learner)
-    model, w = base if fit is None else (fit.model, fit.w)
-    seconds = 0.0 if fit is None else fit.seconds
+    fitted = base if base is not None and rounds else clone(planner).fit(data)
+    seconds = 0.0 if fitted is base else fitted.fit_seconds_
+    refit = None
     seen: list[set[tuple[Action, ...]]] = [set() for _ in scenarios]
     for _ in range(rounds):
-        policy = greedy(model, w, top_k=1)
+        policy = greedy(fitted, top_k=1)
         new = [x for sc, s in zip(scenarios, seen, strict=True) for x in rollout_contexts(policy, sc, s, expert)]
         if not new:
             break
         data += new
-        fit = fit_mrf(data, features, **learner)
-        model, w, seconds = fit.model, fit.w, seconds + fit.seconds
-    if fit is None:  # the rollouts found nothing to add: the base is the answer, fitted here for its record
-        fit = fit_mrf(data, features, **learner)
-        seconds += fit.seconds
-    return replace(fit, seconds=seconds)
-
+        fitted = refit = clone(planner).fit(data)
+        seconds += refit.fit_seconds_
+    if fitted is base and refit is None:  # the rollouts found nothing to add: the base is the answer,
+        fitted = clone(planner).fit(data)  # fitted here for its record
+        seconds += fitted.fit_seconds_
+    fitted.fit_seconds_ = seconds
+    return fitted

@@ -16,13 +16,16 @@ steps' arguments). Every family has weights per argument slot, as the paper's
 formulas do.
 
 The score decomposes into a table over p, tables over (p, a1) and (p, a2) and a
-table over (a1, a2), so the scores of all candidates of a step are a handful of
-broadcast sums: no Python loop over candidates.
+table over (a1, a2) (plus a low-rank pair term per p), so the scores of all
+candidates of a step are a handful of broadcast sums: no Python loop over
+candidates. `MRFModel.batch_tables` computes those tables for a batch of steps,
+and it is the one place a score is computed: the learner's oracle, prediction,
+top-k and single-step scores all read its tables.
 
 The module runs past 300 lines because it holds the model whole: its feature
 blocks, the per-candidate joint feature (the slow reference the tests compare
-against), the batched oracle the learner calls over all steps at once, and the
-per-step tables the planner ranks with.
+against), its batched form the learner sums cuts with, the factor tables and
+the oracle over them.
 """
 
 from __future__ import annotations

@@ -20,8 +20,7 @@ from typing import Any
 import numpy as np
 
 from ..features.context import StepContext
-from .mrf import MRFModel
-from .persist import load_model, save_model
+from .estimator import MRFPlanner
 
 
 def training_key(features: str, params: dict[str, Any], contexts: Sequence[StepContext]) -> str:
@@ -46,12 +45,9 @@ class ModelStore:
     def path(self, key: str) -> Path:
         return self.directory / f"{key}.npz"
 
-    def load(self, key: str) -> tuple[MRFModel, np.ndarray] | None:
+    def load(self, key: str) -> MRFPlanner | None:
         path = self.path(key)
-        if not path.exists():
-            return None
-        model, w, _ = load_model(path)
-        return model, w
+        return MRFPlanner.load(path) if path.exists() else None
 
-    def save(self, key: str, model: MRFModel, w: np.ndarray, meta: dict[str, Any]) -> None:
-        save_model(self.path(key), model, w, meta)
+    def save(self, key: str, planner: MRFPlanner, meta: dict[str, Any]) -> None:
+        planner.save(self.path(key), **meta)

