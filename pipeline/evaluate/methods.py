@@ -95,7 +95,7 @@ def multiclass_features(x: StepContext) -> np.ndarray:
 class MulticlassMethod:
     """A Crammer-Singer linear SVM over the primitive only; it predicts no arguments."""
 
-    C: float = 1.0
+    C: float = Crossval.multiclass_C
     name: str = "multiclass"
     predicts_args: bool = False
 
@@ -151,10 +151,8 @@ class MRFMethod:
 
     def fit(self, contexts: list[StepContext], meta: list[StepMeta],
             scenarios: Mapping[str, Scenario] | None = None) -> MRFMethod:
-        """Sets `planner_`, loaded from the store when it holds these steps and settings, else fitted;
-        `trained_` says which."""
+        """Sets `planner_`: loaded from the store when it holds these steps and settings, else fitted."""
         stored = ModelStore(self.store).load(self.key(contexts)) if self.store else None
-        self.trained_ = stored is None
         if stored is not None:
             self.planner_ = stored
             return self
@@ -189,8 +187,8 @@ class SymbolicMethod:
     """SATPLAN over the PDDL domain; the goal's open roles from the demonstration or from ranking SVMs."""
 
     goals: str = "manual"  # manual | svm
-    C: float = 1.0
-    horizon: int = Pddl().horizon
+    C: float = Crossval.ranking_C  # of the role-ranking SVMs
+    horizon: int = Pddl.horizon
     name: str = "symb_plan_manual"
     predicts_args: bool = True
 
@@ -256,7 +254,7 @@ METHOD_LABELS = {
 }
 
 
-def table1_methods(settings: Crossval, learner: Learner, horizon: int = Pddl().horizon,
+def table1_methods(settings: Crossval, learner: Learner, horizon: int = Pddl.horizon,
                    store: str | None = None) -> dict[str, Callable[[], Method]]:
     """Every method of Table I, by name, as factories of unfitted methods; `horizon` is the symbolic planners'."""
     mrf = partial(MRFMethod, **learner.ssvm, store=store)

@@ -122,10 +122,10 @@ ALL_BLOCKS = _blocks()
 class StepBatch:
     """Many steps padded to the same number of objects, for scoring them all at once."""
 
-    steps: list[StepContext]
     objects: np.ndarray  # (S, N, K)
     task_rel: np.ndarray  # (S, N, 4)
     rel_rows: np.ndarray  # (S, N, len(REL_ROW)): relations, then task relations; relations 0 where absent
+    # (S, N, 0) when the batch is built without relations
     hist: np.ndarray  # (S, N, 4)
     collide: np.ndarray  # (S, N, N)
     valid: np.ndarray  # (S, N) bool
@@ -138,31 +138,32 @@ class StepBatch:
     # multiplies each task's rows in one matrix product
     by_task: list[tuple[int, np.ndarray, np.ndarray]]
 
-
     @classmethod
-    def of(cls, steps: list[StepContext]) -> StepBatch:
+    def of(cls, steps: list[StepContext], relations: bool = True) -> StepBatch:
+        """The batch of `steps`; `relations=False` leaves out the relation rows (models without that family)."""
         S, N = len(steps), max(x.n for x in steps)
         K = len(OBJECT_COLUMNS)
         objects, rel, hist = np.zeros((S, N, K)), np.zeros((S, N, 4)), np.zeros((S, N, 4))
-        relations = np.zeros((S, N, len(RELATION_COLUMNS)))
+        rows_rel = np.zeros((S, N, len(RELATION_COLUMNS)))
         collide, valid = np.zeros((S, N, N), dtype=bool), np.zeros((S, N), dtype=bool)
         for s, x in enumerate(steps):
             objects[s, : x.n], rel[s, : x.n], hist[s, : x.n] = x.objects, x.task_rel, x.history_equal()
             collide[s, : x.n, : x.n] = x.collide
-            if x.relations is not None:
-                relations[s, : x.n] = x.relations
+            if relations and x.relations is not None:
+                rows_rel[s, : x.n] = x.relations
             valid[s, : x.n] = True
         task = np.array([x.task for x in steps])
         prev = np.array([x.prev_prims for x in steps])
         pair_valid = valid[:, :, None] & valid[:, None, :] & ~np.eye(N, dtype=bool)[None]
         valid_neg = np.where(valid, 0.0, -np.inf)
         pair_neg = np.where(pair_valid, 0.0, -np.inf)
-        rel_rows = rel_row(objects, rel, relations)
-        by_task = []
-        for t in np.unique(task):
-            rows = np.flatnonzero(task == t)
-            by_task.append((int(t), rows, rel_rows[rows].reshape(len(rows) * N, -1)))
-        return cls(steps, objects, rel, rel_rows, hist, collide, valid, pair_valid, valid_neg, pair_neg, task, prev,
+        rel_rows, by_task = np.zeros((S, N, 0)), []
+        if relations:
+            rel_rows = rel_row(objects, rel, rows_rel)
+            for t in np.unique(task):
+                rows = np.flatnonzero(task == t)
+                by_task.append((int(t), rows, rel_rows[rows].reshape(len(rows) * N, -1)))
+        return cls(objects, rel, rel_rows, hist, collide, valid, pair_valid, valid_neg, pair_neg, task, prev,
                    by_task)
 
 
@@ -191,7 +192,7 @@ class _Batched:
         cached = getattr(self, "_batch_cache", None)
         if cached is None or cached[0] is not X:
             self._check_relations(X)
-            cached = (X, StepBatch.of(list(X)))
+            cached = (X, StepBatch.of(list(X), RELATION_FAMILY in self.families))
             self._batch_cache = cached
         return cached[1]
 
@@ -451,7 +452,7 @@ class MRFModel(_Batched):
         """P (N_PRIM,), U1 and U2 (N_PRIM, n), pair (N_PRIM, n, n): the score's factors, from `batch_tables`."""
         if RELATION_FAMILY in self.families:
             self._relations(x)
-        f = self.batch_tables(StepBatch.of([x]), w)
+        f = self.batch_tables(StepBatch.of([x], RELATION_FAMILY in self.families), w)
         pair = f.pair[0][None] + np.einsum("pir,jr->pij", f.left[:, 0], f.right[0])
         return f.P[0], f.U1[0], f.U2[0], pair
 
