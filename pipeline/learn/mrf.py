@@ -453,8 +453,10 @@ class MRFModel(_Batched):
         if RELATION_FAMILY in self.families:
             self._relations(x)
         f = self.batch_tables(StepBatch.of([x], RELATION_FAMILY in self.families), w)
-        pair = f.pair[0][None] + np.einsum("pir,jr->pij", f.left[:, 0], f.right[0])
-        return f.P[0], f.U1[0], f.U2[0], pair
+        pair = f.pair[0][None]
+        if f.right.shape[-1]:  # the low-rank term, per primitive
+            pair = pair + f.left[:, 0] @ f.right[0].T
+        return f.P[0], f.U1[0], f.U2[0], np.broadcast_to(pair, (N_PRIM, x.n, x.n))
 
     def scores(self, x: StepContext, w: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], np.ndarray]:
         """All candidates of the step and their scores, in `candidate_index` order."""
