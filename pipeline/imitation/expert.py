@@ -15,7 +15,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from ..sim.demonstrator import NoDemonstration, demonstrate
-from ..sim.primitives import Action, PreconditionError, execute
+from ..sim.primitives import Action, PreconditionError, try_execute
 from ..sim.scenarios import Scenario
 from ..sim.state import WorldState
 from ..sim.tasks import goal_reached
@@ -25,12 +25,8 @@ DONE = Action("done")
 
 def _skip_done_steps(state: WorldState, actions: Sequence[Action]) -> Action:
     for action in actions:
-        try:
-            if execute(state, action) == state:
-                continue
-        except PreconditionError:
-            pass
-        return action
+        if try_execute(state, action) != state:  # a step that cannot run is not a step already done
+            return action
     return DONE
 
 
@@ -51,11 +47,9 @@ def next_actions(scenario: Scenario, history: Sequence[Action], state: WorldStat
         return (DONE,)
     if state.held is not None:  # the script would lift a finished placement again; letting go finishes it
         release = Action("release", (state.held,))
-        try:
-            if goal_reached(scenario.task, scenario.initial, execute(state, release)):
-                return (release,)
-        except PreconditionError:
-            pass
+        after = try_execute(state, release)
+        if after is not None and goal_reached(scenario.task, scenario.initial, after):
+            return (release,)
     try:
         scripts = demonstrate(state, scenario.task)
     except (NoDemonstration, PreconditionError):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from ...features.context import StepContext
 from ...settings import Pddl
-from ...sim.primitives import Action, PreconditionError, execute
+from ...sim.primitives import Action, try_execute
 from ...sim.state import WorldState
 from ...sim.tasks import Task
 from ..planner import Abstain, Ranked
@@ -57,16 +57,9 @@ class SymbolicPolicy:
             if not self._queue:
                 return [(ctx.encode(Action("done")), 0.0)]
             action = self._queue[0].primitive()
-            if self.replans == MAX_REPLANS or _feasible(state, action):
+            if self.replans == MAX_REPLANS or try_execute(state, action) is not None:
                 self._queue.pop(0)
                 return [(ctx.encode(action), 0.0)]
             self.replans += 1
             self._plan(state)
 
-
-def _feasible(state: WorldState, action: Action) -> bool:
-    try:
-        execute(state, action)
-    except PreconditionError:
-        return False
-    return True
