@@ -200,8 +200,9 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--max-iter", type=int, default=T.max_iter,
                        help=f"cutting-plane iterations at most (default {T.max_iter})")
         p.add_argument("--n-slacks", type=int, default=T.n_slacks,
-                       help="slack groups of the cutting plane, one cut each per iteration; 1 is the classic "
-                            f"1-slack algorithm, the optimum is the same for every value (default {T.n_slacks})")
+                       help="slack groups of the cutting plane, one cut each per iteration; 0 gives every step "
+                            "its own slack (the n-slack problem), 1 is the classic 1-slack algorithm; the optimum is "
+                            f"the same for every value (default {T.n_slacks})")
         p.add_argument("--dagger-rounds", type=int, default=T.dagger_rounds,
                        help="rounds of on-policy data (roll out, ask the demonstrator, refit) of the methods "
                             f"that use DAgger (default {T.dagger_rounds})")

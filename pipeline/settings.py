@@ -42,7 +42,7 @@ class Learner:
     C: float = 3.0  # slack weight: 0.5 ||w||^2 + C * sum of slacks; the pipeline takes it from `select`
     tol: float = 1e-3  # relative primal-dual gap to stop at
     max_iter: int = 2000  # cutting-plane iterations at most
-    n_slacks: int = 4  # slack groups, one cut each per iteration (1: classic 1-slack)
+    n_slacks: int = 0  # slack groups, one cut each per iteration (0: one per step, n-slack; 1: classic 1-slack)
     dagger_rounds: int = 1  # DAgger rounds (roll out, ask the demonstrator, refit) of the `dagger` method
 
     @property

@@ -48,8 +48,13 @@ def test_batched_inference_and_joint_features_equal_the_per_step_ones(some_steps
                                                                                             strict=True)]
     assert model.batch_loss(gold, y_hat).tolist() == [model.loss(y, tuple(r)) for y, r in zip(gold, y_hat,
                                                                                                strict=True)]
-    total = sum(model.joint_feature(x, y) for x, y in zip(some_steps, gold, strict=True))
-    np.testing.assert_allclose(model.batch_joint_feature(some_steps, gold), total, atol=1e-12)
+    # one sparse row per step, for the demonstrated labels and for the oracle's (arguments absent included)
+    for labels in (gold, [tuple(r) for r in y_hat]):
+        rows = model.batch_joint_feature_rows(some_steps, labels)
+        assert rows.shape == (len(some_steps), model.size_joint_feature)
+        dense = np.array([model.joint_feature(x, y) for x, y in zip(some_steps, labels, strict=True)])
+        np.testing.assert_array_equal(rows.toarray(), dense)
+        assert rows.nnz == np.count_nonzero(dense)
 
 
 def test_loss_augmented_inference_maximises_score_plus_hamming(some_steps):

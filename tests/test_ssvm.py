@@ -78,7 +78,7 @@ def test_reaches_the_optimum_of_the_full_qp(toy):
     assert ssvm.primal_objective_ - optimum <= 2 * tol * max(1.0, abs(optimum))
 
 
-@pytest.mark.parametrize("n_slacks", [1, 3, 12])
+@pytest.mark.parametrize("n_slacks", [1, 3, 12, 0])
 def test_every_slack_grouping_reaches_the_same_optimum(toy, n_slacks):
     model, X, Y = toy
     C = 2.0
@@ -111,6 +111,46 @@ def test_working_set_dual_matches_a_direct_cvxpy_solve():
     assert ws.dual() == pytest.approx(prob.value, rel=1e-7)
     assert np.all(ws.alpha >= 0)
     assert all(ws.alpha[groups == g].sum() <= C * (1 + 1e-12) for g in range(B))
+
+
+@pytest.mark.parametrize("sparse", [False, True])
+def test_many_groups_with_shrinking_match_a_direct_cvxpy_solve(sparse):
+    """One group per few cuts, as the n-slack problem has, and enough of them that the solver sets cuts aside
+    (shrinking) and brings them back: the optimum is the one cvxpy finds, added in three batches."""
+    import scipy.sparse as sps
+
+    from pipeline.learn.working_set import WorkingSet
+
+    rng = np.random.default_rng(11)
+    K, d, B, C = 900, 30, 300, 1.5
+    deltas = rng.normal(size=(K, d)) * (rng.uniform(size=(K, d)) < 0.3)  # sparse rows, as the MRF's cuts
+    losses = rng.uniform(0.5, 3.0, size=K)
+    groups = rng.integers(B, size=K)
+    ws = WorkingSet(d, B, C)
+    for part in np.array_split(np.arange(K), 3):
+        ws.add(sps.csr_matrix(deltas[part]) if sparse else deltas[part], losses[part], groups[part], iteration=1)
+        ws.solve(1e-9)
+    a = cp.Variable(K)
+    cons = [a >= 0] + [cp.sum(a[groups == g]) <= C for g in range(B)]
+    prob = cp.Problem(cp.Maximize(losses @ a - 0.5 * cp.sum_squares(deltas.T @ a)), cons)
+    prob.solve(solver=cp.CLARABEL)
+    assert ws.n_shrinks > 0  # the case this test is for
+    assert ws.dual() == pytest.approx(prob.value, rel=1e-7)
+    assert np.all(ws.alpha >= 0)
+    assert np.bincount(groups, weights=ws.alpha, minlength=B).max() <= C * (1 + 1e-12)
+    # the slacks it reports are those of its own solution
+    xi = np.zeros(B)
+    np.maximum.at(xi, groups, losses - deltas @ ws.w)
+    np.testing.assert_allclose(ws.slacks(), xi, atol=1e-9)
+
+
+@pytest.mark.parametrize("window", [0, 1, 50])
+def test_pruning_the_working_set_never_changes_the_optimum(toy, window):
+    model, X, Y = toy
+    optimum = brute_force_optimum(model, X, Y, 2.0)
+    ssvm = CuttingPlaneSSVM(model, C=2.0, tol=1e-9, max_iter=2000, n_slacks=len(X), inactive_window=window).fit(X, Y)
+    assert ssvm.converged_
+    assert ssvm.primal_objective_ == pytest.approx(optimum, rel=1e-6)
 
 
 def test_bounds_move_monotonically_and_the_gap_closes(toy):
@@ -154,4 +194,4 @@ def test_bad_arguments_are_refused(toy):
     with pytest.raises(ValueError, match="examples"):
         CuttingPlaneSSVM(model).fit(X, Y[:-1])
     with pytest.raises(ValueError, match="n_slacks"):
-        CuttingPlaneSSVM(model, n_slacks=0).fit(X, Y)
+        CuttingPlaneSSVM(model, n_slacks=-1).fit(X, Y)

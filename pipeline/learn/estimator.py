@@ -59,8 +59,9 @@ class MRFPlanner(BaseEstimator):
     def _check_params(self) -> None:
         if self.features not in FEATURE_SETS:
             raise ValueError(f"features must be one of {sorted(FEATURE_SETS)}, got {self.features!r}")
-        if not self.C > 0 or not self.tol > 0 or self.max_iter < 1 or self.n_slacks < 1:
-            raise ValueError(f"C and tol must be positive, max_iter and n_slacks at least 1: {self.get_params()}")
+        if not self.C > 0 or not self.tol > 0 or self.max_iter < 1 or self.n_slacks < 0:
+            raise ValueError(f"C and tol must be positive, max_iter at least 1 and n_slacks at least 0 (one per "
+                             f"step): {self.get_params()}")
 
     def fit(self, X: list[StepContext], y: list[Y] | None = None, progress: bool = False) -> MRFPlanner:
         """Fit on steps `X`, labelled `y` (default: each step's demonstrated `gold`)."""

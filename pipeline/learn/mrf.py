@@ -34,6 +34,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 from numba import njit
 
 from ..features.context import (
@@ -287,52 +288,60 @@ class _Batched:
         """Hamming losses of many steps at once, as `loss` one by one."""
         return (np.asarray(Y_, dtype=np.int64) != np.asarray(Y_hat, dtype=np.int64)).sum(axis=1).astype(float)
 
-    def batch_joint_feature(self: MRFModel, X: list[StepContext], Y_: list[Y], groups: np.ndarray | None = None,  # type: ignore[misc]
-                            n_groups: int = 1) -> np.ndarray:
-        """Joint features of (x_i, y_i) summed block by block: (d,), or (n_groups, d) summed within `groups`."""
+    def batch_joint_feature_rows(self: MRFModel, X: list[StepContext], Y_: list[Y] | np.ndarray) -> sp.csr_matrix:  # type: ignore[misc]
+        """(S, d) sparse: the joint feature of each (x_i, y_i), one row per step, as `joint_feature` writes it.
+
+        A row has a few hundred non-zeros out of thousands; the learner's cuts
+        are differences of such rows. Built block by block as (row, column,
+        value) triples: no Python loop over steps.
+        """
         b = self._batch(X)
         y = np.asarray(Y_, dtype=np.int64)
         S = len(y)
-        grp = np.zeros(S, dtype=np.int64) if groups is None else np.asarray(groups, dtype=np.int64)
-        out = np.zeros((n_groups, self.size_joint_feature))
-        rows = np.arange(S)
+        rows_all = np.arange(S)
         p = y[:, 0]
+        parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
 
-        def view(name: str) -> np.ndarray | None:
+        def put(name: str, rows: np.ndarray, index: tuple[np.ndarray, ...], values: np.ndarray) -> None:
+            """Entries of block `name` at (leading indices per row) x (the trailing axis of `values`)."""
             sl = self._slices.get(name)
-            return None if sl is None else out[:, sl[0] : sl[1]].reshape((n_groups, *sl[2]))
+            if sl is None or not len(rows):
+                return
+            shape = sl[2]
+            width = values.shape[1]
+            lead = np.ravel_multi_index(index, shape[: len(index)]) if index else np.zeros(len(rows), np.int64)
+            cols = sl[0] + lead[:, None] * width + np.arange(width)[None, :]
+            parts.append((np.repeat(rows, width), cols.ravel(), values.ravel()))
 
-        if (v := view("pt")) is not None:
-            np.add.at(v, (grp, b.task, p), 1.0)
+        ones = np.ones((S, 1))
+        put("pt", rows_all, (b.task, p), ones)
         for k, name in enumerate(("ppt1", "ppt2")):
-            if (v := view(name)) is not None:
-                np.add.at(v, (grp, b.task, b.prev[:, k], p), 1.0)
+            put(name, rows_all, (b.task, b.prev[:, k], p), ones)
         holding = (b.objects[:, :, 0] > 0.5).any(axis=1)
         for s in (1, 2):
             a = y[:, s]
-            sel = a >= 0
-            r, a_sel, t_sel, p_sel, g_sel = rows[sel], a[sel], b.task[sel], p[sel], grp[sel]
+            r = rows_all[a >= 0]
+            a_sel, t_sel, p_sel = a[r], b.task[r], p[r]
             obj = b.objects[r, a_sel]
-            if (v := view(f"ae{s}")) is not None:
-                np.add.at(v, g_sel, obj[:, list(_AE_COLS)])
-            if (v := view(f"aet_rel{s}")) is not None:
-                np.add.at(v, (g_sel, t_sel), b.task_rel[r, a_sel])
-            if (v := view(f"rel{s}")) is not None:
-                np.add.at(v, (g_sel, t_sel, p_sel), b.rel_rows[r, a_sel])
-            if (v := view(f"aet_obj{s}")) is not None:
-                np.add.at(v, (g_sel, t_sel, np.where(holding[r], 0, 1)), obj)
-            if (v := view(f"pae{s}")) is not None:
-                np.add.at(v, (g_sel, p_sel), obj)
-            if (v := view(f"paae{s}")) is not None:
-                np.add.at(v, (g_sel, p_sel), b.hist[r, a_sel])
-        both = (y[:, 1] >= 0) & (y[:, 2] >= 0)
-        if (v := view("rel_pair")) is not None:
-            r = rows[both]
-            outer = b.task_rel[r, y[both, 1]][:, :, None] * b.task_rel[r, y[both, 2]][:, None, :]
-            np.add.at(v, (grp[both], b.task[both], p[both]), outer)
-        if (v := view("ae_pair")) is not None:
-            np.add.at(v[:, 0], grp[both], b.collide[rows[both], y[both, 1], y[both, 2]].astype(float))
-        return out[0] if groups is None else out
+            put(f"ae{s}", r, (), obj[:, list(_AE_COLS)])
+            put(f"aet_rel{s}", r, (t_sel,), b.task_rel[r, a_sel])
+            put(f"aet_obj{s}", r, (t_sel, np.where(holding[r], 0, 1)), obj)
+            put(f"pae{s}", r, (p_sel,), obj)
+            put(f"paae{s}", r, (p_sel,), b.hist[r, a_sel])
+            if RELATION_FAMILY in self.families:
+                put(f"rel{s}", r, (t_sel, p_sel), b.rel_rows[r, a_sel])
+        r = rows_all[(y[:, 1] >= 0) & (y[:, 2] >= 0)]
+        put("ae_pair", r, (), b.collide[r, y[r, 1], y[r, 2]].astype(float)[:, None])
+        if "rel_pair" in self._slices:
+            outer = b.task_rel[r, y[r, 1]][:, :, None] * b.task_rel[r, y[r, 2]][:, None, :]
+            put("rel_pair", r, (b.task[r], p[r]), outer.reshape(len(r), outer.shape[1] * outer.shape[2]))
+        row = np.concatenate([q[0] for q in parts])
+        col = np.concatenate([q[1] for q in parts])
+        val = np.concatenate([q[2] for q in parts])
+        nz = val != 0.0
+        out = sp.csr_matrix((val[nz], (row[nz], col[nz])), shape=(S, self.size_joint_feature))
+        out.sort_indices()
+        return out
 
 
 @njit(cache=True)

