@@ -115,7 +115,7 @@ class WorkingSet:
         capacity = len(self._losses)
         if size <= capacity:
             return
-        new = max(size, capacity + capacity // 2, 64)
+        new = max(size + size // 2, capacity + capacity // 2, 64)
         k = self._size
 
         def grown(a: np.ndarray) -> np.ndarray:
@@ -125,7 +125,7 @@ class WorkingSet:
 
         self._losses, self._groups = grown(self._losses), grown(self._groups)
         self._last_active, self._alpha, self._grad = grown(self._last_active), grown(self._alpha), grown(self._grad)
-        gram = np.zeros((new, new))
+        gram = np.empty((new, new))  # only the first K rows and columns are ever read, and add writes them
         gram[:k, :k] = self._gram[:k, :k]
         self._gram = gram
 
@@ -163,7 +163,7 @@ class WorkingSet:
         for a in (self._losses, self._groups, self._last_active, self._alpha, self._grad):
             a[:m] = a[keep]
         self._deltas = self._deltas[keep]
-        self._gram[:m, :m] = self._gram[np.ix_(keep, keep)]
+        _compact(self._gram, keep)
         self._size = m
 
     def solve(self, tol: float, max_steps: int = 10_000_000) -> float:
@@ -183,6 +183,20 @@ class WorkingSet:
         self.n_steps += steps
         self.n_shrinks += shrinks
         return gap
+
+
+@njit(cache=True)
+def _compact(gram: np.ndarray, keep: np.ndarray) -> None:
+    """gram[:m, :m] = gram[keep][:, keep] in place (`keep` increasing, m = len(keep)): no m x m temporary.
+
+    Row r is read from row keep[r] >= r, which no earlier row overwrote, and
+    within a row column c from keep[c] >= c, which is still to be written.
+    """
+    m = keep.shape[0]
+    for r in range(m):
+        src = keep[r]
+        for c in range(m):
+            gram[r, c] = gram[src, keep[c]]
 
 
 @njit(cache=True)
