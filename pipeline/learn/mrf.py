@@ -24,7 +24,7 @@ top-k and single-step scores all read its tables.
 
 The module runs past 300 lines because it holds the model whole: its feature
 blocks, the per-candidate joint feature (the slow reference the tests compare
-against), its batched form the learner sums cuts with, the factor tables and
+against), its batched form as sparse rows (the learner's cuts), the factor tables and
 the oracle over them.
 """
 
