@@ -72,10 +72,6 @@ class WorkingSet:
         return self._size
 
     @property
-    def deltas(self) -> sp.csr_matrix:
-        return self._deltas
-
-    @property
     def losses(self) -> np.ndarray:
         return self._losses[: self._size]
 
@@ -86,10 +82,6 @@ class WorkingSet:
     @property
     def alpha(self) -> np.ndarray:
         return self._alpha[: self._size]
-
-    @property
-    def gram(self) -> np.ndarray:
-        return self._gram[: self._size, : self._size]
 
     @property
     def w(self) -> np.ndarray:
