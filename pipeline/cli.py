@@ -220,7 +220,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help=f"{what} in parallel (joblib; default: $TASKSEQ_N_JOBS, else one per CPU); "
                             "changes no result")
 
-    p = add("train", "fit the MRF weights with the 1-slack structural SVM on every step")
+    p = add("train", "fit the MRF weights with the structural SVM (the paper's 1-slack objective) on every step")
     p.add_argument("--features", type=Path, default=Path("data/worlds/0/features"), help="feature folder")
     p.add_argument("--feature-set", choices=("full", "edge", "clique"), default=T.feature_set,
                    help="families of the score: all six, edge terms only, or clique terms only")

@@ -31,7 +31,7 @@ _DEFAULT = Learner()
 
 
 class MRFPlanner(BaseEstimator):
-    """The unrolled MRF's weights fitted by the 1-slack structural SVM on demonstrated steps.
+    """The unrolled MRF's weights fitted by the structural SVM (1-slack objective) on demonstrated steps.
 
     Parameters
     ----------
