@@ -68,7 +68,7 @@ def _train_row(contexts: list, features: str, C: float, tol: float, max_iter: in
 def run_bench(records: list[dict[str, Any]], C: float, tol: float, max_iter: int, n_slacks: int = 0,
               repeats: int = 50, progress: bool = True, gaps: tuple[float, ...] = (1e-3, 1e-4),
               reference_gap: float = 1e-5, relations: bool = True) -> dict[str, Any]:
-    """Training to each relative gap in `gaps` (grouped slacks and the classic 1-slack), per-step latency.
+    """Training to each relative gap in `gaps` (with `n_slacks` and the classic 1-slack), per-step latency.
 
     The full model's objectives are set against a reference solve of the same
     problem to `reference_gap`: its dual objective is a certified lower bound

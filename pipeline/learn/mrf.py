@@ -328,13 +328,11 @@ class _Batched:
             put(f"aet_obj{s}", r, (t_sel, np.where(holding[r], 0, 1)), obj)
             put(f"pae{s}", r, (p_sel,), obj)
             put(f"paae{s}", r, (p_sel,), b.hist[r, a_sel])
-            if RELATION_FAMILY in self.families:
-                put(f"rel{s}", r, (t_sel, p_sel), b.rel_rows[r, a_sel])
+            put(f"rel{s}", r, (t_sel, p_sel), b.rel_rows[r, a_sel])  # (m, 0) rows, left out, without relations
         r = rows_all[(y[:, 1] >= 0) & (y[:, 2] >= 0)]
         put("ae_pair", r, (), b.collide[r, y[r, 1], y[r, 2]].astype(float)[:, None])
-        if "rel_pair" in self._slices:
-            outer = b.task_rel[r, y[r, 1]][:, :, None] * b.task_rel[r, y[r, 2]][:, None, :]
-            put("rel_pair", r, (b.task[r], p[r]), outer.reshape(len(r), outer.shape[1] * outer.shape[2]))
+        outer = b.task_rel[r, y[r, 1]][:, :, None] * b.task_rel[r, y[r, 2]][:, None, :]
+        put("rel_pair", r, (b.task[r], p[r]), outer.reshape(len(r), outer.shape[1] * outer.shape[2]))
         row = np.concatenate([q[0] for q in parts])
         col = np.concatenate([q[1] for q in parts])
         val = np.concatenate([q[2] for q in parts])

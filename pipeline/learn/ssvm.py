@@ -147,8 +147,8 @@ class CuttingPlaneSSVM:
             converged = best - dual <= self.tol * scale
             if not converged:
                 # a cut no more violated than its group's slack already is cannot move the optimum
-                new = violation > ws.slacks() + 1e-12 * scale
-                ws.add(deltas[np.flatnonzero(new)], losses[new], np.flatnonzero(new), it)
+                new = np.flatnonzero(violation > ws.slacks() + 1e-12 * scale)
+                ws.add(deltas[new], losses[new], new, it)
                 # inexact early, exact late: the QP's own gap is kept a fraction of the outer gap,
                 # and below a tenth of the outer tolerance, so its error never decides the stop
                 ws.solve(max(0.1 * self.tol * scale, 0.25 * (best - dual)))

@@ -79,16 +79,16 @@ def execute(state: WorldState, action: Action) -> WorldState:
     return new
 
 
-# --- helpers ---------------------------------------------------------------
-
-
-
 def try_execute(state: WorldState, action: Action) -> WorldState | None:
     """The state after `action`, or None where it cannot run: a test of feasibility that also gives the result."""
     try:
         return execute(state, action)
     except PreconditionError:
         return None
+
+
+# --- helpers ---------------------------------------------------------------
+
 
 def _require(cond: bool, action: Action, check: str, reason: str) -> None:
     if not cond:
