@@ -401,7 +401,7 @@ def _main(args: argparse.Namespace) -> int:
         from .track.mlflow_runs import NO_RUN
 
         return _run(args, NO_RUN)
-    from .track.mlflow_runs import stage_run
+    from .track.mlflow_runs import TrackingFailed, stage_run
 
     params = {k: v for k, v in vars(args).items() if k not in ("command", "no_mlflow")}
     inputs = [Path(getattr(args, k)) for k in ("input", "features", "processed") if getattr(args, k, None)]
@@ -413,6 +413,9 @@ def _main(args: argparse.Namespace) -> int:
                 raise _StageFailed(code)  # the run is marked FAILED on the way out
     except _StageFailed as failed:
         return failed.code
+    except TrackingFailed as err:  # the outputs are written; the record of the run is not
+        print(f"error: taskseq {args.command}: {err}", file=sys.stderr)
+        return 1
     return 0
 
 

@@ -65,7 +65,7 @@ def test_evaluation_stages_load_the_stored_models_without_training(small, store,
     mrf = partial(MRFMethod, **SETTINGS, store=str(out))
     methods = {"full": partial(mrf, "full", name="full"), "only_edge": partial(mrf, "edge", name="only_edge")}
     cross_validate(methods, contexts, meta, Benchmark.from_records(records), n_folds=2)
-    evaluate_conditions(partial(mrf, "full"), contexts, meta, scenarios, [Condition("noise", 0.1, 0)],
+    evaluate_conditions({"full": partial(mrf, "full")}, contexts, meta, scenarios, [Condition("noise", 0.1, 0)],
                         Folds(folds=2), max_steps=20)
     evaluate_recipes(partial(mrf, "full"), contexts, meta, scenarios)
     evaluate_recipes(partial(METHODS["chained"], store=str(out)), contexts, meta, scenarios)

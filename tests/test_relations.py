@@ -62,3 +62,30 @@ def test_step_contexts_carry_relations():
     state = pour_world()
     ctx = step_context(state, Task("pour", ("obj27",)), [])
     assert ctx.relations.shape == (ctx.n, len(RELATION_COLUMNS))
+
+
+def test_step_context_rows_agree_with_the_states_own_queries(benchmark_tables):
+    """The per-step rows are built in one pass over the state; each must say what `WorldState` says."""
+    from pipeline.features.context import OBJECT_COLUMNS, scale_attribute
+    from pipeline.logs.benchmark import Benchmark
+    from pipeline.sim.primitives import execute
+
+    scenarios = Benchmark.from_records([i.record for i in benchmark_tables[1]]).scenarios
+    checked = 0
+    for sc in list(scenarios.values())[::7]:
+        state, demo = sc.initial, sc.demonstrations[0]
+        for k in range(len(demo) + 1):
+            ctx = step_context(state, sc.task, list(demo[:k]))
+            for i, o in enumerate(ctx.object_ids):
+                row = dict(zip(OBJECT_COLUMNS, ctx.objects[i], strict=True))
+                assert row["has_load"] == float(bool(state.loads(o)))
+                assert row["holds_liquid"] == float(bool(state.liquids_in(o)))
+                assert row["over_shelf"] == float(state.over_shelf(o))
+                attrs = state.specs[o].attributes()
+                assert all(row[a] == scale_attribute(a, attrs[a]) for a in attrs)
+                for j, g in enumerate(sc.task.args[:2]):
+                    assert ctx.task_rel[i, 2 + j] == float(o != g and state.overlap_top(o, g))
+            checked += 1
+            if k < len(demo):
+                state = execute(state, demo[k])
+    assert checked > 50

@@ -6,6 +6,7 @@ import sqlite3
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -85,25 +86,53 @@ def test_a_signal_inside_a_held_block_is_raised_when_the_block_is_done(handlers,
 
 
 def test_a_signal_while_the_run_is_being_opened_still_leaves_it_killed(handlers, tmp_path, monkeypatch):
-    """The race of a signal landing inside MLflow's own writes: the run must end KILLED, not RUNNING or FAILED."""
-    import mlflow
-
-    from pipeline.track.mlflow_runs import stage_run
+    """A signal landing as the run's first record is sent: the run must end KILLED, not RUNNING or FAILED."""
+    from pipeline.track import mlflow_runs
 
     monkeypatch.setenv("MLFLOW_TRACKING_URI", f"sqlite:///{tmp_path / 'mlflow.db'}")
-    real_start = mlflow.start_run
+    real_send = mlflow_runs._Channel.send
 
-    def start_then_signal(*args, **kwargs):
-        run = real_start(*args, **kwargs)
-        os.kill(os.getpid(), signal.SIGTERM)  # lands as start_run returns, before the stage's block is entered
-        time.sleep(0.1)
-        return run
+    def send_then_signal(self, message):
+        real_send(self, message)
+        if message["op"] == "start":
+            os.kill(os.getpid(), signal.SIGTERM)  # lands as the run is opened, before the stage's block is entered
+            time.sleep(0.1)
 
-    monkeypatch.setattr(mlflow, "start_run", start_then_signal)
+    monkeypatch.setattr(mlflow_runs._Channel, "send", send_then_signal)
     reached = []
-    with pytest.raises(handlers.Stopped), stage_run("folds", {}) as run:
+    with pytest.raises(handlers.Stopped), mlflow_runs.stage_run("folds", {}) as run:
         reached.append(run)
     assert not reached  # the stage's work never started
-    assert mlflow.active_run() is None
-    with sqlite3.connect(tmp_path / "mlflow.db") as conn:
+    with sqlite3.connect(tmp_path / "mlflow.db") as conn:  # written whole before the stage's exception leaves
+        assert conn.execute("select name, status from runs").fetchall() == [("folds", "KILLED")]
+
+
+def _alive(pid: int) -> bool:
+    """Running, not ended (a process that ended waits as a zombie until its new parent reaps it)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except FileNotFoundError:
+        return False
+    return stat.rsplit(")", 1)[1].split()[0] != "Z"
+
+
+def test_a_stage_killed_outright_leaves_no_run_running(data, tmp_path):
+    """SIGKILL gives the stage no chance to say how its run ends; the writer, seeing its input end, says KILLED."""
+    db = tmp_path / "mlflow.db"
+    env = {**os.environ, "MLFLOW_TRACKING_URI": f"sqlite:///{db}", "TASKSEQ_N_JOBS": "1"}
+    said = tmp_path / "out"
+    with said.open("w") as sh:
+        proc = subprocess.Popen([sys.executable, "-u", "-m", "pipeline.cli", "folds", "--features",
+                                 str(data / "features"), "--processed", str(data / "processed"), "--output",
+                                 str(tmp_path / "store")], env=env, stdout=sh, stderr=subprocess.DEVNULL)
+        while proc.poll() is None and not _working(said):
+            time.sleep(0.2)
+        assert proc.poll() is None, "the stage ended before it could be stopped"
+        children = Path(f"/proc/{proc.pid}/task/{proc.pid}/children").read_text().split()
+        (writer,) = [int(c) for c in children if b"pipeline.track.writer" in Path(f"/proc/{c}/cmdline").read_bytes()]
+        proc.kill()
+        proc.wait()
+    while _alive(writer):  # the writer, now nobody's child, finishes on its own
+        time.sleep(0.1)
+    with sqlite3.connect(db) as conn:
         assert conn.execute("select name, status from runs").fetchall() == [("folds", "KILLED")]

@@ -159,3 +159,64 @@ def test_the_symbolic_policy_gives_up_on_a_step_after_its_replans(monkeypatch):
     assert policy.replans == executor.MAX_REPLANS
     assert program.status == "infeasible" and len(program.steps) == 1 and program.steps[0].action.primitive == "grasp"
     assert len(program.states) == 1 and program.error
+
+
+def _clauses_step_by_step(problem, actions, fluents, horizon):
+    """The encoding written out one step at a time, as the module docstring states it."""
+    from pysat.card import CardEnc, EncType
+
+    F, A = len(fluents), len(actions)
+    fv = {(f, t): 1 + t * F + k for t in range(horizon + 1) for k, f in enumerate(fluents)}
+    av = {(i, t): 1 + (horizon + 1) * F + t * A + i for t in range(horizon) for i in range(A)}
+    act = {t: 1 + (horizon + 1) * F + horizon * A + t for t in range(horizon)}
+    top = (horizon + 1) * F + horizon * A + horizon
+    out = [[fv[(f, 0)] if f in problem.init else -fv[(f, 0)]] for f in fluents]
+    adders = {f: [i for i, a in enumerate(actions) if f in a.add] for f in fluents}
+    deleters = {f: [i for i, a in enumerate(actions) if f in a.delete - a.add] for f in fluents}
+    for t in range(horizon):
+        lits = [av[(i, t)] for i in range(A)]
+        for i, a in enumerate(actions):
+            x = av[(i, t)]
+            out += [[-x, fv[(f, t)]] for f in sorted(a.pre)] + [[-x, -fv[(f, t)]] for f in sorted(a.pre_not)]
+            out += [[-x, fv[(f, t + 1)]] for f in sorted(a.add)]
+            out += [[-x, -fv[(f, t + 1)]] for f in sorted(a.delete - a.add)] + [[-x, act[t]]]
+        out.append([-act[t], *lits])
+        card = CardEnc.atmost(lits=lits, bound=1, top_id=top, encoding=EncType.seqcounter)
+        top = max(top, card.nv)
+        out += card.clauses
+        if t + 1 < horizon:
+            out.append([-act[t + 1], act[t]])
+        for f in fluents:
+            out.append([-fv[(f, t)], fv[(f, t + 1)], *(av[(i, t)] for i in deleters[f])])
+            out.append([fv[(f, t)], -fv[(f, t + 1)], *(av[(i, t)] for i in adders[f])])
+    return out + [[fv[(g, horizon)]] for g in sorted(problem.goal)]
+
+
+@pytest.mark.parametrize("horizon", [0, 1, 2, 5, 12])
+def test_the_shifted_encoding_is_the_step_by_step_one_clause_for_clause(scenarios, horizon):
+    from pipeline.plan.symbolic.sat import encode
+
+    for sc in list(scenarios.values())[::20]:
+        problem = build_problem("p", sc.initial, sc.task, demonstrated_roles(sc.task, sc.demonstrations[0]))
+        actions = ground_actions(problem)
+        fluents = sorted({f for a in actions for f in a.pre | a.pre_not | a.add | a.delete} | problem.goal)
+        clauses, av, act = encode(problem, actions, fluents, horizon)
+        assert clauses == _clauses_step_by_step(problem, actions, fluents, horizon), sc.id  # the order steers SAT
+        if horizon:
+            assert av(0, 0) == 1 + (horizon + 1) * len(fluents) and act(horizon - 1) == av(len(actions) - 1,
+                                                                                            horizon - 1) + horizon
+
+
+def test_a_kept_plan_is_the_one_a_fresh_solve_finds_and_a_copy(scenarios, monkeypatch):
+    from pipeline.plan.symbolic import sat
+
+    sc = next(iter(scenarios.values()))
+    problem = build_problem("p", sc.initial, sc.task, demonstrated_roles(sc.task, sc.demonstrations[0]))
+    monkeypatch.setattr(sat, "_SOLVED", type(sat._SOLVED)())
+    first = solve(problem)
+    solves = []
+    monkeypatch.setattr(sat, "_solve", lambda *a: solves.append(a))
+    again = solve(replace(problem, name="same content, another name"))
+    assert not solves and again == first and again.plan is not first.plan
+    again.plan.clear()  # a caller's changes never reach what is kept
+    assert solve(problem).plan == first.plan != []

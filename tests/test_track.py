@@ -113,3 +113,16 @@ def test_under_dvc_the_store_is_the_repositorys_even_from_a_temporary_copy(monke
     monkeypatch.setenv("DVC_ROOT", str(tmp_path / "repo"))
     monkeypatch.chdir(tmp_path)
     assert tracking_uri() == f"sqlite:///{tmp_path / 'repo' / 'mlflow.db'}"
+
+
+def test_a_store_that_refuses_the_run_fails_the_stage_with_one_line(monkeypatch, benchmark_logs, tmp_path, capfd):
+    blocked = tmp_path / "not-a-folder"
+    blocked.write_text("a file where the store's folder should be")
+    monkeypatch.setenv("MLFLOW_TRACKING_URI", f"sqlite:///{blocked / 'mlflow.db'}")
+    out = tmp_path / "processed"
+    assert main(["ingest", "--input", str(benchmark_logs), "--output", str(out),
+                 "--metrics", str(tmp_path / "m.json")]) == 1
+    err = capfd.readouterr().err
+    assert f"error: MLflow store sqlite:///{blocked / 'mlflow.db'}" in err  # the writer's line: which store
+    assert "error: taskseq ingest: the MLflow writer ended with exit code 1" in err
+    assert "Traceback" not in err

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from threadpoolctl import threadpool_limits
 
@@ -111,5 +111,7 @@ def cross_validate(methods: dict[str, Callable[[], Method]], contexts: list[Step
     folds = scenario_folds(scenarios, n_folds, seed, group_by)
     jobs = [(name, k) for name in methods for k in range(n_folds)]
     keep = keep_programs or {}
-    return run_jobs(((run_fold, (methods[name], k, contexts, meta, scenarios, folds[k], max_steps, bench,
+    # every job gets its own copy: without the raw log records, which no method reads, it is half the size
+    demos = replace(bench, records=[])
+    return run_jobs(((run_fold, (methods[name], k, contexts, meta, scenarios, folds[k], max_steps, demos,
                                  keep.get(name, frozenset()))) for name, k in jobs), n_jobs, verbose)

@@ -11,7 +11,7 @@ folder, where the stages find them by content.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -56,12 +56,20 @@ def training_jobs(methods: Mapping[str, MakeMRF], meta: list[StepMeta], scenario
     return jobs
 
 
-def _fit(make: MakeMRF, contexts: list[StepContext], meta: list[StepMeta], scenarios: dict[str, Scenario],
-         index: tuple[int, ...], store: Path | None) -> MRFMethod:
-    method = make()
-    if store is not None:
-        method.store = str(store)
-    return method.fit([contexts[i] for i in index], [meta[i] for i in index], scenarios)
+def _fit(makes: tuple[MakeMRF, ...], contexts: list[StepContext], meta: list[StepMeta],
+         scenarios: dict[str, Scenario], index: tuple[int, ...]) -> list[MRFMethod]:
+    """Fit the methods on the same steps, the first one first: the DAgger ones after it start from it."""
+    steps, steps_meta = [contexts[i] for i in index], [meta[i] for i in index]
+    fitted: list[MRFMethod] = []
+    for make in makes:
+        fitted.append(make().fit(steps, steps_meta, scenarios, base=fitted[0].planner_ if fitted else None))
+    return fitted
+
+
+def _expected_cost(method: MRFMethod, n_steps: int) -> float:
+    """A fit's time against an edge-only fit of as many steps (medians of `folds.json`): long ones start first."""
+    cost = {"edge": 1.0, "clique": 1.5, "full": 1.5}.get(method.features, 2.5) * n_steps
+    return cost * (2.0 if method.chained_starts else 1.0) * (2.0 if method.dagger_rounds else 1.0)
 
 
 def train_fold_models(methods: Mapping[str, MakeMRF], contexts: list[StepContext], meta: list[StepMeta],
@@ -71,9 +79,10 @@ def train_fold_models(methods: Mapping[str, MakeMRF], contexts: list[StepContext
 
     `methods[name]()` builds the job's unfitted `MRFMethod` (without a store);
     `scenarios` are the benchmark's, which methods that consult the
-    demonstrator read (only those of a job's training steps). Models without
-    DAgger are fitted first and stored; DAgger's then start from the stored
-    model of the same data without it, so that model is never fitted twice.
+    demonstrator read (only those of a job's training steps). A DAgger model
+    starts from the model of the same steps and settings without DAgger: when
+    that model is a job too, both are fitted in one task, the base first, so it
+    is never fitted twice. Tasks run in parallel, the longest first.
     Returns one record per model: key, uses (method, training set), steps,
     settings, iterations, objective, the seconds it took and its learning curve;
     `index.json` in the store holds all but the seconds and the curve, so the
@@ -83,32 +92,45 @@ def train_fold_models(methods: Mapping[str, MakeMRF], contexts: list[StepContext
     for job in jobs:
         key = methods[job.method]().key([contexts[i] for i in job.index])
         keyed.setdefault(key, []).append(job)
+
+    def make(key: str) -> MakeMRF:
+        return methods[keyed[key][0].method]
+
+    def steps(key: str) -> list[StepContext]:
+        return [contexts[i] for i in keyed[key][0].index]
+
+    base_of = {key: replace(make(key)(), dagger_rounds=0).key(steps(key)) for key in keyed if make(key)().dagger_rounds}
+    chained = {k: b for k, b in base_of.items() if b in keyed}
+    # keys fitted in turn by one task: a base, then the DAgger models that start from it
+    tasks = [(k, *(d for d, b in chained.items() if b == k)) for k in keyed if k not in chained]
+    tasks.sort(key=lambda t: -sum(_expected_cost(make(k)(), len(keyed[k][0].index)) for k in t))
+    parts = run_jobs(((_fit, (tuple(make(k) for k in task), contexts, meta, scenarios, keyed[task[0]][0].index))
+                      for task in tasks), n_jobs, verbose)
+    fitted = {k: m for task, part in zip(tasks, parts, strict=True) for k, m in zip(task, part, strict=True)}
     records, seconds, curves = [], [], []
     with atomic_directory(output) as tmp:
         store = ModelStore(tmp)
-        for phase in (False, True):
-            keys = [k for k in keyed if bool(methods[keyed[k][0].method]().dagger_rounds) == phase]
-            fitted = run_jobs(((_fit, (methods[keyed[k][0].method], contexts, meta, scenarios, keyed[k][0].index,
-                                         tmp if phase else None)) for k in keys), n_jobs, verbose)
-            for key, method in zip(keys, fitted, strict=True):
-                planner = method.planner_
-                ssvm = planner.ssvm_
-                record = {
-                    "key": key,
-                    "features": method.features,
-                    "uses": [{"method": j.method, "training_set": j.training_set} for j in keyed[key]],
-                    "steps": len(keyed[key][0].index),
-                    "fitted_steps": planner.n_steps_,
-                    **method.learner_params(),
-                    "iterations": ssvm.n_iter_,
-                    "converged": bool(ssvm.converged_),
-                    "primal_objective": ssvm.primal_objective_,
-                    "dual_objective": ssvm.dual_objective_,
-                }
-                store.save(key, planner, {k: v for k, v in record.items() if k != "uses"})
-                records.append(record)
-                seconds.append(planner.fit_seconds_)
-                curves.append(learning_curve(ssvm.history_))
+        # models without DAgger first, then DAgger's: the store's index keeps one order whatever the tasks were
+        for key in sorted(keyed, key=lambda k: bool(make(k)().dagger_rounds)):
+            method = fitted[key]
+            planner = method.planner_
+            ssvm = planner.ssvm_
+            record = {
+                "key": key,
+                "features": method.features,
+                "uses": [{"method": j.method, "training_set": j.training_set} for j in keyed[key]],
+                "steps": len(keyed[key][0].index),
+                "fitted_steps": planner.n_steps_,
+                **method.learner_params(),
+                "iterations": ssvm.n_iter_,
+                "converged": bool(ssvm.converged_),
+                "primal_objective": ssvm.primal_objective_,
+                "dual_objective": ssvm.dual_objective_,
+            }
+            store.save(key, planner, {k: v for k, v in record.items() if k != "uses"})
+            records.append(record)
+            seconds.append(planner.fit_seconds_)
+            curves.append(learning_curve(ssvm.history_))
         write_json_atomic(tmp / "index.json", {"models": records})
     return [{**r, "seconds": t, "curve": c} for r, t, c in zip(records, seconds, curves, strict=True)]
 

@@ -150,8 +150,12 @@ class MRFMethod:
         return MRFPlanner(self.features, C=self.C, tol=self.tol, max_iter=self.max_iter, n_slacks=self.n_slacks)
 
     def fit(self, contexts: list[StepContext], meta: list[StepMeta],
-            scenarios: Mapping[str, Scenario] | None = None) -> MRFMethod:
-        """Sets `planner_`: loaded from the store when it holds these steps and settings, else fitted."""
+            scenarios: Mapping[str, Scenario] | None = None, base: MRFPlanner | None = None) -> MRFMethod:
+        """Sets `planner_`: loaded from the store when it holds these steps and settings, else fitted.
+
+        `base` is this method's planner without DAgger, fitted on the same
+        steps, when the caller has it: DAgger starts from it.
+        """
         stored = ModelStore(self.store).load(self.key(contexts)) if self.store else None
         if stored is not None:
             self.planner_ = stored
@@ -160,8 +164,7 @@ class MRFMethod:
             if scenarios is None:
                 raise ValueError(f"method {self.name}: chained starts and DAgger need the training scenarios")
             training = [scenarios[s] for s in dict.fromkeys(m.scenario_id for m in meta)]
-            base = None
-            if self.dagger_rounds and self.store:  # DAgger starts from the model without it, stored or not
+            if base is None and self.dagger_rounds and self.store:  # the model without DAgger, stored or not
                 base = replace(self, dagger_rounds=0).fit(contexts, meta, scenarios).planner_
             self.planner_ = fit_imitation(self.estimator(), contexts, training, self.dagger_rounds,
                                           self.chained_starts, base=base)

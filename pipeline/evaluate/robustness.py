@@ -7,6 +7,7 @@ the same 113 scenarios with the same models.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -98,14 +99,22 @@ def _replay(make, contexts, meta, scenarios, test, conditions, max_steps, seed):
     return out
 
 
-def evaluate_conditions(make, contexts: list[StepContext], meta: list[StepMeta], scenarios: dict[str, Scenario],
-                        conditions: list[Condition], folds: Folds, max_steps: int, seed: int = 0,
-                        n_jobs: int = 1) -> list[tuple[Condition, SequenceOutcome]]:
-    """Each condition's outcome on every scenario, from the full model of the scenario's test fold."""
+def evaluate_conditions(makes: Mapping[str, Callable[[], MRFMethod]], contexts: list[StepContext],
+                        meta: list[StepMeta], scenarios: dict[str, Scenario], conditions: list[Condition],
+                        folds: Folds, max_steps: int, seed: int = 0,
+                        n_jobs: int = 1) -> dict[str, list[tuple[Condition, SequenceOutcome]]]:
+    """Per method, each condition's outcome on every scenario, from the method's model of the scenario's test fold.
+
+    Every (method, fold) is one job of one flat list, so all of them share the workers.
+    """
     tests = scenario_folds(scenarios, folds.folds, folds.seed, folds.group_by)
-    parts = run_jobs(((_fold, (make, contexts, meta, scenarios, tests[k], conditions, max_steps, seed))
-                      for k in range(folds.folds)), n_jobs)
-    return [item for part in parts for item in part]
+    jobs = [(name, k) for name in makes for k in range(folds.folds)]
+    parts = run_jobs(((_fold, (makes[name], contexts, meta, scenarios, tests[k], conditions, max_steps, seed))
+                      for name, k in jobs), n_jobs)
+    out: dict[str, list[tuple[Condition, SequenceOutcome]]] = {name: [] for name in makes}
+    for (name, _), part in zip(jobs, parts, strict=True):
+        out[name] += part
+    return out
 
 
 def rates(outcomes: list[SequenceOutcome]) -> dict[str, float]:

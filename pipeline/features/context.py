@@ -19,9 +19,9 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..sim.objects import BINARY_ATTRIBUTES, CONTINUOUS_ATTRIBUTES
+from ..sim.objects import BINARY_ATTRIBUTES, CONTINUOUS_ATTRIBUTES, ObjectSpec
 from ..sim.primitives import ALL_PRIMITIVES, ARITY, Action
-from ..sim.state import WorldState
+from ..sim.state import EPS, INSIDE, ON, WorldState
 from ..sim.tasks import TASKS, Task
 
 N_PRIM = len(ALL_PRIMITIVES)  # the seven primitives and done
@@ -142,6 +142,15 @@ def relations(state: WorldState, task: Task, ids: list[str],
     return out
 
 
+@lru_cache(maxsize=4096)
+def _spec_row(spec: ObjectSpec) -> tuple[dict[str, float], np.ndarray]:
+    """An object's attributes and their scaled row: they never change, and every step of a run needs them."""
+    attrs = spec.attributes()
+    row = np.array([scale_attribute(a, attrs[a]) for a in ATTRIBUTE_COLUMNS])
+    row.flags.writeable = False
+    return attrs, row
+
+
 def step_context(
     state: WorldState,
     task: Task,
@@ -153,26 +162,31 @@ def step_context(
     index = {o: i for i, o in enumerate(ids)}
     n = len(ids)
     objects = np.zeros((n, len(OBJECT_COLUMNS)))
-    all_attrs = [state.specs[o].attributes() for o in ids]
+    rows = [_spec_row(state.specs[o]) for o in ids]
+    all_attrs = [attrs for attrs, _ in rows]
+    # one pass over what rests on what, not one per object
+    loaded = {p for p, r in state.support.values() if r == ON}
+    wet = {p for c, (p, r) in state.support.items() if r == INSIDE and state.specs[c].has("liquid")}
     for i, o in enumerate(ids):
-        attrs = all_attrs[i]
         objects[i, : len(STATE_COLUMNS)] = (
             float(state.held == o),
             min(state.distance(o), 10.0) / 10.0,
             float(state.reachable(o)),
-            float(bool(state.loads(o))),
+            float(o in loaded),
             float(state.over_shelf(o)),
-            float(bool(state.liquids_in(o))),
+            float(o in wet),
         )
-        objects[i, len(STATE_COLUMNS) :] = [scale_attribute(a, attrs[a]) for a in ATTRIBUTE_COLUMNS]
+        objects[i, len(STATE_COLUMNS) :] = rows[i][1]
+    boxes = np.array([state.box(o) for o in ids])
     task_rel = np.zeros((n, 4))
     for k, g in enumerate(task.args[:2]):
         if g in index:
-            task_rel[index[g], k] = 1.0
-            for i, o in enumerate(ids):
-                if o != g and state.overlap_top(o, g):
-                    task_rel[i, 2 + k] = 1.0
-    boxes = np.array([state.box(o) for o in ids])
+            j = index[g]
+            task_rel[j, k] = 1.0
+            # footprints share area seen from above (`WorldState.overlap_top`), every object at once
+            over = np.all((boxes[:, :2] < boxes[j, 3:5] - EPS) & (boxes[j, :2] < boxes[:, 3:5] - EPS), axis=1)
+            over[j] = False
+            task_rel[over, 2 + k] = 1.0
     eps = 1e-6
     lo, hi = boxes[:, :3], boxes[:, 3:]
     collide = np.all((lo[:, None, :] <= hi[None, :, :] + eps) & (lo[None, :, :] <= hi[:, None, :] + eps), axis=2)

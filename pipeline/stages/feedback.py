@@ -34,9 +34,10 @@ def run(settings: Feedback, crossval: Crossval, learner: Learner, features: Path
     conditions = [Condition("feedback", k, n) for k in settings.k for n in ns]
     label = dict(zip(ns, settings.n, strict=True))  # steps -> as the settings write them ("all")
     rows, sequences = [], []
-    for name in ROBUSTNESS_METHODS:
-        results = evaluate_conditions(methods[name], contexts, meta, bench.scenarios, conditions,
-                                      crossval.fold_settings, crossval.max_steps, n_jobs=n_jobs)
+    chosen = {name: methods[name] for name in ROBUSTNESS_METHODS}
+    outcomes = evaluate_conditions(chosen, contexts, meta, bench.scenarios, conditions, crossval.fold_settings,
+                                   crossval.max_steps, n_jobs=n_jobs)
+    for name, results in outcomes.items():
         rows += [{"method": name, **r} for r in feedback_rows(settings, crossval.max_steps, results)]
         sequences += [{"method": name, "k": int(c.a), "n": label[c.b], **outcome_row(o)} for c, o in results]
     out = Path(output)

@@ -33,9 +33,10 @@ def run(settings: Noise, crossval: Crossval, learner: Learner, features: Path, p
     methods = table1_methods(crossval, learner, store=None if store is None else str(store))
     conditions = [Condition("noise", r, s) for r in settings.rates for s in range(settings.seeds)]
     runs, curve, sequences = [], [], []
-    for name in ROBUSTNESS_METHODS:
-        results = evaluate_conditions(methods[name], contexts, meta, bench.scenarios, conditions,
-                                      crossval.fold_settings, crossval.max_steps, settings.seed, n_jobs)
+    chosen = {name: methods[name] for name in ROBUSTNESS_METHODS}
+    outcomes = evaluate_conditions(chosen, contexts, meta, bench.scenarios, conditions, crossval.fold_settings,
+                                   crossval.max_steps, settings.seed, n_jobs)
+    for name, results in outcomes.items():
         mine = noise_runs(settings, results)
         runs += [{"method": name, **r} for r in mine]
         curve += [{"method": name, **r} for r in noise_curve(settings, mine)]

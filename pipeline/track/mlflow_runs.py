@@ -11,16 +11,23 @@ DVC's lock file records what produced the files; a run records one execution:
 its parameters, metrics, artifacts and tags (git commit and whether the tree
 had uncommitted changes, the `dvc.lock` it started from, DVC stage, input
 hash). A stage that fails leaves its run FAILED; one stopped by Ctrl-C or
-SIGTERM leaves it KILLED. Every write to the store is made whole
-(`stopping.held`): a signal that lands while a run is being opened, logged to
-or closed takes effect once that write is done.
+SIGTERM leaves it KILLED.
+
+A separate process writes the store (`track.writer`): the stage sends it
+messages and waits for it only at the end, so MLflow's start-up (about 2.5 s)
+runs beside the stage's work instead of before it. Sending a message is
+never broken off half way (`stopping.held`), and the writer ignores the
+signals, so a stopped stage's records are whole and its runs end KILLED.
 """
 
 from __future__ import annotations
 
+import getpass
 import hashlib
+import json
 import os
 import subprocess
+import sys
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -30,12 +37,9 @@ from typing import Any
 import yaml
 
 from ..stopping import held
+from .writer import EXPERIMENT
 
-EXPERIMENT = "taskseq"
-
-
-# The experiment shows its runs table when opened, not the GenAI traces page (MLflow 3 infers a kind otherwise).
-EXPERIMENT_KIND = {"mlflow.experimentKind": "custom_model_development"}
+__all__ = ["EXPERIMENT", "NO_RUN", "StageRun", "Tracker", "TrackingFailed", "stage_run", "tracking_uri"]
 
 
 def repository_root() -> Path:
@@ -96,66 +100,108 @@ def params_yaml(path: Path = Path("params.yaml")) -> dict[str, Any]:
     return flatten(yaml.safe_load(path.read_text())) if path.exists() else {}
 
 
-def _experiment_id(client) -> str:
-    exp = client.get_experiment_by_name(EXPERIMENT)
-    if exp is not None:
-        return exp.experiment_id
-    artifacts = None
-    if tracking_uri().startswith("sqlite:///"):
-        artifacts = (Path(tracking_uri()[len("sqlite:///") :]).parent / "mlartifacts").resolve().as_uri()
-    return client.create_experiment(EXPERIMENT, artifact_location=artifacts, tags=EXPERIMENT_KIND)
+class TrackingFailed(RuntimeError):
+    """The writer could not record the stage's runs (its own line on standard error says why)."""
+
+
+def _plain(value: Any) -> Any:
+    """JSON for what stages log besides plain Python values: NumPy scalars and arrays, paths."""
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    return str(value)
+
+
+class _Channel:
+    """The pipe to the writer process (`track.writer`), and the runs opened through it."""
+
+    def __init__(self, uri: str) -> None:
+        # the writer runs this very package, wherever it was imported from
+        root = str(Path(__file__).resolve().parents[2])
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH")) if p)}
+        self.proc = subprocess.Popen([sys.executable, "-m", "pipeline.track.writer", uri], stdin=subprocess.PIPE,
+                                     stdout=subprocess.DEVNULL, env=env, text=True, encoding="utf-8")
+        self._refs = 0
+        self._broken = False
+
+    def new_ref(self) -> int:
+        ref, self._refs = self._refs, self._refs + 1
+        return ref
+
+    def send(self, message: dict[str, Any]) -> None:
+        if self._broken:
+            return
+        line = json.dumps(message, default=_plain) + "\n"
+        with held():
+            try:
+                self.proc.stdin.write(line)
+                self.proc.stdin.flush()
+            except (BrokenPipeError, OSError):  # the writer has stopped; `close` reports why
+                self._broken = True
+
+    def close(self) -> None:
+        """Wait until the writer has recorded everything sent; raises `TrackingFailed` if it could not."""
+        with held():
+            try:
+                self.proc.stdin.close()
+            except (BrokenPipeError, OSError):
+                self._broken = True
+            code = self.proc.wait()
+        if code:
+            raise TrackingFailed(f"the MLflow writer ended with exit code {code}: the runs are not recorded whole")
+
+
+def _now() -> int:
+    return int(time.time() * 1000)
 
 
 class StageRun:
-    """What a stage logs into its run; `labels` (e.g. the world seed) go to every child run as params."""
+    """What a stage logs into its run; `labels` (e.g. the world seed) go to every child run as params.
 
-    def __init__(self, mlflow_module, labels: dict[str, Any] | None = None) -> None:
-        self._mlflow = mlflow_module
+    Each call sends one message to the writer process and returns at once.
+    """
+
+    def __init__(self, channel: _Channel, ref: int, labels: dict[str, Any] | None = None) -> None:
+        self._channel = channel
+        self._ref = ref
         self._labels = labels or {}
+
+    def _send(self, op: str, **fields: Any) -> None:
+        self._channel.send({"op": op, "run": self._ref, **fields})
 
     def metrics(self, values: dict[str, float | None], step: int | None = None) -> None:
         clean = {k.replace("/", "_"): float(v) for k, v in values.items() if v is not None}
         if clean:
-            with held():
-                self._mlflow.log_metrics(clean, step=step)
+            self._send("metrics", values=clean, step=step, time=_now())
 
     def params(self, values: dict[str, Any]) -> None:
         if values:
-            with held():
-                self._mlflow.log_params({k: str(v)[:500] for k, v in values.items()})
+            self._send("params", values={k: str(v)[:500] for k, v in values.items()})
 
     def artifact(self, path: Path | str, folder: str | None = None) -> None:
         if Path(path).exists():
-            with held():
-                self._mlflow.log_artifact(str(path), artifact_path=folder)
+            self._send("artifact", path=str(Path(path).resolve()), folder=folder)
 
     def table(self, rows: list[dict[str, Any]], name: str) -> None:
         """Rows as an MLflow table artifact (`name`.json), which the UI's artifact view shows as a table."""
         if rows:
             columns = list(rows[0])
-            with held():
-                self._mlflow.log_table({c: [r.get(c) for r in rows] for c in columns}, artifact_file=f"{name}.json")
+            self._send("table", data={c: [r.get(c) for r in rows] for c in columns}, name=f"{name}.json")
 
     def curve(self, series: dict[str, list[float]]) -> None:
         """Per-step values (e.g. the SSVM's objective and gap per iteration) as metric histories."""
-        from mlflow.entities import Metric
+        self._send("curve", series={k: [float(v) for v in values] for k, values in series.items()}, time=_now())
 
-        now = int(time.time() * 1000)
-        points = [Metric(k, float(v), now, step) for k, values in series.items() for step, v in enumerate(values)]
-        client, run_id = self._mlflow.MlflowClient(), self._mlflow.active_run().info.run_id
-        for start in range(0, len(points), 1000):  # MLflow takes at most 1000 metrics per batch
-            with held():
-                client.log_batch(run_id, metrics=points[start : start + 1000], synchronous=True)
+    def _start(self, name: str, tags: dict[str, str], parent: int | None) -> None:
+        self._send("start", name=name, tags={**_source_tags(name), **tags}, parent=parent, time=_now())
 
     @contextmanager
     def child(self, name: str, params: dict[str, Any] | None = None) -> Iterator[StageRun]:
-        with _ending(self._mlflow, every=False):
-            with held():  # a signal held here is raised inside `_ending`, which marks the run KILLED
-                self._mlflow.start_run(run_name=name, nested=True, tags={"taskseq.child": name})
-                child = StageRun(self._mlflow, self._labels)
-                child.params({**self._labels, **(params or {})})
+        child = StageRun(self._channel, self._channel.new_ref(), self._labels)
+        # a signal that lands here leaves the child open, and the writer closes it as KILLED
+        child._start(name, {"taskseq.child": name}, parent=self._ref)
+        with _ending(child):
+            child.params({**self._labels, **(params or {})})
             yield child
-
 
 class NoRun:
     """What a stage logs when nothing is recorded (`--no-mlflow`, or library use): it is dropped."""
@@ -184,42 +230,53 @@ Tracker = StageRun | NoRun
 NO_RUN = NoRun()
 
 
+def _source_tags(name: str) -> dict[str, str]:
+    """What MLflow's own runs say of where they came from, so the UI's User and Source columns are filled."""
+    return {"mlflow.user": getpass.getuser(), "mlflow.source.name": f"taskseq {name}",
+            "mlflow.source.type": "LOCAL"}
+
+
 @contextmanager
 def stage_run(stage: str, params: dict[str, Any], inputs: list[Path] | None = None,
               labels: dict[str, Any] | None = None) -> Iterator[StageRun]:
-    """Open the stage's run; parameters from params.yaml and the command line, tags for provenance."""
-    import mlflow
+    """Open the stage's run; parameters from params.yaml and the command line, tags for provenance.
 
-    mlflow.set_tracking_uri(tracking_uri())
-    client = mlflow.MlflowClient()
-    experiment = _experiment_id(client)
-    mlflow.set_experiment(experiment_id=experiment)  # child runs land in the same experiment
-    with _ending(mlflow, every=True):
-        with held():  # a signal held here is raised inside `_ending`, which marks the run KILLED
-            mlflow.start_run(experiment_id=experiment, run_name=stage, tags=provenance(stage, inputs or []))
-            run = StageRun(mlflow, labels)
+    The writer process starts first, so MLflow's start-up overlaps the
+    stage's own; leaving the block waits until every record is written.
+    """
+    channel, failed = None, True
+    try:
+        # opened whole; a signal held here leaves the run open, which the writer then closes as KILLED
+        with held():
+            channel = _Channel(tracking_uri())
+            run = StageRun(channel, channel.new_ref(), labels)
+            tags = provenance(stage, inputs or [])
+            run._start(stage, {**tags, "mlflow.source.git.commit": tags["git.commit"]}, parent=None)
+        with _ending(run):
             run.params({**params_yaml(), **{f"cli.{k}": v for k, v in params.items()}})
-        yield run
+            yield run
+        failed = False
+    finally:
+        try:
+            if channel is not None:
+                channel.close()
+        except TrackingFailed:
+            if not failed:  # a stage that failed or was stopped says so itself
+                raise
 
 
 @contextmanager
-def _ending(mlflow_module, every: bool) -> Iterator[None]:
-    """End the active run as its block ends: FINISHED, FAILED on an error, KILLED on Ctrl-C or SIGTERM.
-
-    `every` ends the open child runs too (a stage's run, stopped while a child was open).
-    """
+def _ending(run: StageRun) -> Iterator[None]:
+    """End the run as its block ends: FINISHED, FAILED on an error, KILLED on Ctrl-C or SIGTERM."""
     try:
         yield
     except KeyboardInterrupt:  # Ctrl-C, or SIGTERM (`stopping.Stopped`)
         with held():
-            while mlflow_module.active_run() is not None:  # children first, then the stage's own run
-                mlflow_module.end_run("KILLED")
-                if not every:
-                    break
+            run._send("end", status="KILLED", time=_now())
         raise
     except BaseException:
         with held():
-            mlflow_module.end_run("FAILED")
+            run._send("end", status="FAILED", time=_now())
         raise
     with held():
-        mlflow_module.end_run()
+        run._send("end", status="FINISHED", time=_now())

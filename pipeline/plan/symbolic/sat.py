@@ -10,9 +10,13 @@ so trying k = 0, 1, ..., H on one incremental solver finds the shortest plan.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from itertools import count
+import gc
+from collections import OrderedDict
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, replace
 
+import numpy as np
 from pysat.card import CardEnc, EncType
 from pysat.solvers import Solver
 
@@ -35,19 +39,34 @@ class PlanResult:
         return f"plan of {len(self.plan)} steps"
 
 
-def solve(problem: Problem, horizon: int = 12, solver: str = "g4") -> PlanResult:
-    actions = ground_actions(problem)
-    fluents = sorted({f for a in actions for f in a.pre | a.pre_not | a.add | a.delete} | problem.goal)
-    if not problem.goal <= set(fluents) | problem.init:
-        return PlanResult(None, horizon, len(actions))
-    ids = count(1)
-    fv = {(f, t): next(ids) for t in range(horizon + 1) for f in fluents}
-    av = {(i, t): next(ids) for t in range(horizon) for i in range(len(actions))}
-    act = {t: next(ids) for t in range(horizon)}  # some action happens at step t
-    top = next(ids) - 1
-    clauses: list[list[int]] = []
-    for f in fluents:
-        clauses.append([fv[(f, 0)] if f in problem.init else -fv[(f, 0)]])
+def encode(problem: Problem, actions: list[GroundAction], fluents: list[Atom],
+           horizon: int) -> tuple[list[list[int]], Callable[[int, int], int], Callable[[int], int]]:
+    """The clauses of the planning problem, with the variables of "action i at step t" and "an action at t".
+
+    Variables: fluent f at step t is 1 + t*F + f; action i at step t is
+    1 + (H+1)*F + t*A + i; "some action at t" follows them; the sequential
+    counters' auxiliary variables come last, one block per step. Every step's
+    clauses are the first step's with each kind of variable shifted by the
+    step, so the first step's are written out and the rest are shifted copies
+    (NumPy over all steps at once), in the same order as writing each step out.
+    """
+    F, A, H = len(fluents), len(actions), horizon
+    fid = {f: k for k, f in enumerate(fluents)}
+    n_fluent, n_action = (H + 1) * F, H * A
+
+    def fv(f: Atom, t: int) -> int:
+        return 1 + t * F + fid[f]
+
+    def av(i: int, t: int) -> int:
+        return 1 + n_fluent + t * A + i
+
+    def act(t: int) -> int:
+        return 1 + n_fluent + n_action + t
+
+    top = n_fluent + n_action + H
+    clauses: list[list[int]] = [[fv(f, 0) if f in problem.init else -fv(f, 0)] for f in fluents]
+    if H == 0:
+        return clauses + [[fv(g, 0)] for g in sorted(problem.goal)], av, act
     adders: dict[Atom, list[int]] = {f: [] for f in fluents}
     deleters: dict[Atom, list[int]] = {f: [] for f in fluents}
     # every set is walked in sorted order: clause order steers the solver, and set order
@@ -57,31 +76,97 @@ def solve(problem: Problem, horizon: int = 12, solver: str = "g4") -> PlanResult
             adders[f].append(i)
         for f in sorted(a.delete - a.add):
             deleters[f].append(i)
-    for t in range(horizon):
-        lits = [av[(i, t)] for i in range(len(actions))]
-        for i, a in enumerate(actions):
-            x = av[(i, t)]
-            clauses += [[-x, fv[(f, t)]] for f in sorted(a.pre)]
-            clauses += [[-x, -fv[(f, t)]] for f in sorted(a.pre_not)]
-            clauses += [[-x, fv[(f, t + 1)]] for f in sorted(a.add)]
-            clauses += [[-x, -fv[(f, t + 1)]] for f in sorted(a.delete - a.add)]
-            clauses.append([-x, act[t]])
-        clauses.append([-act[t], *lits])
-        card = CardEnc.atmost(lits=lits, bound=1, top_id=top, encoding=EncType.seqcounter)
-        top = max(top, card.nv)
-        clauses += card.clauses
-        if t + 1 < horizon:
-            clauses.append([-act[t + 1], act[t]])
-        for f in fluents:
-            clauses.append([-fv[(f, t)], fv[(f, t + 1)], *(av[(i, t)] for i in deleters[f])])
-            clauses.append([fv[(f, t)], -fv[(f, t + 1)], *(av[(i, t)] for i in adders[f])])
-    clauses += [[fv[(g, horizon)]] for g in sorted(problem.goal)]
-    with Solver(name=solver, bootstrap_with=clauses) as sat:
+    # step 0, in three parts: actions and the counter; "an action at 1 needs one at 0"; frame axioms
+    lits = [av(i, 0) for i in range(A)]
+    head: list[list[int]] = []
+    for i, a in enumerate(actions):
+        x = av(i, 0)
+        head += [[-x, fv(f, 0)] for f in sorted(a.pre)]
+        head += [[-x, -fv(f, 0)] for f in sorted(a.pre_not)]
+        head += [[-x, fv(f, 1)] for f in sorted(a.add)]
+        head += [[-x, -fv(f, 1)] for f in sorted(a.delete - a.add)]
+        head.append([-x, act(0)])
+    head.append([-act(0), *lits])
+    card = CardEnc.atmost(lits=lits, bound=1, top_id=top, encoding=EncType.seqcounter)
+    n_aux = max(top, card.nv) - top
+    head += card.clauses
+    chain = [[-act(1), act(0)]]
+    frame: list[list[int]] = []
+    for f in fluents:
+        frame.append([-fv(f, 0), fv(f, 1), *(av(i, 0) for i in deleters[f])])
+        frame.append([fv(f, 0), -fv(f, 1), *(av(i, 0) for i in adders[f])])
+    # how far each variable moves per step: fluents by F, actions by A, "an action" by 1, counters by their size
+    bounds = np.array([n_fluent, n_fluent + n_action, top])
+    for t, part in enumerate(_shifted([head, chain, frame], bounds, np.array([F, A, 1, n_aux]), H)):
+        clauses += part[0]
+        if t + 1 < H:
+            clauses += part[1]
+        clauses += part[2]
+    return clauses + [[fv(g, H)] for g in sorted(problem.goal)], av, act
+
+
+def _shifted(parts: list[list[list[int]]], bounds: np.ndarray, shifts: np.ndarray,
+             horizon: int) -> list[list[list[list[int]]]]:
+    """For each step t < horizon, `parts` with every variable v moved by t * shifts[kind of v]."""
+    flat = np.array([lit for part in parts for clause in part for lit in clause], dtype=np.int64)
+    move = np.sign(flat) * shifts[np.searchsorted(bounds, np.abs(flat))]
+    steps = (flat[None, :] + np.arange(horizon)[:, None] * move[None, :]).tolist()
+    ends = np.cumsum([len(c) for part in parts for c in part]).tolist()
+    starts = [0, *ends[:-1]]
+    cuts = np.cumsum([0, *(len(part) for part in parts)]).tolist()
+    out = []
+    for row in steps:
+        clauses = list(map(row.__getitem__, map(slice, starts, ends)))  # no bytecode per clause
+        out.append([clauses[a:b] for a, b in zip(cuts[:-1], cuts[1:], strict=True)])
+    return out
+
+
+# Solving is a pure function of the problem: a rollout and the teacher-forced steps of the same
+# state ask for the same plan, so answers are kept (the problem's content is the key)
+_SOLVED: OrderedDict[tuple, PlanResult] = OrderedDict()
+_SOLVED_MAX = 4096
+
+
+def solve(problem: Problem, horizon: int = 12, solver: str = "g4") -> PlanResult:
+    key = (tuple(problem.objects), frozenset(problem.statics), frozenset(problem.init), frozenset(problem.goal),
+           horizon, solver)
+    if key in _SOLVED:
+        _SOLVED.move_to_end(key)
+        hit = _SOLVED[key]
+        return replace(hit, plan=None if hit.plan is None else list(hit.plan))
+    result = _solve(problem, horizon, solver)
+    _SOLVED[key] = replace(result, plan=None if result.plan is None else list(result.plan))
+    if len(_SOLVED) > _SOLVED_MAX:
+        _SOLVED.popitem(last=False)
+    return result
+
+
+@contextmanager
+def _no_cycle_collection() -> Iterator[None]:
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()
+
+
+def _solve(problem: Problem, horizon: int, solver: str) -> PlanResult:
+    actions = ground_actions(problem)
+    fluents = sorted({f for a in actions for f in a.pre | a.pre_not | a.add | a.delete} | problem.goal)
+    if not problem.goal <= set(fluents) | problem.init:
+        return PlanResult(None, horizon, len(actions))
+    with _no_cycle_collection():  # thousands of small lists that form no cycles: collecting them is wasted time
+        clauses, av, act = encode(problem, actions, fluents, horizon)
+        sat = Solver(name=solver, bootstrap_with=clauses)
+        del clauses
+    with sat:
         for k in range(horizon + 1):
-            assumptions = [-act[k]] if k < horizon else []
+            assumptions = [-act(k)] if k < horizon else []
             if sat.solve(assumptions=assumptions):
                 model = {v for v in sat.get_model() if v > 0}
-                chosen = [actions[i] for t in range(k) for i in range(len(actions)) if av[(i, t)] in model]
+                chosen = [actions[i] for t in range(k) for i in range(len(actions)) if av(i, t) in model]
                 plan = canonical(problem, chosen)
                 return PlanResult(plan, horizon, len(actions))
     return PlanResult(None, horizon, len(actions))
