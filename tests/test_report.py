@@ -2,7 +2,7 @@
 
 import json
 
-from pipeline.evaluate.methods import METHOD_LABELS
+from pipeline.evaluate.labels import METHOD_LABELS
 from pipeline.report.summary import build_summary
 
 

@@ -6,7 +6,6 @@ import sqlite3
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import pytest
 
@@ -107,17 +106,8 @@ def test_a_signal_while_the_run_is_being_opened_still_leaves_it_killed(handlers,
         assert conn.execute("select name, status from runs").fetchall() == [("folds", "KILLED")]
 
 
-def _alive(pid: int) -> bool:
-    """Running, not ended (a process that ended waits as a zombie until its new parent reaps it)."""
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except FileNotFoundError:
-        return False
-    return stat.rsplit(")", 1)[1].split()[0] != "Z"
-
-
 def test_a_stage_killed_outright_leaves_no_run_running(data, tmp_path):
-    """SIGKILL gives the stage no chance to say how its run ends; the writer, seeing its input end, says KILLED."""
+    """SIGKILL gives the stage no chance to say how its run ends; the writer, seeing it go, says KILLED."""
     db = tmp_path / "mlflow.db"
     env = {**os.environ, "MLFLOW_TRACKING_URI": f"sqlite:///{db}", "TASKSEQ_N_JOBS": "1"}
     said = tmp_path / "out"
@@ -128,11 +118,16 @@ def test_a_stage_killed_outright_leaves_no_run_running(data, tmp_path):
         while proc.poll() is None and not _working(said):
             time.sleep(0.2)
         assert proc.poll() is None, "the stage ended before it could be stopped"
-        children = Path(f"/proc/{proc.pid}/task/{proc.pid}/children").read_text().split()
-        (writer,) = [int(c) for c in children if b"pipeline.track.writer" in Path(f"/proc/{c}/cmdline").read_bytes()]
         proc.kill()
         proc.wait()
-    while _alive(writer):  # the writer, now nobody's child, finishes on its own
+    # the writer serves on after the stage is gone; its answer comes in its own time
+    runs = []
+    for _ in range(600):
+        if db.exists():
+            with sqlite3.connect(db) as conn:
+                if conn.execute("select 1 from sqlite_master where name = 'runs'").fetchall():
+                    runs = conn.execute("select name, status from runs").fetchall()
+        if runs and runs != [("folds", "RUNNING")]:
+            break
         time.sleep(0.1)
-    with sqlite3.connect(db) as conn:
-        assert conn.execute("select name, status from runs").fetchall() == [("folds", "KILLED")]
+    assert runs == [("folds", "KILLED")]

@@ -9,13 +9,16 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from ..features.context import StepContext, step_context
-from ..learn.estimator import MRFPlanner
 from ..sim.primitives import Action, PreconditionError, execute
 from ..sim.safety import violations
 from ..sim.state import WorldState
 from ..sim.tasks import Task, goal_reached
+
+if TYPE_CHECKING:  # only named in hints: the stages that read programs need not import scikit-learn
+    from ..learn.estimator import MRFPlanner
 
 DONE = "done"
 STEP_CAP = "step_cap"

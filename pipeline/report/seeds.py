@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from ..evaluate.failures import KINDS
-from ..evaluate.methods import METHOD_LABELS
+from ..evaluate.labels import METHOD_LABELS
 from ..evaluate.metrics import headline_metrics
 from .csvs import read_csv_rows
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from ..evaluate.methods import METHOD_LABELS
+from ..evaluate.labels import METHOD_LABELS
 from ..io import write_json_atomic, write_text_atomic
 from ..report import paper
 from ..report.csvs import SEQUENCE_COLUMNS, csv_text, read_csv_rows

@@ -12,7 +12,8 @@ from pathlib import Path
 from typing import Any
 
 from ..evaluate.crossval import cross_validate
-from ..evaluate.methods import METHOD_LABELS, method_params, table1_methods
+from ..evaluate.labels import METHOD_LABELS
+from ..evaluate.methods import method_params, table1_methods
 from ..evaluate.metrics import confusion, headline_metrics, summarize
 from ..features.dataset import read_features
 from ..io import write_json_atomic, write_text_atomic

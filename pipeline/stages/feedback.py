@@ -12,7 +12,8 @@ from pathlib import Path
 from typing import Any
 
 from ..evaluate.fold_models import ROBUSTNESS_METHODS
-from ..evaluate.methods import METHOD_LABELS, method_params, table1_methods
+from ..evaluate.labels import METHOD_LABELS
+from ..evaluate.methods import method_params, table1_methods
 from ..evaluate.robustness import Condition, evaluate_conditions, feedback_rows, feedback_steps
 from ..features.dataset import read_features
 from ..io import write_text_atomic

@@ -12,7 +12,8 @@ from pathlib import Path
 from typing import Any
 
 from ..evaluate.fold_models import RECIPE_METHODS
-from ..evaluate.methods import METHOD_LABELS, method_params, table1_methods
+from ..evaluate.labels import METHOD_LABELS
+from ..evaluate.methods import method_params, table1_methods
 from ..evaluate.recipes import PROGRAM_COLUMNS, RECIPES, evaluate_recipes, program_rows, recipe_report
 from ..features.dataset import read_features
 from ..io import write_json_atomic, write_text_atomic

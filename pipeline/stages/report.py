@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..evaluate.methods import METHOD_LABELS
+from ..evaluate.labels import METHOD_LABELS
 from ..io import write_text_atomic
 from ..report.plots_page import offline_template
 from ..report.summary import build_summary

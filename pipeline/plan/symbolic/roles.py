@@ -10,7 +10,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from sklearn.svm import LinearSVC
 
 from ...sim.primitives import Action
 from ...sim.tasks import Task
@@ -38,6 +37,8 @@ class RoleRanker:
 
     def fit(self, groups: list[tuple[np.ndarray, int]]) -> RoleRanker:
         """`groups`: (features of the candidate objects, index of the chosen one) per scenario."""
+        from sklearn.svm import LinearSVC  # imported here: writing PDDL files needs the roles, not the ranker
+
         diffs = []
         for X, chosen in groups:
             for j in range(len(X)):
