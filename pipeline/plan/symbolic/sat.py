@@ -11,7 +11,7 @@ so trying k = 0, 1, ..., H on one incremental solver finds the shortest plan.
 from __future__ import annotations
 
 import gc
-from collections import OrderedDict
+from collections import OrderedDict, deque
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
@@ -159,7 +159,8 @@ def _solve(problem: Problem, horizon: int, solver: str) -> PlanResult:
         return PlanResult(None, horizon, len(actions))
     with _no_cycle_collection():  # thousands of small lists that form no cycles: collecting them is wasted time
         clauses, av, act = encode(problem, actions, fluents, horizon)
-        sat = Solver(name=solver, bootstrap_with=clauses)
+        sat = Solver(name=solver)
+        deque(map(sat.add_clause, clauses), maxlen=0)  # in order, as `bootstrap_with` does, without its loop
         del clauses
     with sat:
         for k in range(horizon + 1):
