@@ -96,11 +96,13 @@ def train_fold_models(methods: Mapping[str, MakeMRF], contexts: list[StepContext
     def make(key: str) -> MakeMRF:
         return methods[keyed[key][0].method]
 
-    def steps(key: str) -> list[StepContext]:
-        return [contexts[i] for i in keyed[key][0].index]
-
-    base_of = {key: replace(make(key)(), dagger_rounds=0).key(steps(key)) for key in keyed if make(key)().dagger_rounds}
-    chained = {k: b for k, b in base_of.items() if b in keyed}
+    # a DAgger model whose base (same steps and settings, no DAgger) is a job too -> that base's key
+    chained = {}
+    for key in keyed:
+        if make(key)().dagger_rounds:
+            base = replace(make(key)(), dagger_rounds=0).key([contexts[i] for i in keyed[key][0].index])
+            if base in keyed:
+                chained[key] = base
     # keys fitted in turn by one task: a base, then the DAgger models that start from it
     tasks = [(k, *(d for d, b in chained.items() if b == k)) for k in keyed if k not in chained]
     tasks.sort(key=lambda t: -sum(_expected_cost(make(k)(), len(keyed[k][0].index)) for k in t))

@@ -101,7 +101,7 @@ def params_yaml(path: Path = Path("params.yaml")) -> dict[str, Any]:
 
 
 class TrackingFailed(RuntimeError):
-    """The writer could not record the stage's runs (its own line on standard error says why)."""
+    """The writer could not record the stage's runs; the message carries the store's reason."""
 
 
 def _plain(value: Any) -> Any:
@@ -200,6 +200,7 @@ class StageRun:
             child.params({**self._labels, **(params or {})})
             yield child
 
+
 class NoRun:
     """What a stage logs when nothing is recorded (`--no-mlflow`, or library use): it is dropped."""
 
@@ -238,8 +239,8 @@ def stage_run(stage: str, params: dict[str, Any], inputs: list[Path] | None = No
               labels: dict[str, Any] | None = None) -> Iterator[StageRun]:
     """Open the stage's run; parameters from params.yaml and the command line, tags for provenance.
 
-    The writer process starts first, so MLflow's start-up overlaps the
-    stage's own; leaving the block waits until every record is written.
+    The run goes through the store's writer process (started if there is
+    none); leaving the block waits until every record is written.
     """
     channel, failed = None, True
     try:
@@ -268,12 +269,9 @@ def _ending(run: StageRun) -> Iterator[None]:
     try:
         yield
     except KeyboardInterrupt:  # Ctrl-C, or SIGTERM (`stopping.Stopped`)
-        with held():
-            run._send("end", status="KILLED", time=_now())
+        run._send("end", status="KILLED", time=_now())  # sending is held whole (`_Channel.send`)
         raise
     except BaseException:
-        with held():
-            run._send("end", status="FAILED", time=_now())
+        run._send("end", status="FAILED", time=_now())
         raise
-    with held():
-        run._send("end", status="FINISHED", time=_now())
+    run._send("end", status="FINISHED", time=_now())

@@ -232,11 +232,12 @@ class Connection:
             try:
                 sock.connect(str(path))
                 stream = sock.makefile("rwb")
-                if stream.readline() == b"ready\n":
-                    self.sock, self.stream = sock, stream
-                    return
+                ready = stream.readline() == b"ready\n"
             except (FileNotFoundError, ConnectionRefusedError, ConnectionResetError, BrokenPipeError):
-                pass
+                ready = False  # no writer yet, or one that was leaving as this stage came
+            if ready:
+                self.sock, self.stream = sock, stream
+                return
             sock.close()
             # none listens yet: start one (again, should the last one have found the store taken and left)
             if (started is None or started.poll() is not None) and time.monotonic() - spawned > 0.5:

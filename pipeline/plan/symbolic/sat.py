@@ -132,13 +132,17 @@ def solve(problem: Problem, horizon: int = 12, solver: str = "g4") -> PlanResult
            horizon, solver)
     if key in _SOLVED:
         _SOLVED.move_to_end(key)
-        hit = _SOLVED[key]
-        return replace(hit, plan=None if hit.plan is None else list(hit.plan))
+        return _copy(_SOLVED[key])
     result = _solve(problem, horizon, solver)
-    _SOLVED[key] = replace(result, plan=None if result.plan is None else list(result.plan))
+    _SOLVED[key] = _copy(result)
     if len(_SOLVED) > _SOLVED_MAX:
         _SOLVED.popitem(last=False)
     return result
+
+
+def _copy(result: PlanResult) -> PlanResult:
+    """A result with a plan list of its own: what a caller does to it never reaches what is kept."""
+    return replace(result, plan=None if result.plan is None else list(result.plan))
 
 
 @contextmanager
