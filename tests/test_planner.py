@@ -90,7 +90,11 @@ def test_the_planner_is_a_scikit_learn_estimator(small_fit):
     fit, records = small_fit
     fresh = clone(fit)
     assert fresh.get_params() == fit.get_params() and not hasattr(fresh, "w_")
+    assert fit.clone().get_params() == fit.get_params() and not hasattr(fit.clone(), "w_")
     assert fresh.set_params(C=1.0) is fresh and fresh.C == 1.0
+    assert repr(fresh) == "MRFPlanner(features='full', C=1.0, tol=0.001, max_iter=300, n_slacks=0)"
+    with pytest.raises(ValueError, match="no parameter gamma"):
+        fresh.set_params(gamma=2.0)
     with pytest.raises(ValueError, match="not fitted"):
         fresh.predict(build_steps(records)[0])
     with pytest.raises(ValueError, match="features must be one of"):

@@ -58,6 +58,15 @@ def test_dvc_deps_are_exactly_the_project_code_a_stage_loads(stage):
     assert f"pipeline/stages/{stage}.py" in deps
 
 
+@pytest.mark.parametrize("stage", ["train", "select", "folds", "crossval", "noise", "feedback", "recipes"])
+def test_stages_that_load_planners_start_without_scikit_learn(stage):
+    # importing scikit-learn takes about a second in every stage process and worker; only the baselines'
+    # fits need it, and they import it themselves
+    code = f"import sys, pipeline.stages.{stage}; print('sklearn' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT)
+    assert out.stdout.strip() == "False"
+
+
 def test_settings_defaults_equal_params_yaml():
     params = yaml.safe_load((ROOT / "params.yaml").read_text())
     for section, cls in SECTIONS.items():

@@ -12,10 +12,10 @@ from ..features.dataset import StepMeta
 from ..logs.benchmark import Benchmark
 from ..plan.planner import Program
 from ..sim.scenarios import Scenario
-from .dispatch import run_jobs
+from .dispatch import Shared, run_jobs
 from .failures import classify
 from .folds import grouped_folds
-from .methods import Method
+from .methods import Method, MRFMethod, MulticlassMethod, SymbolicMethod
 
 Y = tuple[int, int, int]
 
@@ -111,7 +111,26 @@ def cross_validate(methods: dict[str, Callable[[], Method]], contexts: list[Step
     folds = scenario_folds(scenarios, n_folds, seed, group_by)
     jobs = [(name, k) for name in methods for k in range(n_folds)]
     keep = keep_programs or {}
-    # every job gets its own copy: without the raw log records, which no method reads, it is half the size
-    demos = replace(bench, records=[])
-    return run_jobs(((run_fold, (methods[name], k, contexts, meta, scenarios, folds[k], max_steps, demos,
-                                 keep.get(name, frozenset()))) for name, k in jobs), n_jobs, verbose)
+    # sent to each worker once; without the raw log records, which no method reads (half the benchmark's size)
+    steps, shared_meta = Shared(contexts), Shared(meta)
+    shared_scenarios, demos = Shared(scenarios), Shared(replace(bench, records=[]))
+    cost = {name: _expected_cost(make()) for name, make in methods.items()}
+    return run_jobs([(run_fold, (methods[name], k, steps, shared_meta, shared_scenarios, folds[k], max_steps, demos,
+                                 keep.get(name, frozenset()))) for name, k in jobs], n_jobs, verbose,
+                    cost=[cost[name] for name, _ in jobs])
+
+
+def _expected_cost(method: Method) -> float:
+    """A rough time of one fold job, so that the long ones start first (it orders the work, never its results).
+
+    The symbolic planners solve a SAT problem per test step; a multiclass
+    SVM or an MRF model without a stored fit trains (longer for a larger C);
+    an MRF model from the store is loaded and rolled out; chance draws.
+    """
+    if isinstance(method, SymbolicMethod):
+        return 4.0
+    if isinstance(method, MRFMethod):
+        return 1.0 if method.store else 2.0 + method.C / 10.0
+    if isinstance(method, MulticlassMethod):
+        return 2.0
+    return 0.1

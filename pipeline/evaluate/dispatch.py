@@ -11,14 +11,22 @@ the same jobs give the same bytes on either backend (a test checks it).
   `dask scheduler`): the jobs go to that cluster's workers through joblib's
   Dask backend, `n_jobs` is ignored (the cluster decides), and the workers
   need this package installed (`pip install -e '.[dask]'`).
+
+Arguments that every job of a grid takes (the benchmark's steps, its
+scenarios) go in a `Shared`: it is pickled once, crosses to each worker as
+one array and is unpickled once per worker process.
 """
 
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Iterable
+import pickle
+import uuid
+from collections import OrderedDict
+from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
+import numpy as np
 from joblib import Parallel, delayed, parallel_config
 
 SCHEDULER_ENV = "TASKSEQ_DASK_SCHEDULER"
@@ -26,9 +34,73 @@ SCHEDULER_ENV = "TASKSEQ_DASK_SCHEDULER"
 Job = tuple[Callable[..., Any], tuple[Any, ...]]
 
 
-def run_jobs(jobs: Iterable[Job], n_jobs: int = 1, verbose: int = 0) -> list[Any]:
-    """`[f(*args) for f, args in jobs]`, in that order, run in parallel where the setting says."""
-    calls = [delayed(f)(*args) for f, args in jobs]
+class Shared:
+    """A value that many jobs of one grid take as an argument, sent to each worker once.
+
+    Handed as a plain argument, the ~900 step contexts of a benchmark were
+    pickled again for every job by loky's reducers, which run in Python for
+    every NumPy array inside: about 150 ms a job in the parent, while the
+    workers waited. A `Shared` is pickled at most once (standard pickle, at
+    C speed) into a byte array; loky memory-maps arrays over 1 MB to a file
+    that each worker opens, Dask ships it as any argument, and a worker
+    unpickles a given payload once and keeps it for the grid's later jobs. A
+    job receives the value itself (`run_jobs` unwraps it), so jobs must not
+    change it: in one process, later jobs see the same object.
+    """
+
+    __slots__ = ("value", "_key", "_blob")
+
+    def __init__(self, value: Any) -> None:
+        self.value = value
+        self._key = uuid.uuid4().hex  # one payload, whatever its content: it is never compared across grids
+        self._blob: np.ndarray | None = None
+
+    def __reduce__(self) -> tuple[Callable[[str, np.ndarray], Shared], tuple[str, np.ndarray]]:
+        if self._blob is None:
+            self._blob = np.frombuffer(pickle.dumps(self.value, protocol=pickle.HIGHEST_PROTOCOL), dtype=np.uint8)
+        return _received, (self._key, self._blob)
+
+
+_RECEIVED: OrderedDict[str, Any] = OrderedDict()  # in a worker: the values of the payloads met most recently
+_RECEIVED_MAX = 4
+
+
+def _received(key: str, blob: np.ndarray) -> Shared:
+    if key in _RECEIVED:
+        _RECEIVED.move_to_end(key)
+    else:
+        _RECEIVED[key] = pickle.loads(blob)
+        if len(_RECEIVED) > _RECEIVED_MAX:
+            _RECEIVED.popitem(last=False)
+    out = Shared.__new__(Shared)
+    out.value, out._key, out._blob = _RECEIVED[key], key, blob
+    return out
+
+
+def _call(f: Callable[..., Any], args: tuple[Any, ...]) -> Any:
+    return f(*(a.value if isinstance(a, Shared) else a for a in args))
+
+
+def run_jobs(jobs: Iterable[Job], n_jobs: int = 1, verbose: int = 0,
+             cost: Sequence[float] | None = None) -> list[Any]:
+    """`[f(*args) for f, args in jobs]`, in that order, run in parallel where the setting says.
+
+    An argument may be a `Shared` (the job gets its value). `cost`, one
+    number per job, sends the costliest first, so that no long job starts
+    last while the other workers idle; the results keep the jobs' order.
+    """
+    jobs = list(jobs)
+    if cost is not None and len(cost) != len(jobs):
+        raise ValueError(f"run_jobs: {len(cost)} costs for {len(jobs)} jobs")
+    order = list(range(len(jobs))) if cost is None else sorted(range(len(jobs)), key=lambda i: -cost[i])
+    results = _dispatch([delayed(_call)(*jobs[i]) for i in order], n_jobs, verbose)
+    out: list[Any] = [None] * len(jobs)
+    for i, r in zip(order, results, strict=True):
+        out[i] = r
+    return out
+
+
+def _dispatch(calls: list[Any], n_jobs: int, verbose: int) -> list[Any]:
     address = os.environ.get(SCHEDULER_ENV, "").strip()
     if address:
         try:

