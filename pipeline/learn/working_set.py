@@ -132,9 +132,9 @@ class WorkingSet:
         w = self.w
         self._reserve(k + m)
         self._deltas = sp.vstack([self._deltas, new], format="csr")
-        cross = (self._deltas @ new.T).toarray()  # (k + m, m): the new columns, own block included
-        self._gram[: k + m, k : k + m] = cross
-        self._gram[k : k + m, :k] = cross[:k].T
+        by_feature = new.tocsc()  # the new cuts having each feature
+        _gram_columns(self._deltas.indptr, self._deltas.indices, self._deltas.data, by_feature.indptr,
+                      by_feature.indices, by_feature.data, self._gram, k)
         self._losses[k : k + m] = losses
         self._groups[k : k + m] = groups
         self._last_active[k : k + m] = iteration
@@ -175,6 +175,33 @@ class WorkingSet:
         self.n_steps += steps
         self.n_shrinks += shrinks
         return gap
+
+
+@njit(cache=True)
+def _gram_columns(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, f_indptr: np.ndarray,
+                  f_indices: np.ndarray, f_data: np.ndarray, gram: np.ndarray, k: int) -> None:
+    """gram[i, k + j] = gram[k + j, i] = d_i . n_j for every cut i (the rows of the first CSR matrix, the new
+    ones last) and every new cut j (the columns of the CSC matrix, one row per feature).
+
+    The products are summed over each d_i's features in ascending order, as
+    scipy's sparse product sums them, so the Gram matrix is the same bits;
+    written straight into its buffer, without the sparse (K x m, dense in
+    fact) product and its conversion that took a third of a relations fit's
+    QP time.
+    """
+    n_rows = indptr.shape[0] - 1
+    m = n_rows - k
+    acc = np.zeros(m)
+    for i in range(n_rows):
+        for p in range(indptr[i], indptr[i + 1]):
+            f, a = indices[p], data[p]
+            for q in range(f_indptr[f], f_indptr[f + 1]):
+                acc[f_indices[q]] += a * f_data[q]
+        for j in range(m):
+            gram[i, k + j] = acc[j]
+            if i < k:
+                gram[k + j, i] = acc[j]
+            acc[j] = 0.0
 
 
 @njit(cache=True)
