@@ -144,6 +144,26 @@ def test_many_groups_with_shrinking_match_a_direct_cvxpy_solve(sparse):
     np.testing.assert_allclose(ws.slacks(), xi, atol=1e-9)
 
 
+def test_the_gram_matrix_is_scipys_sparse_product_bit_for_bit():
+    """Cuts added in batches: every entry is d_i . d_j summed in scipy's order (so the fitted weights are the
+    bytes they were with scipy's product), and the matrix is exactly symmetric."""
+    import scipy.sparse as sps
+
+    from pipeline.learn.working_set import WorkingSet
+
+    rng = np.random.default_rng(3)
+    K, d = 260, 400
+    deltas = sps.random(K, d, density=0.05, random_state=rng, format="csr") * 7.3
+    deltas.data -= 3.1  # signs of both kinds, and values that round
+    ws = WorkingSet(d, 10, 1.0)
+    for part in np.array_split(np.arange(K), [1, 90, 91]):  # one cut, many, one, many again
+        ws.add(deltas[part], np.ones(len(part)), part % 10, iteration=1)
+    gram = ws._gram[:K, :K]
+    expected = (deltas @ deltas.T).toarray()
+    assert gram.tobytes() == expected.tobytes()
+    assert np.array_equal(gram, gram.T)
+
+
 @pytest.mark.parametrize("window", [0, 1, 50])
 def test_pruning_the_working_set_never_changes_the_optimum(toy, window):
     model, X, Y = toy

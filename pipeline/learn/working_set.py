@@ -133,8 +133,11 @@ class WorkingSet:
         self._reserve(k + m)
         self._deltas = sp.vstack([self._deltas, new], format="csr")
         by_feature = new.tocsc()  # the new cuts having each feature
-        _gram_columns(self._deltas.indptr, self._deltas.indices, self._deltas.data, by_feature.indptr,
-                      by_feature.indices, by_feature.data, self._gram, k)
+        cross = np.empty((k + m, m))  # the new columns, own block included
+        _cross_products(self._deltas.indptr, self._deltas.indices, self._deltas.data, by_feature.indptr,
+                        by_feature.indices, by_feature.data, cross)
+        self._gram[: k + m, k : k + m] = cross
+        self._gram[k : k + m, :k] = cross[:k].T
         self._losses[k : k + m] = losses
         self._groups[k : k + m] = groups
         self._last_active[k : k + m] = iteration
@@ -178,30 +181,22 @@ class WorkingSet:
 
 
 @njit(cache=True)
-def _gram_columns(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, f_indptr: np.ndarray,
-                  f_indices: np.ndarray, f_data: np.ndarray, gram: np.ndarray, k: int) -> None:
-    """gram[i, k + j] = gram[k + j, i] = d_i . n_j for every cut i (the rows of the first CSR matrix, the new
-    ones last) and every new cut j (the columns of the CSC matrix, one row per feature).
+def _cross_products(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, f_indptr: np.ndarray,
+                    f_indices: np.ndarray, f_data: np.ndarray, out: np.ndarray) -> None:
+    """out[i, j] = d_i . n_j for the rows d_i of a CSR matrix and the columns n_j of a CSC one (a row per feature).
 
     The products are summed over each d_i's features in ascending order, as
     scipy's sparse product sums them, so the Gram matrix is the same bits;
-    written straight into its buffer, without the sparse (K x m, dense in
-    fact) product and its conversion that took a third of a relations fit's
-    QP time.
+    written dense, without that product's sparse result (dense in fact, K x m
+    entries) and its conversion, which took a third of a relations fit's QP.
     """
-    n_rows = indptr.shape[0] - 1
-    m = n_rows - k
-    acc = np.zeros(m)
-    for i in range(n_rows):
+    for i in range(out.shape[0]):
+        row = out[i]
+        row[:] = 0.0
         for p in range(indptr[i], indptr[i + 1]):
             f, a = indices[p], data[p]
             for q in range(f_indptr[f], f_indptr[f + 1]):
-                acc[f_indices[q]] += a * f_data[q]
-        for j in range(m):
-            gram[i, k + j] = acc[j]
-            if i < k:
-                gram[k + j, i] = acc[j]
-            acc[j] = 0.0
+                row[f_indices[q]] += a * f_data[q]
 
 
 @njit(cache=True)
