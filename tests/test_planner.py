@@ -67,6 +67,18 @@ def test_plan_stops_at_the_step_cap(small_fit):
     assert program.status == "step_cap" and len(program.steps) == 3
 
 
+def test_a_fitted_planner_carries_no_training_steps(small_fit):
+    # a worker hands fitted planners back to its parent: the training batch made that 33 MB a model
+    import pickle
+
+    fit, records = small_fit
+    blob = pickle.dumps(fit)  # plain pickle: no progress-bar closure either
+    assert b"StepContext" not in blob and b"StepBatch" not in blob
+    back = pickle.loads(blob)
+    contexts, _ = build_steps(records[:3])
+    assert back.predict(contexts) == fit.predict(contexts)
+
+
 def test_saved_and_loaded_model_plans_identically(small_fit, tmp_path):
     fit, records = small_fit
     path = tmp_path / "mrf.npz"

@@ -117,6 +117,8 @@ class MRFPlanner:
                 ssvm.fit(X, y)
         finally:
             bar.close()
+            ssvm.progress = None  # a fitted planner keeps neither the closed bar nor its training steps
+            model.release()
         self.model_, self.ssvm_, self.w_ = model, ssvm, ssvm.w_
         self.fit_seconds_ = time.perf_counter() - start
         self.n_steps_ = len(X)

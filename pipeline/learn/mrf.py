@@ -197,6 +197,11 @@ class _Batched:
             self._batch_cache = cached
         return cached[1]
 
+    def release(self: MRFModel) -> None:  # type: ignore[misc]
+        """Drop the batch of the steps scored last: after a fit it is the whole training set, which a fitted
+        planner would otherwise carry wherever it goes (a worker hands it back to the parent)."""
+        self._batch_cache = None
+
     def batch_tables(self: MRFModel, b: StepBatch, w: np.ndarray) -> Tables:  # type: ignore[misc]
         """The score's factor tables for every step of the batch: the one place a score is computed."""
         S, N = b.valid.shape
