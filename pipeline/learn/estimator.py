@@ -131,7 +131,10 @@ class MRFPlanner:
     def predict(self, X: list[StepContext]) -> list[Y]:
         """The best candidate (primitive, a1, a2) of every step, all scored at once."""
         self._check_fitted()
-        return self.model_.batch_inference(X, self.w_)
+        try:
+            return self.model_.batch_inference(X, self.w_)
+        finally:
+            self.model_.release()  # the batch of X is worth keeping while a fit scores it again and again only
 
     def top_k(self, x: StepContext, k: int) -> list[tuple[Y, float]]:
         """The step's k best candidates with their scores, best first."""
