@@ -114,13 +114,13 @@ def cross_validate(methods: dict[str, Callable[[], Method]], contexts: list[Step
     # sent to each worker once; without the raw log records, which no method reads (half the benchmark's size)
     steps, shared_meta = Shared(contexts), Shared(meta)
     shared_scenarios, demos = Shared(scenarios), Shared(replace(bench, records=[]))
-    cost = {name: _expected_cost(make()) for name, make in methods.items()}
+    cost = {name: _fold_job_cost(make()) for name, make in methods.items()}
     return run_jobs([(run_fold, (methods[name], k, steps, shared_meta, shared_scenarios, folds[k], max_steps, demos,
                                  keep.get(name, frozenset()))) for name, k in jobs], n_jobs, verbose,
                     cost=[cost[name] for name, _ in jobs])
 
 
-def _expected_cost(method: Method) -> float:
+def _fold_job_cost(method: Method) -> float:
     """A rough time of one fold job, so that the long ones start first (it orders the work, never its results).
 
     The symbolic planners solve a SAT problem per test step; a multiclass

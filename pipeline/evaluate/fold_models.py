@@ -93,28 +93,27 @@ def train_fold_models(methods: Mapping[str, MakeMRF], contexts: list[StepContext
         key = methods[job.method]().key([contexts[i] for i in job.index])
         keyed.setdefault(key, []).append(job)
 
-    def make(key: str) -> MakeMRF:
-        return methods[keyed[key][0].method]
-
+    make = {key: methods[uses[0].method] for key, uses in keyed.items()}  # the factory a key's workers call
+    unfitted = {key: f() for key, f in make.items()}
     # a DAgger model whose base (same steps and settings, no DAgger) is a job too -> that base's key
-    chained = {}
-    for key in keyed:
-        if make(key)().dagger_rounds:
-            base = replace(make(key)(), dagger_rounds=0).key([contexts[i] for i in keyed[key][0].index])
+    dagger_base = {}
+    for key, method in unfitted.items():
+        if method.dagger_rounds:
+            base = replace(method, dagger_rounds=0).key([contexts[i] for i in keyed[key][0].index])
             if base in keyed:
-                chained[key] = base
+                dagger_base[key] = base
     # keys fitted in turn by one task: a base, then the DAgger models that start from it
-    tasks = [(k, *(d for d, b in chained.items() if b == k)) for k in keyed if k not in chained]
-    cost = [sum(_expected_cost(make(k)(), len(keyed[k][0].index)) for k in task) for task in tasks]
+    tasks = [(k, *(d for d, b in dagger_base.items() if b == k)) for k in keyed if k not in dagger_base]
+    cost = [sum(_expected_cost(unfitted[k], len(keyed[k][0].index)) for k in task) for task in tasks]
     steps, shared_meta, shared_scenarios = Shared(contexts), Shared(meta), Shared(scenarios)
-    parts = run_jobs([(_fit, (tuple(make(k) for k in task), steps, shared_meta, shared_scenarios,
+    parts = run_jobs([(_fit, (tuple(make[k] for k in task), steps, shared_meta, shared_scenarios,
                               keyed[task[0]][0].index)) for task in tasks], n_jobs, verbose, cost=cost)
     fitted = {k: m for task, part in zip(tasks, parts, strict=True) for k, m in zip(task, part, strict=True)}
     records, seconds, curves = [], [], []
     with atomic_directory(output) as tmp:
         store = ModelStore(tmp)
         # models without DAgger first, then DAgger's: the store's index keeps one order whatever the tasks were
-        for key in sorted(keyed, key=lambda k: bool(make(k)().dagger_rounds)):
+        for key in sorted(keyed, key=lambda k: bool(unfitted[k].dagger_rounds)):
             method = fitted[key]
             planner = method.planner_
             ssvm = planner.ssvm_

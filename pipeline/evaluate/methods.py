@@ -242,8 +242,6 @@ class SymbolicMethod:
                         max_steps)
 
 
-
-
 def table1_methods(settings: Crossval, learner: Learner, horizon: int = Pddl.horizon,
                    store: str | None = None) -> dict[str, Callable[[], Method]]:
     """Every method of Table I, by name, as factories of unfitted methods; `horizon` is the symbolic planners'."""

@@ -153,7 +153,7 @@ class MRFPlanner:
     def load(cls, path: Path | str) -> MRFPlanner:
         """A fitted planner from a model file; `meta_` holds what was saved with it."""
         model, w, meta = load_model(path)
-        planner = cls(model.features, **{k: meta[k] for k in ("C", "tol", "max_iter", "n_slacks") if k in meta})
+        planner = cls(model.features, **{k: meta[k] for k in cls._PARAMS if k != "features" and k in meta})
         planner.model_, planner.w_, planner.ssvm_ = model, np.asarray(w), None
         planner.meta_ = meta
         return planner

@@ -404,8 +404,9 @@ def _pairwise_steps(gram: np.ndarray, losses: np.ndarray, groups: np.ndarray, al
                     moved_by[n_moved] = moved[c]
                     n_moved += 1
                     moved[c] = 0.0
-                saved[q] = grad[c]
             if n_moved:
+                for q in range(m):
+                    saved[q] = grad[local[q]]
                 _cross_update(gram, grad, K, moved_cut, moved_by, n_moved)
                 for q in range(m):  # the group's own gradients were updated step by step: put them back
                     grad[local[q]] = saved[q]

@@ -17,7 +17,7 @@ from ..sim.safety import violations
 from ..sim.state import WorldState
 from ..sim.tasks import Task, goal_reached
 
-if TYPE_CHECKING:  # only named in hints: the stages that read programs need not import scikit-learn
+if TYPE_CHECKING:  # only named in hints: the stages that read programs need not import the learner (Numba, scipy)
     from ..learn.estimator import MRFPlanner
 
 DONE = "done"
