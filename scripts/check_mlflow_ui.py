@@ -3,8 +3,11 @@
 Starts `mlflow ui` on 127.0.0.1 over the repository's store and loads two pages
 in headless Chromium (Debian's `chromium` package), letting their scripts run:
 
-- the runs table, http://127.0.0.1:PORT/#/experiments/<id>/runs, which must
-  list the stages' runs by name;
+- the runs table, http://127.0.0.1:PORT/#/experiments/<id>/runs, searched
+  for each stage's name as a user would (`searchFilter=attributes.run_name =
+  '<stage>'`), which must list that stage's runs: unsearched, its first page
+  holds the newest 100 runs, child runs included, and with three worlds
+  those are the last stages' alone;
 - the compare page of the newest `crossval` run's child runs (one per
   method), #/compare-runs?runs=[...], which must show every child's `method`
   param, as a user comparing methods sees them.
@@ -25,6 +28,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import urllib.parse
 import urllib.request
 from pathlib import Path
 
@@ -78,12 +82,15 @@ def main() -> int:
                 break
             except OSError:
                 time.sleep(0.5)
-        runs_page, compare_page = render(browser, runs_url), render(browser, compare_url)
+        searched = {name: render(browser, f"{runs_url}?" + urllib.parse.urlencode(
+            {"searchFilter": f"attributes.run_name = '{name}'"}, quote_via=urllib.parse.quote))
+            for name in args.expect}
+        compare_page = render(browser, compare_url)
     finally:
         ui.terminate()
         ui.wait(timeout=30)
-    missing = [name for name in args.expect if f">{name}<" not in runs_page]
-    print(f"{runs_url}: {len(args.expect) - len(missing)} of {len(args.expect)} runs listed"
+    missing = [name for name, page in searched.items() if f">{name}<" not in page]
+    print(f"{runs_url}, searched by run name: {len(args.expect) - len(missing)} of {len(args.expect)} stages listed"
           + (f"; missing {', '.join(missing)}" if missing else ""))
     methods = sorted({run.data.params.get("method", run.info.run_name) for run in children})
     unshown = [m for m in methods if f">{m}<" not in compare_page]
