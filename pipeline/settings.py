@@ -1,16 +1,23 @@
 """Every result-bearing setting of the pipeline, with its default, in one place.
 
-Each dataclass mirrors one section of `params.yaml` field by field (a test
-checks that the defaults here equal the file), so a stage run by hand with no
-options computes what `dvc repro` computes. How work is spread over CPUs and
-how many recordings are written change no number and are not settings: they
-are options of the commands only.
+Each dataclass is one section of `params.yaml`, field by field (a test checks
+that the defaults here equal the file), and `Params` is the whole file. A
+stage reads the file once (`Params.load`), with any `--set section.key=value`
+of its command line on top, and picks what it needs into its own settings
+object; the stage's `params` list in `dvc.yaml` names exactly those keys (a
+test checks that too). How work is spread over CPUs and how many recordings
+are written change no number and are not settings: they are options of the
+commands only.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, fields, replace
+from pathlib import Path
 from typing import Any
+
+import yaml
 
 
 @dataclass(frozen=True)
@@ -53,10 +60,13 @@ class Learner:
 
 @dataclass(frozen=True)
 class Train(Learner):
+    """The learner, and the feature set of the model `taskseq plan` uses."""
+
     feature_set: str = "full"  # full | edge | clique
 
     @property
     def learner(self) -> Learner:
+        """The learner without the feature set: what every evaluated MRF method takes."""
         return Learner(self.C, self.tol, self.max_iter, self.n_slacks, self.dagger_rounds)
 
 
@@ -88,52 +98,148 @@ class Crossval(Folds):
 
 @dataclass(frozen=True)
 class Noise:
+    methods: tuple[str, ...] = ("full", "relations")  # Table I methods run under noise
     rates: tuple[float, ...] = (0.0, 0.1, 0.2, 0.3, 0.4)  # probability of flipping each binary attribute
-    seeds: int = 3  # noise draws per rate
-    seed: int = 0
+    draws: int = 3  # noise draws per rate
+    seed: int = 0  # seed of the noise draws
 
 
 @dataclass(frozen=True)
 class Feedback:
+    methods: tuple[str, ...] = ("full", "relations")  # Table I methods run with an observer
     k: tuple[int, ...] = (2, 3)  # candidates offered to the observer
     n: tuple[str, ...] = ("0", "1", "2", "3", "5", "all")  # steps with feedback
 
+    def __post_init__(self) -> None:
+        bad = [n for n in self.n if n != "all" and not n.isdigit()]
+        if bad:
+            raise ValueError(f"feedback.n must list whole numbers of steps or 'all', got {bad[0]!r}")
 
-SECTIONS: dict[str, type] = {
-    "world": World,
-    "select": Select,
-    "train": Train,
-    "pddl": Pddl,
-    "crossval": Crossval,
-    "noise": Noise,
-    "feedback": Feedback,
+
+@dataclass(frozen=True)
+class Recipes:
+    methods: tuple[str, ...] = ("full", "chained")  # Table I methods that chain programs into recipes
+    observer_k: int = 3  # candidates the observer picks among at the start of each program (feedback runs)
+
+
+# What a key may hold beyond its type, checked when the file is read.
+CHOICES: dict[tuple[str, str], tuple[str, ...]] = {
+    ("train", "feature_set"): ("full", "edge", "clique"),
+    ("crossval", "group_by"): ("scenario", "environment"),
 }
-
 
 # Fields of a section's class that params.yaml leaves out, and why.
 NOT_IN_PARAMS = {("train", "C"): "chosen by the select stage on the development world (reports/selection.json)"}
 
 
-def from_values(cls: type, values: dict[str, Any]) -> Any:
-    """A settings object from a mapping that may hold more keys (argparse's namespace, say)."""
-    return cls(**{f.name: values[f.name] for f in fields(cls) if f.name in values})
+@dataclass(frozen=True)
+class Params:
+    """The whole of `params.yaml`, a typed section per field."""
+
+    world: World = World()
+    select: Select = Select()
+    train: Train = Train()
+    pddl: Pddl = Pddl()
+    crossval: Crossval = Crossval()
+    noise: Noise = Noise()
+    feedback: Feedback = Feedback()
+    recipes: Recipes = Recipes()
+
+    @classmethod
+    def load(cls, path: Path | str | None = Path("params.yaml"), overrides: Iterable[str] = ()) -> Params:
+        """The file's settings (defaults where it is missing or silent), then `section.key=value` overrides.
+
+        Raises `ValueError` naming the file and the key for anything it cannot take.
+        """
+        source = "params.yaml" if path is None else str(path)
+        overrides = list(overrides)
+        raw: dict[str, Any] = {}
+        if path is not None and Path(path).exists():
+            try:
+                raw = yaml.safe_load(Path(path).read_text()) or {}
+            except yaml.YAMLError as err:
+                raise ValueError(f"{source}: not valid YAML ({err})") from None
+            if not isinstance(raw, dict):
+                raise ValueError(f"{source}: expected sections such as 'train:', got {type(raw).__name__}")
+        raw = {k: dict(v) if isinstance(v, dict) else v for k, v in raw.items()}
+        for item in overrides:
+            key, sep, value = item.partition("=")
+            section, dot, name = key.strip().partition(".")
+            if not sep or not dot or not name:
+                raise ValueError(f"--set {item!r}: expected section.key=value, e.g. train.tol=1e-4")
+            raw.setdefault(section, {})
+            if not isinstance(raw[section], dict):
+                raise ValueError(f"{source}: section {section!r} must hold keys, got {raw[section]!r}")
+            raw[section][name] = yaml.safe_load(value) if value.strip() else ""
+        if overrides:
+            source = f"{source} with --set {' '.join(overrides)}"
+        unknown = sorted(set(raw) - {f.name for f in fields(cls)})
+        if unknown:
+            raise ValueError(f"{source}: unknown sections {unknown}; known: {', '.join(f.name for f in fields(cls))}")
+        sections = {}
+        for f in fields(cls):
+            section = raw.get(f.name) or {}
+            if not isinstance(section, dict):
+                raise ValueError(f"{source}: section {f.name!r} must hold keys, got {section!r}")
+            sections[f.name] = parse_section(type(getattr(cls(), f.name)), section, f.name, source)
+        return cls(**sections)
+
+    def with_C(self, C: float) -> Params:
+        """These settings with the learner's slack weight set (from the `select` stage's choice)."""
+        return replace(self, train=replace(self.train, C=C))
+
+    def flat(self) -> dict[str, Any]:
+        """Every setting as `section.key`: what a stage's run records."""
+        return {f"{s.name}.{k.name}": getattr(getattr(self, s.name), k.name)
+                for s in fields(self) for k in fields(getattr(self, s.name))}
 
 
-def parse_section(cls: type, section: dict[str, Any]) -> Any:
+SECTIONS: dict[str, type] = {f.name: type(getattr(Params(), f.name)) for f in fields(Params)}
+
+
+def _value(kind: type, value: Any, key: str, source: str) -> Any:
+    """One value as the field's type, or a `ValueError` that names the key and what it got."""
+    if isinstance(value, (bool, list, dict)):
+        raise ValueError(f"{source}: {key} must be {kind.__name__}, got {value!r}")
+    try:
+        if kind is int:
+            if isinstance(value, float) or (isinstance(value, str) and not value.lstrip("-").isdigit()):
+                raise ValueError
+            return int(value)
+        if kind is float:
+            return float(value)
+        return str(value)
+    except (TypeError, ValueError):
+        what = {int: "a whole number", float: "a number"}.get(kind, kind.__name__)
+        raise ValueError(f"{source}: {key} must be {what}, got {value!r}") from None
+
+
+def parse_section(cls: type, section: Mapping[str, Any], name: str | None = None,
+                  source: str = "params.yaml") -> Any:
     """A settings object from a `params.yaml` section; lists may be written as space-separated strings."""
-    unknown = set(section) - {f.name for f in fields(cls)}
+    name = name or next((s for s, c in SECTIONS.items() if c is cls), cls.__name__.lower())
+    known = [f.name for f in fields(cls)]
+    unknown = sorted(set(section) - set(known))
     if unknown:
-        raise ValueError(f"params.yaml: unknown settings {sorted(unknown)} for {cls.__name__}")
+        keys = ", ".join(f"{name}.{k}" for k in unknown)
+        raise ValueError(f"{source}: unknown setting {keys}; {name} has {', '.join(known)}")
     out = {}
     for f in fields(cls):
         if f.name not in section:
             continue
-        value = section[f.name]
-        default = getattr(cls(), f.name)
+        value, default, key = section[f.name], getattr(cls(), f.name), f"{name}.{f.name}"
         if isinstance(default, tuple):
-            items = value.split() if isinstance(value, str) else list(value)
-            value = tuple(type(default[0])(v) for v in items)
-        elif isinstance(default, float):
-            value = float(value)
+            items = value.split() if isinstance(value, str) else value if isinstance(value, list) else [value]
+            value = tuple(_value(type(default[0]), v, key, source) for v in items)
+            if not value:
+                raise ValueError(f"{source}: {key} must list at least one value")
+        else:
+            value = _value(type(default), value, key, source)
+        choices = CHOICES.get((name, f.name))
+        if choices and value not in choices:
+            raise ValueError(f"{source}: {key} must be one of {', '.join(choices)}, got {value!r}")
         out[f.name] = value
-    return cls(**out)
+    try:
+        return cls(**out)
+    except ValueError as err:
+        raise ValueError(f"{source}: {err}") from None

@@ -10,11 +10,12 @@ from pathlib import Path
 import pytest
 
 from pipeline.cli import main
-from pipeline.settings import Crossval, Learner, Select, World
+from pipeline.settings import Folds, Learner, Select, World
 from pipeline.stages import select as select_stage
+from pipeline.stages.paths import SelectPaths
 
-FOLDS = ["--folds", "2", "--group-by", "scenario", "--seed", "0"]
-LEARN = ["--tol", "0.01", "--max-iter", "300", "--n-slacks", "2"]
+FOLDS = ["--set", "crossval.folds=2", "--set", "crossval.group_by=scenario", "--set", "crossval.seed=0"]
+LEARN = ["--set", "train.tol=0.01", "--set", "train.max_iter=300", "--set", "train.n_slacks=2"]
 
 
 @pytest.fixture(scope="module")
@@ -64,10 +65,9 @@ def evaluated(tiny) -> Path:
     sel = ["--selection", str(tiny / "selection.json"), "--model-store", str(tiny / "store")]
     assert main(["crossval", *data(tiny), *FOLDS, *LEARN, *sel, "--output", str(w), "--n-jobs", "1",
                  "--recordings", "1", "--recordings-dir", str(tiny / "recordings")]) == 0
-    fold = [*FOLDS[:4], "--fold-seed", "0"]
-    assert main(["noise", *data(tiny), *fold, *LEARN, *sel, "--rates", "0.0", "0.3", "--seeds", "2",
+    assert main(["noise", *data(tiny), *FOLDS, *LEARN, *sel, "--set", "noise.rates=0.0 0.3", "--set", "noise.draws=2",
                  "--output", str(w), "--n-jobs", "1"]) == 0
-    assert main(["feedback", *data(tiny), *fold, *LEARN, *sel, "--k", "2", "--n", "0", "all",
+    assert main(["feedback", *data(tiny), *FOLDS, *LEARN, *sel, "--set", "feedback.k=2", "--set", "feedback.n=0 all",
                  "--output", str(w), "--n-jobs", "1"]) == 0
     assert main(["recipes", *data(tiny), *LEARN, *sel, "--output", str(w)]) == 0
     return w
@@ -125,8 +125,8 @@ def test_aggregate_and_report_over_worlds(evaluated, tiny):
     second = tiny / "worlds" / "5"
     shutil.copytree(evaluated, second, dirs_exist_ok=True)  # a second world with the same results: sd 0
     out = tiny / "reports"
-    assert main(["aggregate", "--seeds", "0", "5", "--dev_seed", "100", "--worlds", str(tiny / "worlds"),
-                 "--output", str(out)]) == 0
+    assert main(["aggregate", "--set", "world.seeds=[0, 5]", "--set", "world.dev_seed=100",
+                 "--worlds", str(tiny / "worlds"), "--output", str(out)]) == 0
     means = json.loads((out / "crossval_means.json").read_text())
     single = json.loads((evaluated / "crossval.json").read_text())["full"]
     assert means["full"]["sequence_arg"] == pytest.approx(single["sequence/arg"])
@@ -172,15 +172,15 @@ def test_select_sees_only_the_development_world(tiny, monkeypatch, tmp_path):
         return {}
 
     monkeypatch.setattr(select_stage, "generate", spy_generate)
-    result = select_stage.run(World(seeds=(0, 3), dev_seed=100), Select(C=(0.5, 2.0)),
-                              Learner(tol=0.01, max_iter=300, n_slacks=2), Crossval(folds=2), tmp_path / "dev",
-                              tmp_path / "selection.json")
+    settings = select_stage.Settings(World(seeds=(0, 3), dev_seed=100), Select(C=(0.5, 2.0)),
+                                     Learner(tol=0.01, max_iter=300, n_slacks=2), Folds(folds=2), max_steps=20)
+    result = select_stage.run(settings, SelectPaths(data=tmp_path / "dev", output=tmp_path / "selection.json"))
     assert drawn == [100]
     assert result["C"] in (0.5, 2.0) and len(result["candidates"]) == 2
     assert json.loads((tmp_path / "selection.json").read_text())["dev_seed"] == 100
     with pytest.raises(ValueError, match="also a reported seed"):
-        select_stage.run(World(seeds=(0, 100), dev_seed=100), Select(), Learner(), Crossval(), tmp_path / "d",
-                         tmp_path / "s.json")
+        select_stage.run(select_stage.Settings(World(seeds=(0, 100), dev_seed=100), Select(), Learner(), Folds(), 20),
+                         SelectPaths(data=tmp_path / "d", output=tmp_path / "s.json"))
 
 
 def test_a_bad_selection_file_is_named(tiny, tmp_path, capsys):

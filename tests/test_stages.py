@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from params_reads import keys_read
 
 from pipeline.settings import NOT_IN_PARAMS, SECTIONS, parse_section
 from pipeline.stages import STAGES
@@ -80,3 +81,29 @@ def test_no_stage_command_passes_a_setting_that_changes_no_result():
     for name in STAGES:
         cmd = dvc_stage(name)["cmd"]
         assert not re.search(r"--n-jobs|--recordings(?!-dir)", cmd), name
+
+
+def leaf_keys(entries: list[str]) -> set[str]:
+    """dvc.yaml params entries as `section.key`: a whole section stands for each of its keys."""
+    out = set()
+    for entry in entries:
+        section, _, key = entry.partition(".")
+        out |= {f"{section}.{f.name}" for f in fields(SECTIONS[section])} if not key else {entry}
+    return out
+
+
+@pytest.mark.parametrize("stage", STAGES)
+def test_dvc_params_are_exactly_the_settings_a_stage_reads(stage):
+    declared = leaf_keys(dvc_stage(stage).get("params", []))
+    read = keys_read(stage) - {f"{s}.{k}" for s, k in NOT_IN_PARAMS}  # train.C comes from reports/selection.json
+    assert declared == read, f"dvc.yaml stage {stage}: lists {sorted(declared - read)} it never reads, " \
+                             f"misses {sorted(read - declared)}"
+
+
+@pytest.mark.parametrize("stage", STAGES)
+def test_stage_commands_carry_paths_and_the_world_seed_only(stage):
+    cmd = dvc_stage(stage)["cmd"]
+    options = re.findall(r"--([a-z-]+)", cmd)
+    allowed = {f.name.replace("_", "-") for f in fields(STAGES[stage].paths)} | {"world-seed"}
+    assert set(options) <= allowed, f"{stage} passes {sorted(set(options) - allowed)}"
+    assert "${" not in cmd.replace("${item}", "").replace("${world.seeds[0]}", ""), cmd

@@ -12,9 +12,9 @@ import pytest
 
 PIPELINE = """stages:
   generate:
-    cmd: taskseq generate --seed ${generate.seed} --output raw
+    cmd: taskseq generate --world-seed ${world.dev_seed} --output raw
     params:
-      - generate.seed
+      - world.dev_seed
     outs:
       - raw
 """
@@ -34,11 +34,11 @@ def test_a_queued_experiment_records_into_the_repositorys_mlflow_store(tmp_path)
     env.update(GIT_AUTHOR_NAME="t", GIT_AUTHOR_EMAIL="t@t", GIT_COMMITTER_NAME="t", GIT_COMMITTER_EMAIL="t@t",
                PATH=f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}")
     (repo / "dvc.yaml").write_text(PIPELINE)
-    (repo / "params.yaml").write_text("generate:\n  seed: 0\n")
+    (repo / "params.yaml").write_text("world:\n  dev_seed: 0\n")
     (repo / ".gitignore").write_text("/mlflow.db\n/mlartifacts/\n")
     for cmd in (["git", "init", "-q"], ["dvc", "init", "-q"], ["git", "add", "-A"], ["git", "commit", "-qm", "x"]):
         _run(cmd, repo, env)
-    _run(["dvc", "exp", "run", "--queue", "-S", "generate.seed=1,2"], repo, env)
+    _run(["dvc", "exp", "run", "--queue", "-S", "world.dev_seed=1,2"], repo, env)
     _run(["dvc", "queue", "start", "-j", "1"], repo, env)
     deadline = time.monotonic() + 600  # a bound on waiting for a worker that died, not a speed check
     while time.monotonic() < deadline:
@@ -51,10 +51,10 @@ def test_a_queued_experiment_records_into_the_repositorys_mlflow_store(tmp_path)
     assert (repo / "mlflow.db").exists()  # in the repository, not in the temporary copies
     with sqlite3.connect(repo / "mlflow.db") as db:
         runs = db.execute("select r.run_uuid, p.value from runs r join params p on p.run_uuid = r.run_uuid "
-                          "where r.name = 'generate' and r.status = 'FINISHED' and p.key = 'cli.seed'").fetchall()
+                          "where r.name = 'generate' and r.status = 'FINISHED' and p.key = 'cli.world_seed'").fetchall()
         assert sorted(seed for _, seed in runs) == ["1", "2"]
         metrics = db.execute("select key, value from metrics where run_uuid = ? and key = 'demonstrations'",
                              (runs[0][0],)).fetchall()
     assert metrics and metrics[0][1] > 0
     shown = _run(["dvc", "exp", "show", "--csv"], repo, env)
-    assert "generate.seed" in shown and ",1," in shown.replace("\n", ",") and ",2," in shown.replace("\n", ",")
+    assert "world.dev_seed" in shown and ",1," in shown.replace("\n", ",") and ",2," in shown.replace("\n", ",")

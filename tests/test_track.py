@@ -50,7 +50,8 @@ def test_crossval_has_a_child_run_per_method_with_the_same_keys(store, benchmark
     write_tables(benchmark_tables[0], tmp_path / "processed")
     write_features(*benchmark_steps, tmp_path / "features")
     code = main(["crossval", "--features", str(tmp_path / "features"), "--processed", str(tmp_path / "processed"),
-                 "--folds", "2", "--methods", "chance", "multiclass", "--output", str(tmp_path / "reports")])
+                 "--set", "crossval.folds=2", "--methods", "chance", "multiclass",
+                 "--output", str(tmp_path / "reports")])
     assert code == 0
     (parent,) = runs(store, "crossval")
     children = [r for r in runs(store) if r.data.tags.get("mlflow.parentRunId") == parent.info.run_id]
@@ -77,8 +78,8 @@ def test_child_runs_carry_what_tells_them_apart_and_their_programs(store, benchm
     write_tables(benchmark_tables[0], tmp_path / "processed")
     write_features(*benchmark_steps, tmp_path / "features")
     code = main(["crossval", "--features", str(tmp_path / "features"), "--processed", str(tmp_path / "processed"),
-                 "--folds", "2", "--methods", "multiclass", "only_edge", "--C", "2.5", "--world-seed", "7",
-                 "--recordings", "0", "--output", str(tmp_path / "reports")])
+                 "--set", "crossval.folds=2", "--methods", "multiclass", "only_edge", "--set", "train.C=2.5",
+                 "--world-seed", "7", "--recordings", "0", "--output", str(tmp_path / "reports")])
     assert code == 0
     (parent,) = runs(store, "crossval")
     assert parent.data.tags["git.dirty"] in ("true", "false", "unknown")
@@ -98,7 +99,7 @@ def test_child_runs_carry_what_tells_them_apart_and_their_programs(store, benchm
 
 def test_train_logs_the_objective_and_gap_of_every_iteration(store, benchmark_steps, tmp_path):
     write_features(*benchmark_steps, tmp_path / "features")
-    assert main(["train", "--features", str(tmp_path / "features"), "--feature-set", "edge",
+    assert main(["train", "--features", str(tmp_path / "features"), "--set", "train.feature_set=edge",
                  "--model", str(tmp_path / "m.npz")]) == 0
     (run,) = runs(store, "train")
     gaps = store.get_metric_history(run.info.run_id, "gap")

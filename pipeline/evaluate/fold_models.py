@@ -10,7 +10,7 @@ folder, where the stages find them by content.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -20,17 +20,12 @@ from ..features.dataset import StepMeta
 from ..io import atomic_directory, write_json_atomic
 from ..learn.ssvm import learning_curve
 from ..learn.store import ModelStore
+from ..settings import Recipes
 from ..sim.scenarios import Scenario
 from .crossval import scenario_folds, training_index
 from .dispatch import Shared, run_jobs
 from .methods import MRFMethod
 from .recipes import recipe_training_sets
-
-# Beside the paper's full model, noise and feedback run the added method with the best closed-loop
-# accuracy on the development world, recipes the one that chains programs best there (README, "Beyond
-# the paper"); both were chosen on that world, never on a reported one.
-ROBUSTNESS_METHODS = ("full", "relations")
-RECIPE_METHODS = ("full", "chained")
 
 MakeMRF = Callable[[], MRFMethod]
 
@@ -43,14 +38,15 @@ class TrainingJob:
 
 
 def training_jobs(methods: Mapping[str, MakeMRF], meta: list[StepMeta], scenarios: dict[str, Scenario],
-                  n_folds: int, seed: int, group_by: str) -> list[TrainingJob]:
-    """The MRF fits of crossval (every method x folds) and recipes (each recipe method per kind)."""
+                  n_folds: int, seed: int, group_by: str,
+                  recipe_methods: Sequence[str] = Recipes.methods) -> list[TrainingJob]:
+    """The MRF fits of crossval (every method x folds) and recipes (each of `recipe_methods` per kind)."""
     jobs = []
     folds = scenario_folds(scenarios, n_folds, seed, group_by)
     for method in methods:
         for k, test in enumerate(folds):
             jobs.append(TrainingJob(method, f"fold {k}", tuple(training_index(meta, test))))
-    for method in (m for m in RECIPE_METHODS if m in methods):
+    for method in (m for m in recipe_methods if m in methods):
         for name, index in recipe_training_sets(meta).items():
             jobs.append(TrainingJob(method, f"recipes: {name}", tuple(index)))
     return jobs

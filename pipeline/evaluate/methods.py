@@ -7,7 +7,7 @@ is run closed-loop in the simulator from a scenario's initial state.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from functools import partial
 from typing import Any, Protocol
@@ -261,10 +261,18 @@ def table1_methods(settings: Crossval, learner: Learner, horizon: int = Pddl.hor
     }
 
 
-def mrf_methods(learner: Learner) -> dict[str, Callable[[], MRFMethod]]:
-    """The MRF methods of Table I (the ones the `folds` stage trains), by name, without a store."""
-    every = table1_methods(Crossval(), learner)
-    return {name: make for name, make in every.items() if isinstance(make(), MRFMethod)}
+def mrf_methods(learner: Learner, store: str | None = None,
+                names: Sequence[str] | None = None) -> dict[str, Callable[[], MRFMethod]]:
+    """The MRF methods of Table I (the ones the `folds` stage trains), by name; `names` picks some, in that order.
+
+    Raises `ValueError` naming any of `names` that is not an MRF method.
+    """
+    every = table1_methods(Crossval(), learner, store=store)
+    mrf = {name: make for name, make in every.items() if isinstance(make(), MRFMethod)}
+    unknown = [n for n in names or () if n not in mrf]
+    if unknown:
+        raise ValueError(f"unknown MRF methods {unknown}; known: {', '.join(mrf)}")
+    return mrf if names is None else {n: mrf[n] for n in names}
 
 
 def method_params(name: str, method: Method) -> dict[str, Any]:

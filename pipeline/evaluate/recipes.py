@@ -18,6 +18,7 @@ from threadpoolctl import threadpool_limits
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
 from ..plan.planner import plan
+from ..settings import Recipes
 from ..sim.catalog import ENVIRONMENTS_BY_ID, build_environment
 from ..sim.demonstrator import NoDemonstration, choose_vessel, demonstrate
 from ..sim.primitives import PreconditionError
@@ -93,7 +94,10 @@ class RecipeOutcome:
     programs: list[tuple[str, str, bool]]  # task, status, program success
 
 
-def run_recipe(method: MRFMethod, recipe: Recipe, feedback: bool, max_steps: int = 20) -> RecipeOutcome:
+def run_recipe(method: MRFMethod, recipe: Recipe, feedback: bool, max_steps: int = 20,
+               observer_k: int = Recipes.observer_k) -> RecipeOutcome:
+    """Each program from where the last one left the world; with `feedback`, the observer picks the
+    demonstrator's step among the planner's `observer_k` best at the start of each program."""
     initial = state = build_environment(ENVIRONMENTS_BY_ID[recipe.env_id])
     programs = []
     for next_task in recipe.programs:
@@ -105,7 +109,7 @@ def run_recipe(method: MRFMethod, recipe: Recipe, feedback: bool, max_steps: int
             except (NoDemonstration, PreconditionError):
                 demos = ()
             choose = observer(demos, 1)
-        program = plan(method.planner_, state, task, max_steps=max_steps, top_k=3, choose=choose)
+        program = plan(method.planner_, state, task, max_steps=max_steps, top_k=observer_k, choose=choose)
         programs.append((str(task), program.status, program.success))
         state = program.final
         if not program.success:
@@ -124,7 +128,8 @@ def recipe_training_sets(meta: list[StepMeta]) -> dict[str, list[int]]:
 
 
 def evaluate_recipes(make: Callable[[], MRFMethod], contexts: list[StepContext], meta: list[StepMeta],
-                     scenarios: Mapping[str, Scenario], max_steps: int = 20) -> list[RecipeOutcome]:
+                     scenarios: Mapping[str, Scenario], max_steps: int = 20,
+                     observer_k: int = Recipes.observer_k) -> list[RecipeOutcome]:
     """Train (or load) once per recipe kind, without the kind's three environments, and run each recipe.
 
     `scenarios` are the benchmark's (methods that consult the demonstrator read the training ones).
@@ -135,7 +140,7 @@ def evaluate_recipes(make: Callable[[], MRFMethod], contexts: list[StepContext],
             method = make().fit([contexts[i] for i in train], [meta[i] for i in train], scenarios)
             for recipe in (r for r in RECIPES if r.name == name):
                 for feedback in (False, True):
-                    out.append(run_recipe(method, recipe, feedback, max_steps))
+                    out.append(run_recipe(method, recipe, feedback, max_steps, observer_k))
     return out
 
 

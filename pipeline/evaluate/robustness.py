@@ -130,7 +130,7 @@ def rates(outcomes: list[SequenceOutcome]) -> dict[str, float]:
 def noise_runs(settings: Noise, results: list[tuple[Condition, SequenceOutcome]]) -> list[dict[str, float]]:
     """One row per (rate, noise draw) over all scenarios."""
     return [{"rate": r, "seed": s, **rates([o for c, o in results if c == Condition("noise", r, s)])}
-            for r in settings.rates for s in range(settings.seeds)]
+            for r in settings.rates for s in range(settings.draws)]
 
 
 def noise_curve(settings: Noise, runs: list[dict[str, float]]) -> list[dict[str, float]]:

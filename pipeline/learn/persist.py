@@ -8,36 +8,26 @@ same hash in `dvc.lock`) on every run.
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 import zipfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ..io import atomic_file
 from .mrf import MRFModel
 
 FORMAT = "taskseq.mrf/1"
 
 
 def save_model(path: Path | str, model: MRFModel, w: np.ndarray, params: dict[str, Any]) -> None:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     meta = {"format": FORMAT, "features": model.features, **params}
     arrays = {"w": np.asarray(w, dtype=np.float64), "feature_names": np.array(model.feature_names()),
               "meta": np.array(json.dumps(meta, sort_keys=True))}
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".npz", dir=path.parent)
-    os.close(fd)
-    try:
-        with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_STORED) as z:
-            for name, array in arrays.items():
-                with z.open(zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0)), "w") as fh:
-                    np.lib.format.write_array(fh, array, allow_pickle=False)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_file(path) as tmp, zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_STORED) as z:
+        for name, array in arrays.items():
+            with z.open(zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0)), "w") as fh:
+                np.lib.format.write_array(fh, array, allow_pickle=False)
 
 
 def load_model(path: Path | str) -> tuple[MRFModel, np.ndarray, dict[str, Any]]:

@@ -7,13 +7,13 @@ feedback curves and the recipes, each with its spread over world seeds.
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 from ..evaluate.labels import METHOD_LABELS
 from ..io import write_json_atomic, write_text_atomic
 from ..report import paper
 from ..report.csvs import SEQUENCE_COLUMNS, csv_text, read_csv_rows
+from ..report.figures import line_plot_png
 from ..report.seeds import (
     crossval_over_seeds,
     curve_over_seeds,
@@ -27,16 +27,21 @@ from ..report.seeds import (
     table1_over_seeds,
     world_dirs,
 )
-from ..report.tables import line_plot_png, to_latex, to_markdown
-from ..settings import World
+from ..report.tables import to_latex, to_markdown
+from ..settings import Params, World
 from ..track.mlflow_runs import NO_RUN, Tracker
+from .paths import AggregatePaths
 
 RATES = ("sequence_arg", "sequence_prim", "success")
 
 
-def run(world: World, worlds: Path, output: Path, tracker: Tracker = NO_RUN) -> dict[str, Any]:
-    dirs = world_dirs(worlds, world.seeds)
-    out = Path(output)
+def settings(params: Params, world_seed: int | None = None) -> World:
+    return params.world
+
+
+def run(settings: World, paths: AggregatePaths, tracker: Tracker = NO_RUN) -> dict[str, Any]:
+    world, out = settings, paths.output
+    dirs = world_dirs(paths.worlds, world.seeds)
     per_seed, table = table1_over_seeds(dirs)
     write_text_atomic(out / "table1_seeds.csv", csv_text(["world_seed", "method", "column", "prim", "arg"], per_seed,
                                                          {"prim": 2, "arg": 2}))

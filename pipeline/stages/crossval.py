@@ -8,6 +8,7 @@ Rerun recordings of some of its programs.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -20,34 +21,47 @@ from ..io import write_json_atomic, write_text_atomic
 from ..logs.benchmark import load_benchmark
 from ..plan.symbolic.files import file_stem
 from ..report.csvs import SEQUENCE_COLUMNS, csv_text, sequence_rows
-from ..report.tables import confusion_png, table_rows, to_csv, to_latex, to_markdown
-from ..settings import Crossval, Learner, Pddl
+from ..report.figures import confusion_png
+from ..report.tables import table_rows, to_csv, to_latex, to_markdown
+from ..settings import Crossval, Learner, Params
 from ..track.mlflow_runs import NO_RUN, Tracker
 from ..track.recordings import record_program, spread
+from .paths import CrossvalPaths
 
 
-def run(settings: Crossval, learner: Learner, pddl: Pddl, features: Path, processed: Path, output: Path,
-        store: Path | None = None, methods: list[str] | None = None, n_jobs: int = 1, recordings: int = 0,
-        recordings_dir: Path | None = None, tracker: Tracker = NO_RUN) -> dict[str, Any]:
-    contexts, meta = read_features(features)
-    bench = load_benchmark(processed)
-    factories = table1_methods(settings, learner, pddl.horizon, None if store is None else str(store))
+@dataclass(frozen=True)
+class Settings:
+    crossval: Crossval
+    learner: Learner
+    horizon: int  # longest plan of the symbolic baselines
+
+
+def settings(params: Params, world_seed: int | None = None) -> Settings:
+    return Settings(params.crossval, params.train.learner, params.pddl.horizon)
+
+
+def run(settings: Settings, paths: CrossvalPaths, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> dict[str, Any]:
+    crossval, methods, output = settings.crossval, paths.methods, paths.output
+    contexts, meta = read_features(paths.features)
+    bench = load_benchmark(paths.processed)
+    store = None if paths.model_store is None else str(paths.model_store)
+    factories = table1_methods(crossval, settings.learner, settings.horizon, store)
     unknown = set(methods or []) - set(factories)
     if unknown:
         raise ValueError(f"unknown methods {sorted(unknown)}; known: {', '.join(factories)}")
     factories = {k: v for k, v in factories.items() if methods is None or k in methods}
-    print(f"cross-validating {', '.join(factories)} over {settings.folds} folds grouped by {settings.group_by} "
+    print(f"cross-validating {', '.join(factories)} over {crossval.folds} folds grouped by {crossval.group_by} "
           f"({len(bench.scenarios)} scenarios, {len(contexts)} steps, {n_jobs} jobs)")
-    recorded = spread(list(bench.scenarios), recordings)
-    results = cross_validate(factories, contexts, meta, bench, n_folds=settings.folds, seed=settings.seed,
-                             group_by=settings.group_by, max_steps=settings.max_steps, n_jobs=n_jobs, verbose=5,
+    recorded = spread(list(bench.scenarios), paths.recordings)
+    results = cross_validate(factories, contexts, meta, bench, n_folds=crossval.folds, seed=crossval.seed,
+                             group_by=crossval.group_by, max_steps=crossval.max_steps, n_jobs=n_jobs, verbose=5,
                              keep_programs={"full": recorded})
     summary = summarize(results, contexts, {k: v().predicts_args for k, v in factories.items()})
     rows = table_rows(summary, METHOD_LABELS)
     out = Path(output)
     write_text_atomic(out / "table1.csv", to_csv(rows))
     write_text_atomic(out / "table1.md", to_markdown(rows))
-    caption = (f"{settings.folds}-fold cross-validation grouped by {settings.group_by} on {len(bench.scenarios)} "
+    caption = (f"{crossval.folds}-fold cross-validation grouped by {crossval.group_by} on {len(bench.scenarios)} "
                "scenarios: percentage of primitives (prim) and of primitives with arguments (arg) right, "
                "teacher-forced, and of closed-loop sequences equal to a demonstration.")
     write_text_atomic(out / "table1.tex", to_latex(rows, caption))
@@ -69,7 +83,7 @@ def run(settings: Crossval, learner: Learner, pddl: Pddl, features: Path, proces
                       "full model, teacher-forced, cross-validated")
     for r in results:
         for sid, program in r.programs.items():
-            path = Path(recordings_dir or out / "recordings") / f"{file_stem(sid)}.rrd"
+            path = Path(paths.recordings_dir or out / "recordings") / f"{file_stem(sid)}.rrd"
             record_program(path, sid, program, bench.scenarios[sid].demonstrations[0])
             tracker.artifact(path, "recordings")
     for f in ("table1.csv", "table1.md", "table1.tex", "metrics.json", "confusion.png"):

@@ -2,15 +2,20 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from ..features.context import candidate_index
 from ..features.dataset import build_steps, write_features
 from ..logs.ingest import read_tables, records_from_tables
+from ..settings import Params
 from ..track.mlflow_runs import NO_RUN, Tracker
+from .paths import FeaturesPaths
 
 
-def run(input_dir: Path, output: Path, tracker: Tracker = NO_RUN) -> int:
+def settings(params: Params, world_seed: int | None = None) -> None:
+    """The features read no setting: every candidate of every step is built."""
+
+
+def run(settings: None, paths: FeaturesPaths, tracker: Tracker = NO_RUN) -> int:
+    input_dir, output = paths.input, paths.output
     records = records_from_tables(read_tables(input_dir))
     contexts, meta = build_steps(records)
     write_features(contexts, meta, output)

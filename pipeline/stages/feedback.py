@@ -8,40 +8,53 @@ child run as a table.
 
 from __future__ import annotations
 
-from pathlib import Path
+from dataclasses import dataclass
 from typing import Any
 
-from ..evaluate.fold_models import ROBUSTNESS_METHODS
 from ..evaluate.labels import METHOD_LABELS
-from ..evaluate.methods import method_params, table1_methods
+from ..evaluate.methods import method_params, mrf_methods
 from ..evaluate.robustness import Condition, evaluate_conditions, feedback_rows, feedback_steps
 from ..features.dataset import read_features
 from ..io import write_text_atomic
 from ..logs.benchmark import load_benchmark
 from ..report.csvs import OUTCOME_COLUMNS, csv_text, outcome_row
-from ..report.tables import line_plot_png
-from ..settings import Crossval, Feedback, Learner
+from ..report.figures import line_plot_png
+from ..settings import Feedback, Folds, Learner, Params
 from ..track.mlflow_runs import NO_RUN, Tracker
+from .paths import EvaluationPaths
 
 DECIMALS = {"sequence_arg": 2, "sequence_prim": 2, "success": 2}
 
 
-def run(settings: Feedback, crossval: Crossval, learner: Learner, features: Path, processed: Path, output: Path,
-        store: Path | None = None, n_jobs: int = 1, tracker: Tracker = NO_RUN) -> list[dict[str, Any]]:
-    contexts, meta = read_features(features)
-    bench = load_benchmark(processed)
-    methods = table1_methods(crossval, learner, store=None if store is None else str(store))
-    ns = feedback_steps(settings, crossval.max_steps)
-    conditions = [Condition("feedback", k, n) for k in settings.k for n in ns]
-    label = dict(zip(ns, settings.n, strict=True))  # steps -> as the settings write them ("all")
+@dataclass(frozen=True)
+class Settings:
+    feedback: Feedback
+    folds: Folds  # the folds of crossval, so each scenario is run by the model that did not train on it
+    max_steps: int  # step cap of closed-loop runs
+    learner: Learner
+
+
+def settings(params: Params, world_seed: int | None = None) -> Settings:
+    c = params.crossval
+    return Settings(params.feedback, Folds(c.folds, c.group_by, c.seed), c.max_steps, params.train.learner)
+
+
+def run(settings: Settings, paths: EvaluationPaths, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> list[dict[str, Any]]:
+    feedback = settings.feedback
+    contexts, meta = read_features(paths.features)
+    bench = load_benchmark(paths.processed)
+    store = None if paths.model_store is None else str(paths.model_store)
+    methods = mrf_methods(settings.learner, store, feedback.methods)
+    ns = feedback_steps(feedback, settings.max_steps)
+    conditions = [Condition("feedback", k, n) for k in feedback.k for n in ns]
+    label = dict(zip(ns, feedback.n, strict=True))  # steps -> as the settings write them ("all")
     rows, sequences = [], []
-    chosen = {name: methods[name] for name in ROBUSTNESS_METHODS}
-    outcomes = evaluate_conditions(chosen, contexts, meta, bench.scenarios, conditions, crossval.fold_settings,
-                                   crossval.max_steps, n_jobs=n_jobs)
+    outcomes = evaluate_conditions(methods, contexts, meta, bench.scenarios, conditions, settings.folds,
+                                   settings.max_steps, n_jobs=n_jobs)
     for name, results in outcomes.items():
-        rows += [{"method": name, **r} for r in feedback_rows(settings, crossval.max_steps, results)]
+        rows += [{"method": name, **r} for r in feedback_rows(feedback, settings.max_steps, results)]
         sequences += [{"method": name, "k": int(c.a), "n": label[c.b], **outcome_row(o)} for c, o in results]
-    out = Path(output)
+    out = paths.output
     text = csv_text(["method", "k", "n", "sequence_arg", "sequence_prim", "success"], rows, DECIMALS)
     write_text_atomic(out / "feedback.csv", text)
     write_text_atomic(out / "feedback_sequences.csv", csv_text(["method", "k", "n", *OUTCOME_COLUMNS], sequences))
@@ -54,10 +67,10 @@ def run(settings: Feedback, crossval: Crossval, learner: Learner, features: Path
                         "sequences")
     series = {f"{METHOD_LABELS[m]}, top {k}": (list(range(len(ns))), [r["sequence_arg"] for r in rows
                                                                      if r["k"] == k and r["method"] == m], None)
-              for m in ROBUSTNESS_METHODS for k in settings.k}
+              for m in methods for k in feedback.k}
     line_plot_png(series, str(out / "feedback.png"), "Sequence accuracy (arg) with an observer's feedback",
                   "steps with feedback", "% sequences correct", xticks=list(range(len(ns))),
-                  xticklabels=list(settings.n))
+                  xticklabels=list(feedback.n))
     for f in ("feedback.csv", "feedback.png"):
         tracker.artifact(out / f)
     print(text, end="")

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import time
-from pathlib import Path
+from dataclasses import dataclass
 from typing import Any
 
 from ..evaluate.fold_models import train_fold_models, training_jobs
@@ -11,16 +11,30 @@ from ..evaluate.methods import mrf_methods
 from ..features.dataset import read_features
 from ..io import write_json_atomic
 from ..logs.benchmark import load_benchmark
-from ..settings import Folds, Learner
+from ..settings import Folds, Learner, Params
 from ..track.mlflow_runs import NO_RUN, Tracker
+from .paths import FoldsPaths
 
 
-def run(folds: Folds, learner: Learner, features: Path, processed: Path, output: Path, metrics: Path | None = None,
-        n_jobs: int = 1, tracker: Tracker = NO_RUN) -> dict[str, Any]:
-    contexts, meta = read_features(features)
-    bench = load_benchmark(processed)
-    methods = mrf_methods(learner)
-    jobs = training_jobs(methods, meta, bench.scenarios, folds.folds, folds.seed, folds.group_by)
+@dataclass(frozen=True)
+class Settings:
+    folds: Folds
+    learner: Learner
+    recipe_methods: tuple[str, ...]  # trained once per recipe kind, on every step outside its environments
+
+
+def settings(params: Params, world_seed: int | None = None) -> Settings:
+    c = params.crossval
+    return Settings(Folds(c.folds, c.group_by, c.seed), params.train.learner, params.recipes.methods)
+
+
+def run(settings: Settings, paths: FoldsPaths, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> dict[str, Any]:
+    folds, output = settings.folds, paths.output
+    contexts, meta = read_features(paths.features)
+    bench = load_benchmark(paths.processed)
+    methods = mrf_methods(settings.learner)
+    jobs = training_jobs(methods, meta, bench.scenarios, folds.folds, folds.seed, folds.group_by,
+                         settings.recipe_methods)
     print(f"training {len(jobs)} fold models ({folds.folds} folds grouped by {folds.group_by}, recipes) "
           f"with {n_jobs} jobs")
     start = time.perf_counter()
@@ -29,8 +43,8 @@ def run(folds: Folds, learner: Learner, features: Path, processed: Path, output:
     out = {"models": len(records), "wall_seconds": wall, "fit_seconds": sum(r["seconds"] for r in records),
            "iterations": sum(r["iterations"] for r in records),
            "all_converged": all(r["converged"] for r in records)}
-    if metrics:
-        write_json_atomic(metrics, {**out, "per_model": [
+    if paths.metrics:
+        write_json_atomic(paths.metrics, {**out, "per_model": [
             {k: r[k] for k in ("features", "uses", "steps", "fitted_steps", "iterations", "converged", "seconds",
                                "primal_objective", "dual_objective")} for r in records]})
     tracker.metrics({k: float(v) for k, v in out.items()})

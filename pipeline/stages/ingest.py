@@ -2,16 +2,22 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 from ..io import write_json_atomic
 from ..logs.ingest import dataset_summary, load_logs, write_tables
+from ..settings import Params
 from ..track.mlflow_runs import NO_RUN, Tracker, flatten
+from .paths import IngestPaths
 
 
-def run(input_dir: Path, output: Path, metrics: Path | None = None, tracker: Tracker = NO_RUN) -> dict[str, Any]:
+def settings(params: Params, world_seed: int | None = None) -> None:
+    """Ingesting reads no setting: the logs are taken as they are."""
+
+
+def run(settings: None, paths: IngestPaths, tracker: Tracker = NO_RUN) -> dict[str, Any]:
     """Raises `LogError` (file, record, field) or `FileNotFoundError` before anything is written."""
+    input_dir, output, metrics = paths.input, paths.output, paths.metrics
     tables, _ = load_logs(input_dir)
     summary = dataset_summary(tables)
     write_tables(tables, output)

@@ -8,41 +8,54 @@ MLflow child run as a table.
 
 from __future__ import annotations
 
-from pathlib import Path
+from dataclasses import dataclass
 from typing import Any
 
-from ..evaluate.fold_models import ROBUSTNESS_METHODS
 from ..evaluate.labels import METHOD_LABELS
-from ..evaluate.methods import method_params, table1_methods
+from ..evaluate.methods import method_params, mrf_methods
 from ..evaluate.robustness import Condition, evaluate_conditions, noise_curve, noise_runs
 from ..features.dataset import read_features
 from ..io import write_text_atomic
 from ..logs.benchmark import load_benchmark
 from ..report import paper
 from ..report.csvs import OUTCOME_COLUMNS, csv_text, outcome_row
-from ..report.tables import line_plot_png
-from ..settings import Crossval, Learner, Noise
+from ..report.figures import line_plot_png
+from ..settings import Folds, Learner, Noise, Params
 from ..track.mlflow_runs import NO_RUN, Tracker
+from .paths import EvaluationPaths
 
 RATE = {"rate": 1, "sequence_arg": 2, "sequence_arg_std": 2, "sequence_prim": 2, "success": 2}
 
 
-def run(settings: Noise, crossval: Crossval, learner: Learner, features: Path, processed: Path, output: Path,
-        store: Path | None = None, n_jobs: int = 1, tracker: Tracker = NO_RUN) -> list[dict[str, Any]]:
-    contexts, meta = read_features(features)
-    bench = load_benchmark(processed)
-    methods = table1_methods(crossval, learner, store=None if store is None else str(store))
-    conditions = [Condition("noise", r, s) for r in settings.rates for s in range(settings.seeds)]
+@dataclass(frozen=True)
+class Settings:
+    noise: Noise
+    folds: Folds  # the folds of crossval, so each scenario is run by the model that did not train on it
+    max_steps: int  # step cap of closed-loop runs
+    learner: Learner
+
+
+def settings(params: Params, world_seed: int | None = None) -> Settings:
+    c = params.crossval
+    return Settings(params.noise, Folds(c.folds, c.group_by, c.seed), c.max_steps, params.train.learner)
+
+
+def run(settings: Settings, paths: EvaluationPaths, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> list[dict[str, Any]]:
+    noise = settings.noise
+    contexts, meta = read_features(paths.features)
+    bench = load_benchmark(paths.processed)
+    store = None if paths.model_store is None else str(paths.model_store)
+    methods = mrf_methods(settings.learner, store, noise.methods)
+    conditions = [Condition("noise", r, s) for r in noise.rates for s in range(noise.draws)]
     runs, curve, sequences = [], [], []
-    chosen = {name: methods[name] for name in ROBUSTNESS_METHODS}
-    outcomes = evaluate_conditions(chosen, contexts, meta, bench.scenarios, conditions, crossval.fold_settings,
-                                   crossval.max_steps, settings.seed, n_jobs)
+    outcomes = evaluate_conditions(methods, contexts, meta, bench.scenarios, conditions, settings.folds,
+                                   settings.max_steps, noise.seed, n_jobs)
     for name, results in outcomes.items():
-        mine = noise_runs(settings, results)
+        mine = noise_runs(noise, results)
         runs += [{"method": name, **r} for r in mine]
-        curve += [{"method": name, **r} for r in noise_curve(settings, mine)]
+        curve += [{"method": name, **r} for r in noise_curve(noise, mine)]
         sequences += [{"method": name, "rate": c.a, "draw": c.b, **outcome_row(o)} for c, o in results]
-    out = Path(output)
+    out = paths.output
     write_text_atomic(out / "noise_runs.csv", csv_text(["method", "rate", "seed", "sequence_arg", "sequence_prim",
                                                         "success"], runs, RATE))
     write_text_atomic(out / "noise_sequences.csv", csv_text(["method", "rate", "draw", *OUTCOME_COLUMNS],
@@ -57,8 +70,8 @@ def run(settings: Noise, crossval: Crossval, learner: Learner, features: Path, p
                            "sequence_prim": row["sequence_prim"], "success": row["success"]})
             child.table([r for r in sequences if r["method"] == name and r["rate"] == row["rate"]], "sequences")
     series = {f"{METHOD_LABELS[m]} (mean, std over noise draws)":
-              (list(settings.rates), [r["sequence_arg"] for r in curve if r["method"] == m],
-               [r["sequence_arg_std"] for r in curve if r["method"] == m]) for m in ROBUSTNESS_METHODS}
+              (list(noise.rates), [r["sequence_arg"] for r in curve if r["method"] == m],
+               [r["sequence_arg_std"] for r in curve if r["method"] == m]) for m in methods}
     line_plot_png(series, str(out / "noise.png"), "Sequence accuracy (arg) with binary attributes flipped",
                   "probability of flipping each binary attribute", "% sequences correct",
                   reference={"paper": (list(paper.NOISE), list(paper.NOISE.values()))})

@@ -6,11 +6,17 @@ from pathlib import Path
 
 from ..logs.benchmark import load_benchmark
 from ..plan.symbolic.files import write_pddl
-from ..settings import Pddl
+from ..settings import Params, Pddl
 from ..track.mlflow_runs import NO_RUN, Tracker
+from .paths import PddlPaths
 
 
-def run(settings: Pddl, processed: Path, output: Path, tracker: Tracker = NO_RUN) -> dict[str, int]:
+def settings(params: Params, world_seed: int | None = None) -> Pddl:
+    return Pddl(params.pddl.horizon)
+
+
+def run(settings: Pddl, paths: PddlPaths, tracker: Tracker = NO_RUN) -> dict[str, int]:
+    processed, output = paths.processed, paths.output
     counts = write_pddl(load_benchmark(processed).scenarios, output, horizon=settings.horizon)
     tracker.metrics(counts)
     tracker.artifact(Path(output) / "domain.pddl")

@@ -1,6 +1,7 @@
 """Stage `recipes`: programs chained into recipes, in environments held out from training.
 
-Run for the paper's full model and the added method that chains programs best (`RECIPE_METHODS`).
+Run for the methods `recipes.methods` of params.yaml names: the paper's full model and the added method
+that chains programs best on the development world.
 recipes_programs.csv holds every program of
 every recipe run (DVC-cached, not in git), each recipe's also in its MLflow
 child run as a table.
@@ -8,29 +9,41 @@ child run as a table.
 
 from __future__ import annotations
 
-from pathlib import Path
+from dataclasses import dataclass
 from typing import Any
 
-from ..evaluate.fold_models import RECIPE_METHODS
 from ..evaluate.labels import METHOD_LABELS
-from ..evaluate.methods import method_params, table1_methods
+from ..evaluate.methods import method_params, mrf_methods
 from ..evaluate.recipes import PROGRAM_COLUMNS, RECIPES, evaluate_recipes, program_rows, recipe_report
 from ..features.dataset import read_features
 from ..io import write_json_atomic, write_text_atomic
 from ..logs.benchmark import load_benchmark
 from ..report.csvs import csv_text
-from ..settings import Crossval, Learner
+from ..settings import Learner, Params, Recipes
 from ..track.mlflow_runs import NO_RUN, Tracker
+from .paths import EvaluationPaths
 
 
-def run(crossval: Crossval, learner: Learner, features: Path, processed: Path, output: Path,
-        store: Path | None = None, tracker: Tracker = NO_RUN) -> dict[str, Any]:
-    contexts, meta = read_features(features)
-    scenarios = load_benchmark(processed).scenarios
-    methods = table1_methods(crossval, learner, store=None if store is None else str(store))
+@dataclass(frozen=True)
+class Settings:
+    recipes: Recipes
+    max_steps: int  # step cap of each program
+    learner: Learner
+
+
+def settings(params: Params, world_seed: int | None = None) -> Settings:
+    return Settings(params.recipes, params.crossval.max_steps, params.train.learner)
+
+
+def run(settings: Settings, paths: EvaluationPaths, tracker: Tracker = NO_RUN) -> dict[str, Any]:
+    contexts, meta = read_features(paths.features)
+    scenarios = load_benchmark(paths.processed).scenarios
+    store = None if paths.model_store is None else str(paths.model_store)
+    methods = mrf_methods(settings.learner, store, settings.recipes.methods)
     reports, programs = {}, []
-    for method in RECIPE_METHODS:
-        outcomes = evaluate_recipes(methods[method], contexts, meta, scenarios, max_steps=crossval.max_steps)
+    for method in methods:
+        outcomes = evaluate_recipes(methods[method], contexts, meta, scenarios, max_steps=settings.max_steps,
+                                    observer_k=settings.recipes.observer_k)
         reports[method] = report = recipe_report(outcomes)
         mine = [{"method": method, **r} for r in program_rows(outcomes)]
         programs += mine
@@ -50,7 +63,7 @@ def run(crossval: Crossval, learner: Learner, features: Path, processed: Path, o
                   + " -> ".join(f"{t} [{st}]" for t, st, _ in o.programs))
         print(f"success: {totals['no_feedback']}/{len(RECIPES)} without feedback, "
               f"{totals['feedback_first_step']}/{len(RECIPES)} with one feedback at the start of each program")
-    write_json_atomic(Path(output) / "recipes.json", {"methods": reports})
-    write_text_atomic(Path(output) / "recipes_programs.csv", csv_text(["method", *PROGRAM_COLUMNS], programs))
-    tracker.artifact(Path(output) / "recipes.json")
+    write_json_atomic(paths.output / "recipes.json", {"methods": reports})
+    write_text_atomic(paths.output / "recipes_programs.csv", csv_text(["method", *PROGRAM_COLUMNS], programs))
+    tracker.artifact(paths.output / "recipes.json")
     return reports

@@ -5,17 +5,22 @@ With `plots_template`, also the page `dvc plots show` fills, with its JavaScript
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from ..evaluate.labels import METHOD_LABELS
 from ..io import write_text_atomic
 from ..report.plots_page import offline_template
 from ..report.summary import build_summary
+from ..settings import Params
 from ..track.mlflow_runs import NO_RUN, Tracker
+from .paths import ReportPaths
 
 
-def run(reports: Path, output: Path, plots_template: Path | None = None, tracker: Tracker = NO_RUN) -> str:
-    text = build_summary(reports, METHOD_LABELS)
+def settings(params: Params, world_seed: int | None = None) -> None:
+    """The summary reads no setting: it reports what the other stages wrote."""
+
+
+def run(settings: None, paths: ReportPaths, tracker: Tracker = NO_RUN) -> str:
+    output, plots_template = paths.output, paths.plots_template
+    text = build_summary(paths.reports, METHOD_LABELS)
     write_text_atomic(output, text + "\n")
     tracker.artifact(output)
     print(f"wrote {output}")

@@ -7,7 +7,7 @@ it. Every reported figure then uses the chosen C.
 
 from __future__ import annotations
 
-from pathlib import Path
+from dataclasses import dataclass
 from typing import Any
 
 from ..evaluate.selection import select_C
@@ -16,16 +16,32 @@ from ..io import write_json_atomic
 from ..logs.benchmark import Benchmark
 from ..logs.generate import generate
 from ..logs.ingest import load_logs, write_tables
-from ..settings import Crossval, Learner, Select, World
+from ..settings import Folds, Learner, Params, Select, World
 from ..track.mlflow_runs import NO_RUN, Tracker
+from .paths import SelectPaths
 
 
-def run(world: World, select: Select, learner: Learner, crossval: Crossval, data: Path, output: Path,
-        n_jobs: int = 1, tracker: Tracker = NO_RUN) -> dict[str, Any]:
+@dataclass(frozen=True)
+class Settings:
+    world: World
+    select: Select
+    learner: Learner  # C is the value tried; the rest as `train` sets it
+    folds: Folds
+    max_steps: int  # step cap of closed-loop runs
+
+
+def settings(params: Params, world_seed: int | None = None) -> Settings:
+    t, c = params.train, params.crossval
+    return Settings(params.world, params.select, Learner(tol=t.tol, max_iter=t.max_iter, n_slacks=t.n_slacks),
+                    Folds(c.folds, c.group_by, c.seed), c.max_steps)
+
+
+def run(settings: Settings, paths: SelectPaths, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> dict[str, Any]:
+    world, select, folds = settings.world, settings.select, settings.folds
     if world.dev_seed in world.seeds:
         raise ValueError(f"params.yaml: world.dev_seed {world.dev_seed} is also a reported seed; settings must "
                          "be chosen on a world that is never reported")
-    data = Path(data)
+    data, output = paths.data, paths.output
     generate(world.dev_seed, data / "raw")
     tables, records = load_logs(data / "raw")
     write_tables(tables, data / "processed")
@@ -33,8 +49,8 @@ def run(world: World, select: Select, learner: Learner, crossval: Crossval, data
     write_features(contexts, meta, data / "features")
     bench = Benchmark.from_records([r.record for r in records])
     print(f"choosing C among {', '.join(f'{c:g}' for c in select.C)} on the development world (seed "
-          f"{world.dev_seed}, {len(bench.scenarios)} scenarios), {crossval.folds} folds, {n_jobs} jobs")
-    result = select_C(select.C, learner, crossval.fold_settings, contexts, meta, bench, crossval.max_steps,
+          f"{world.dev_seed}, {len(bench.scenarios)} scenarios), {folds.folds} folds, {n_jobs} jobs")
+    result = select_C(select.C, settings.learner, folds, contexts, meta, bench, settings.max_steps,
                       n_jobs=n_jobs, verbose=5)
     result = {**result, "dev_seed": world.dev_seed}
     write_json_atomic(output, result)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 from ..evaluate.metrics import step_accuracy
@@ -11,12 +10,18 @@ from ..io import write_json_atomic, write_text_atomic
 from ..learn.estimator import MRFPlanner
 from ..learn.ssvm import learning_curve
 from ..report.csvs import csv_text
-from ..settings import Train
+from ..settings import Params, Train
 from ..track.mlflow_runs import NO_RUN, Tracker
+from .paths import TrainPaths
 
 
-def run(settings: Train, features: Path, model: Path, metrics: Path | None = None, curve: Path | None = None,
-        tracker: Tracker = NO_RUN) -> dict[str, Any]:
+def settings(params: Params, world_seed: int | None = None) -> Train:
+    t = params.train
+    return Train(C=t.C, tol=t.tol, max_iter=t.max_iter, n_slacks=t.n_slacks, feature_set=t.feature_set)
+
+
+def run(settings: Train, paths: TrainPaths, tracker: Tracker = NO_RUN) -> dict[str, Any]:
+    features, model, metrics, curve = paths.features, paths.model, paths.metrics, paths.curve
     contexts, _ = read_features(features)
     planner = MRFPlanner(settings.feature_set, **settings.ssvm).fit(contexts, progress=True)
     planner.save(model, n_steps=len(contexts))

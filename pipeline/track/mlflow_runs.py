@@ -28,18 +28,17 @@ import hashlib
 import json
 import os
 import subprocess
+import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from ..stopping import held
 from .writer import EXPERIMENT, Connection
 
-__all__ = ["EXPERIMENT", "NO_RUN", "StageRun", "Tracker", "TrackingFailed", "stage_run", "tracking_uri"]
+__all__ = ["EXPERIMENT", "NO_RUN", "StageRun", "Tracker", "TrackingFailed", "stage_run", "tracked", "tracking_uri"]
 
 
 def repository_root() -> Path:
@@ -94,10 +93,6 @@ def flatten(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
         else:
             out[key] = v
     return out
-
-
-def params_yaml(path: Path = Path("params.yaml")) -> dict[str, Any]:
-    return flatten(yaml.safe_load(path.read_text())) if path.exists() else {}
 
 
 class TrackingFailed(RuntimeError):
@@ -237,7 +232,7 @@ def _source_tags(name: str) -> dict[str, str]:
 @contextmanager
 def stage_run(stage: str, params: dict[str, Any], inputs: list[Path] | None = None,
               labels: dict[str, Any] | None = None) -> Iterator[StageRun]:
-    """Open the stage's run; parameters from params.yaml and the command line, tags for provenance.
+    """Open the stage's run with the settings in force and its command line as parameters, tags for provenance.
 
     The run goes through the store's writer process (started if there is
     none); leaving the block waits until every record is written.
@@ -251,7 +246,7 @@ def stage_run(stage: str, params: dict[str, Any], inputs: list[Path] | None = No
             tags = provenance(stage, inputs or [])
             run._start(stage, {**tags, "mlflow.source.git.commit": tags["git.commit"]}, parent=None)
         with _ending(run):
-            run.params({**params_yaml(), **{f"cli.{k}": v for k, v in params.items()}})
+            run.params(params)
             yield run
         failed = False
     finally:
@@ -275,3 +270,29 @@ def _ending(run: StageRun) -> Iterator[None]:
         run._send("end", status="FAILED", time=_now())
         raise
     run._send("end", status="FINISHED", time=_now())
+
+
+class _StageFailed(Exception):
+    def __init__(self, code: int) -> None:
+        super().__init__(f"stage ended with exit code {code}")
+        self.code = code
+
+
+def tracked(stage: str, params: dict[str, Any], inputs: list[Path], labels: dict[str, Any] | None,
+            body: Callable[[Tracker], int]) -> int:
+    """Run `body` inside the stage's MLflow run: its exit code, the run FAILED when that is not 0.
+
+    When the store cannot record the run, the outputs are written all the
+    same, and the stage says so and exits with 1.
+    """
+    try:
+        with stage_run(stage, params, inputs, labels) as run:
+            code = body(run)
+            if code:
+                raise _StageFailed(code)  # the run is marked FAILED on the way out
+    except _StageFailed as failed:
+        return failed.code
+    except TrackingFailed as err:
+        print(f"error: taskseq {stage}: {err}", file=sys.stderr)
+        return 1
+    return 0

@@ -1,0 +1,96 @@
+"""The commands that are not pipeline stages: replay logs, plan one task, time the learner.
+
+Each is an entry of `TOOLS`: its help, a function adding its options to its
+parser and a function running it from the parsed options (returning the exit
+code). `pipeline.cli` builds the subcommands from this table and from the
+stages' (`pipeline.stages`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from .settings import Crossval
+
+
+@dataclass(frozen=True)
+class Tool:
+    help: str
+    options: Callable[[argparse.ArgumentParser], None]
+    run: Callable[[argparse.Namespace], int]
+
+
+def _replay_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("input", type=Path, help="folder of *.jsonl logs")
+
+
+def _replay(args: argparse.Namespace) -> int:
+    from .tools import replay
+
+    n_ok, problems = replay(args.input)
+    for problem in problems:
+        print(problem, file=sys.stderr)
+    print(f"{n_ok} demonstrations replay exactly; {len(problems)} with problems")
+    return 1 if problems else 0
+
+
+def _plan_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--model", type=Path, default=Path("models/mrf.npz"), help="model file (.npz)")
+    p.add_argument("--env", type=Path, required=True,
+                   help="environment: a JSON file with 'objects' and 'state', or a .jsonl log")
+    p.add_argument("--record", type=int, default=1, help="with a .jsonl log: which record (line) to take, from 1")
+    p.add_argument("--task", required=True, help='the task, e.g. "pour(obj27)" or "pick_and_place(obj40,obj04)"')
+    p.add_argument("--max-steps", type=int, default=Crossval.max_steps,
+                   help=f"stop after this many primitives (default {Crossval.max_steps})")
+    p.add_argument("--top-k", type=int, default=3, help="candidates shown per step (default 3)")
+    p.add_argument("--json", action="store_true", help="print the program as JSON")
+
+
+def _plan(args: argparse.Namespace) -> int:
+    from .tools import plan_task, print_program, program_json
+
+    program, names = plan_task(args.model, args.env, args.record, args.task, args.max_steps, args.top_k)
+    if args.json:
+        print(program_json(program))
+    else:
+        print_program(program, names)
+    return 0 if program.success else 1
+
+
+def _bench_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--processed", type=Path, default=Path("data/worlds/0/processed"), help="folder of Parquet tables")
+    p.add_argument("--params", type=Path, default=None,
+                   help="settings file whose `train` section sets the learner (default: params.yaml, else defaults)")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                   help="override one setting, e.g. --set train.C=3 (repeatable)")
+    p.add_argument("--selection", type=Path, default=None,
+                   help="take C from this file written by `taskseq select` (default: train.C of the settings)")
+    p.add_argument("--repeats", type=int, default=50, help="timed repetitions per environment size")
+    p.add_argument("--output", type=Path, required=True, help="results (JSON)")
+
+
+def _bench(args: argparse.Namespace) -> int:
+    from .bench import format_bench, run_bench
+    from .io import write_json_atomic
+    from .logs.benchmark import load_benchmark
+    from .stages.command import load_params
+
+    learner = load_params(args).train
+    result = run_bench(load_benchmark(args.processed).records, **learner.ssvm, repeats=args.repeats)
+    write_json_atomic(args.output, result)
+    print(format_bench(result))
+    print(f"written to {args.output}")
+    return 0
+
+
+TOOLS: dict[str, Tool] = {
+    "replay": Tool("re-execute every logged sequence and report states or goals that differ", _replay_options,
+                   _replay),
+    "plan": Tool("plan a program for a task in an environment with a trained model", _plan_options, _plan),
+    "bench": Tool("time training, per-step inference (10 to 100 objects) and features memory", _bench_options,
+                  _bench),
+}

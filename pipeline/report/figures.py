@@ -1,0 +1,76 @@
+"""Figures of the reports as PNG files: the confusion matrix and line plots with error bars.
+
+Written through `pipeline.io`, like every output, so a stage stopped part way
+leaves each figure whole (old or new) and says which it replaced.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..io import atomic_file
+from ..sim.primitives import ALL_PRIMITIVES
+
+
+def _save(fig, path: Path | str) -> None:
+    """Write the figure atomically, without the software version (same bytes across Matplotlib patches)."""
+    import matplotlib.pyplot as plt
+
+    with atomic_file(path) as tmp:
+        fig.savefig(tmp, format="png", metadata={"Software": None})
+    plt.close(fig)
+
+
+def confusion_png(matrix: np.ndarray, path: str, title: str) -> None:
+    """Row-normalised confusion matrix of the primitives (and done) as a PNG."""
+    import matplotlib
+
+    matplotlib.use("Agg")  # files only, no screen
+    import matplotlib.pyplot as plt
+
+    matrix = np.asarray(matrix, dtype=float)
+    rates = matrix / np.maximum(matrix.sum(axis=1, keepdims=True), 1)
+    fig, ax = plt.subplots(figsize=(6.4, 5.6), dpi=120)
+    im = ax.imshow(rates, cmap="Blues", vmin=0, vmax=1)
+    labels = list(ALL_PRIMITIVES)
+    ax.set_xticks(range(len(labels)), labels, rotation=45, ha="right", fontsize=8)
+    ax.set_yticks(range(len(labels)), labels, fontsize=8)
+    for i in range(len(labels)):
+        for j in range(len(labels)):
+            if matrix[i, j]:
+                ax.text(j, i, f"{rates[i, j]:.2f}", ha="center", va="center", fontsize=6,
+                        color="white" if rates[i, j] > 0.5 else "black")
+    ax.set_xlabel("predicted")
+    ax.set_ylabel("demonstrated")
+    ax.set_title(title, fontsize=9)
+    fig.colorbar(im, ax=ax, fraction=0.046)
+    fig.tight_layout()
+    _save(fig, path)
+
+
+def line_plot_png(series: dict[str, tuple[list[float], list[float], list[float] | None]], path: str, title: str,
+                  xlabel: str, ylabel: str, xticks: list[float] | None = None, xticklabels: list[str] | None = None,
+                  reference: dict[str, tuple[list[float], list[float]]] | None = None) -> None:
+    """Lines with optional error bars (x, y, spread per series), and dashed reference lines (the paper's)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(5.6, 3.8), dpi=120)
+    for label, (x, y, err) in series.items():
+        ax.errorbar(x, y, yerr=err, marker="o", capsize=3, label=label)
+    for label, (x, y) in (reference or {}).items():
+        ax.plot(x, y, linestyle="--", marker="x", alpha=0.7, label=label)
+    if xticks is not None:
+        ax.set_xticks(xticks, xticklabels)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_ylim(0, 100)
+    ax.set_title(title, fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    _save(fig, path)

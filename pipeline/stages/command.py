@@ -1,0 +1,100 @@
+"""A stage as a command: its options built from its `Paths`, its settings from `params.yaml`, one run.
+
+Every stage takes the same few options besides its paths: `--params` (the
+settings file), `--set section.key=value` (one setting overridden, as
+`dvc exp run -S` writes it), `--world-seed` for stages on one world's data,
+and `--n-jobs` for stages that run work in parallel. So the command DVC runs
+is the command a user can type, and a setting has one name everywhere: its
+key in `params.yaml`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+from dataclasses import MISSING, fields
+from pathlib import Path
+from typing import Any
+
+from ..settings import Params
+from . import STAGES
+
+
+def default_jobs() -> int:
+    """Workers for parallel stages: `TASKSEQ_N_JOBS` if set, else one per CPU."""
+    value = os.environ.get("TASKSEQ_N_JOBS")
+    if value is None:
+        return os.cpu_count() or 1
+    if not value.isdigit() or int(value) < 1:
+        raise SystemExit(f"error: TASKSEQ_N_JOBS must be a positive whole number, got {value!r}")
+    return int(value)
+
+
+def positive(value: str) -> int:
+    """A positive whole number from the command line."""
+    if not value.isdigit() or int(value) < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive whole number, got {value!r}")
+    return int(value)
+
+
+def add_parser(sub: Any, name: str) -> None:
+    """The stage's subcommand: an option per field of its paths, then the options every stage shares."""
+    stage = STAGES[name]
+    p = sub.add_parser(name, help=stage.help, description=f"{stage.help}. Settings are read from params.yaml "
+                       "(the keys this stage's `params` list in dvc.yaml names); --set overrides one.")
+    for f in fields(stage.paths):
+        required = f.default is MISSING
+        shown = "" if required or f.default is None else f" (default {f.default})"
+        p.add_argument("--" + f.name.replace("_", "-"), dest=f.name, type=f.metadata["kind"], required=required,
+                       nargs=f.metadata["nargs"], default=None if required else f.default,
+                       help=f.metadata["help"] + shown)
+    p.add_argument("--params", type=Path, default=None,
+                   help="settings file (default: params.yaml if it exists, else the built-in defaults, which equal "
+                        "the repository's params.yaml)")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                   help="override one setting, e.g. --set train.tol=1e-4 or --set 'noise.rates=0 0.2' (repeatable)")
+    if stage.per_world:
+        p.add_argument("--world-seed", type=int, default=None,
+                       help="the world drawn (generate), or the world these data were drawn with: a label of "
+                            "the MLflow runs, so runs of several worlds can be compared (changes no result)")
+    if stage.parallel:
+        p.add_argument("--n-jobs", type=positive, default=None,
+                       help="work run in parallel (joblib; default: $TASKSEQ_N_JOBS, else one per CPU); "
+                            "changes no result")
+
+
+def load_params(args: argparse.Namespace) -> Params:
+    """The settings in force: the file, the overrides, then C from a selection file when one is named."""
+    if args.params is not None and not args.params.exists():
+        raise FileNotFoundError(f"{args.params}: no such settings file")
+    params = Params.load(args.params or Path("params.yaml"), args.overrides)
+    if getattr(args, "selection", None) is not None:
+        from ..evaluate.selection import read_selection
+
+        params = params.with_C(read_selection(args.selection))
+    return params
+
+
+def prepare(args: argparse.Namespace) -> tuple[Any, Any, Any, dict[str, Any]]:
+    """The stage's module, settings and paths from the parsed options, and what its run records."""
+    stage = STAGES[args.command]
+    module = importlib.import_module(f"{__package__}.{args.command}")
+    paths = stage.paths(**{f.name: getattr(args, f.name) for f in fields(stage.paths)})
+    params = load_params(args)
+    world_seed = getattr(args, "world_seed", None)
+    settings = module.settings(params, world_seed)
+    record = {**params.flat(), **{f"cli.{f.name}": getattr(paths, f.name) for f in fields(paths)}}
+    if world_seed is not None:
+        record["cli.world_seed"] = world_seed
+    return module, settings, paths, record
+
+
+def execute(args: argparse.Namespace, module: Any, settings: Any, paths: Any, tracker: Any) -> int:
+    """Run the stage; its exit code (0: every output written)."""
+    if STAGES[args.command].parallel:
+        module.run(settings, paths, tracker, args.n_jobs or default_jobs())
+    else:
+        module.run(settings, paths, tracker)
+    return 0
+

@@ -1,0 +1,122 @@
+"""What each stage reads and writes, as given on its command line (`dvc.yaml` passes these and nothing else).
+
+One frozen dataclass per stage; `taskseq` turns each field into an option
+(`model_store` into `--model-store`), with the field's help and default. A
+field without a default is a required option. Fields marked `input` are
+hashed into the stage's MLflow run (`data.hash`), so two runs can be told
+apart by what they read. The module imports nothing heavy: the command line
+is built from it without loading any stage.
+"""
+
+from __future__ import annotations
+
+from dataclasses import MISSING, dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+WORLD = Path("data/worlds/0")  # inputs default to the first reported world's data
+
+
+def option(help: str, default: Any = MISSING, *, input: bool = False, kind: type = Path,
+           nargs: str | None = None) -> Any:
+    """A field that becomes a command-line option."""
+    meta = {"help": help, "input": input, "kind": kind, "nargs": nargs}
+    return field(metadata=meta) if default is MISSING else field(default=default, metadata=meta)
+
+
+def _selection() -> Any:
+    return option("take C from this file written by `taskseq select` (default: train.C of the settings)", None)
+
+
+def _store() -> Any:
+    return option("folder written by `taskseq folds`: models trained on the same steps with the same settings are "
+                  "loaded from it instead of trained again (default: train)", None)
+
+
+@dataclass(frozen=True, kw_only=True)
+class SelectPaths:
+    data: Path = option("folder for the development world's logs, tables and features (replaced)")
+    output: Path = option("the choice (JSON)")
+
+
+@dataclass(frozen=True, kw_only=True)
+class GeneratePaths:
+    output: Path = option("folder of *.jsonl logs (replaced)")
+
+
+@dataclass(frozen=True, kw_only=True)
+class IngestPaths:
+    input: Path = option("folder of *.jsonl logs", WORLD / "raw", input=True)
+    output: Path = option("folder of Parquet tables (replaced)")
+    metrics: Path | None = option("dataset counts as JSON (default: not written)", None)
+
+
+@dataclass(frozen=True, kw_only=True)
+class FeaturesPaths:
+    input: Path = option("folder of Parquet tables", WORLD / "processed", input=True)
+    output: Path = option("feature folder (replaced)")
+
+
+@dataclass(frozen=True, kw_only=True)
+class TrainPaths:
+    features: Path = option("feature folder", WORLD / "features", input=True)
+    selection: Path | None = _selection()
+    model: Path = option("model file to write (.npz)")
+    metrics: Path | None = option("training metrics (JSON; default: not written)", None)
+    curve: Path | None = option("objective per iteration (CSV; default: not written)", None)
+
+
+@dataclass(frozen=True, kw_only=True)
+class PddlPaths:
+    processed: Path = option("folder of Parquet tables", WORLD / "processed", input=True)
+    output: Path = option("folder to write (replaced)")
+
+
+@dataclass(frozen=True, kw_only=True)
+class WorldPaths:
+    """The data of one world, and the choice of C: what every evaluation stage reads."""
+
+    features: Path = option("feature folder", WORLD / "features", input=True)
+    processed: Path = option("folder of Parquet tables", WORLD / "processed", input=True)
+    selection: Path | None = _selection()
+
+
+@dataclass(frozen=True, kw_only=True)
+class FoldsPaths(WorldPaths):
+    output: Path = option("model store folder to write (replaced)")
+    metrics: Path | None = option("training times and objectives (JSON; default: not written)", None)
+
+
+@dataclass(frozen=True, kw_only=True)
+class EvaluationPaths(WorldPaths):
+    model_store: Path | None = _store()
+    output: Path = option("folder for the results")
+
+
+@dataclass(frozen=True, kw_only=True)
+class CrossvalPaths(EvaluationPaths):
+    methods: tuple[str, ...] | None = option("run only these methods (default: every method of Table I)", None,
+                                             kind=str, nargs="+")
+    recordings: int = option("Rerun recordings of the full model's programs, spread over the scenarios; changes no "
+                             "result", 6, kind=int)
+    recordings_dir: Path | None = option("folder for the recordings (default OUTPUT/recordings)", None)
+
+
+@dataclass(frozen=True, kw_only=True)
+class AggregatePaths:
+    worlds: Path = option("folder of the per-world results, one subfolder per seed", Path("reports/worlds"),
+                          input=True)
+    output: Path = option("folder for the tables over seeds")
+
+
+@dataclass(frozen=True, kw_only=True)
+class ReportPaths:
+    reports: Path = option("folder of the stages' results", Path("reports"), input=True)
+    output: Path = option("Markdown file to write")
+    plots_template: Path | None = option("also write the offline page template of `dvc plots show` here "
+                                         "(default: not written)", None)
+
+
+def inputs(paths: Any) -> list[Path]:
+    """The inputs the stage was given, for the hash of what it read."""
+    return [getattr(paths, f.name) for f in fields(paths) if f.metadata["input"] and getattr(paths, f.name)]
