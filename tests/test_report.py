@@ -2,7 +2,7 @@
 
 import json
 
-from pipeline.evaluate.labels import METHOD_LABELS
+from pipeline.evaluate.registry import method_labels
 from pipeline.report.summary import build_summary
 
 
@@ -24,7 +24,7 @@ def test_summary_sets_our_numbers_beside_the_papers(tmp_path):
     (tmp_path / "feedback.csv").write_text(fb + "full,2,1,62.8,1.0,75,1,78,1\nfull,3,all,85.8,2.0,87,1,91,1\n")
     (tmp_path / "recipes.json").write_text(json.dumps({"methods": {"full": {"recipes": 12, "per_seed": {
         "0": {"no_feedback": 1, "feedback_first_step": 2}, "3": {"no_feedback": 4, "feedback_first_step": 5}}}}}))
-    text = build_summary(tmp_path, METHOD_LABELS)
+    text = build_summary(tmp_path, method_labels())
     assert "| steps | 736 | 759 | 741 |" in text
     assert "C = 3, chosen by 6-fold cross-validation of the full model on the development world (seed 100" in text
     assert ("| ours - full | 96.8 ± 0.4 | 96.7 | 88.4 ± 1.0 | 90.0 | 69.9 ± 2.0 | 91.6 | 56.6 ± 7.5 | 69.7 | "
@@ -38,4 +38,4 @@ def test_summary_sets_our_numbers_beside_the_papers(tmp_path):
 
 
 def test_summary_skips_what_was_not_run(tmp_path):
-    assert build_summary(tmp_path, METHOD_LABELS).startswith("# Results")
+    assert build_summary(tmp_path, method_labels()).startswith("# Results")

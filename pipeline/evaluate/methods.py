@@ -28,6 +28,7 @@ from ..sim.primitives import Action
 from ..sim.scenarios import Scenario
 from ..sim.state import WorldState
 from ..sim.tasks import TASKS, Task
+from .registry import MethodSettings, added_methods
 
 Y = tuple[int, int, int]
 
@@ -244,8 +245,13 @@ class SymbolicMethod:
 
 def table1_methods(settings: Crossval, learner: Learner, horizon: int = Pddl.horizon,
                    store: str | None = None) -> dict[str, Callable[[], Method]]:
-    """Every method of Table I, by name, as factories of unfitted methods; `horizon` is the symbolic planners'."""
+    """Every method of Table I, by name, as factories of unfitted methods; `horizon` is the symbolic planners'.
+
+    The built-in ones first, in the tables' order, then those the modules of
+    `pipeline.methods` register (`pipeline.evaluate.registry`), by name.
+    """
     mrf = partial(MRFMethod, **learner.ssvm, store=store)
+    added = MethodSettings(settings, learner, horizon, store)
     return {
         "chance": partial(ChanceMethod, seed=settings.chance_seed),
         "multiclass": partial(MulticlassMethod, C=settings.multiclass_C),
@@ -258,6 +264,7 @@ def table1_methods(settings: Crossval, learner: Learner, horizon: int = Pddl.hor
         "relations": partial(mrf, features="relations", name="relations"),
         "chained": partial(mrf, features="relations", chained_starts=True, name="chained"),
         "dagger": partial(mrf, features="relations", dagger_rounds=learner.dagger_rounds, name="dagger"),
+        **{name: partial(method.make, added) for name, method in added_methods().items()},
     }
 
 

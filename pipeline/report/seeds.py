@@ -15,8 +15,8 @@ from typing import Any
 import numpy as np
 
 from ..evaluate.failures import KINDS
-from ..evaluate.labels import METHOD_LABELS
 from ..evaluate.metrics import headline_metrics
+from ..evaluate.registry import method_labels
 from .csvs import read_csv_rows
 
 HEADLINE = ("average_prim", "average_arg", "sequence_prim", "sequence_arg", "success", "goal_reached")
@@ -173,7 +173,7 @@ def failures_markdown(rows: list[dict[str, Any]], methods: list[str], n_seeds: i
            head.format("method"), sep]
     for m in methods:
         shares = failure_shares(rows, m)
-        out.append(f"| {METHOD_LABELS.get(m, m)} | " + " | ".join(f"{a:.1f} ± {s:.1f}" for a, s in shares.values())
+        out.append(f"| {method_labels().get(m, m)} | " + " | ".join(f"{a:.1f} ± {s:.1f}" for a, s in shares.values())
                    + " |")
     if "full" in methods:
         out += ["", "The full model per task:", "", head.format("task"), sep]

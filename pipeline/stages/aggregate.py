@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..evaluate.labels import METHOD_LABELS
+from ..evaluate.registry import method_labels
 from ..io import write_json_atomic, write_text_atomic
 from ..report import paper
 from ..report.csvs import SEQUENCE_COLUMNS, csv_text, read_csv_rows
@@ -68,7 +68,7 @@ def run(settings: World, paths: AggregatePaths, tracker: Tracker = NO_RUN) -> di
     failures = failures_over_seeds(summaries)
     write_text_atomic(out / "failures.csv", csv_text(["world_seed", "method", "task", "kind", "programs"], failures))
     present = {r["method"] for r in failures}  # in Table I's order, the paper's rows first
-    methods = [m for m in METHOD_LABELS if m in present] + sorted(present - set(METHOD_LABELS))
+    methods = [m for m in method_labels() if m in present] + sorted(present - set(method_labels()))
     write_text_atomic(out / "failures.md", failures_markdown(failures, methods, len(world.seeds)))
 
     noise_seeds, noise = curve_over_seeds(dirs, "noise.csv", ["method", "rate"], RATES)
@@ -77,7 +77,7 @@ def run(settings: World, paths: AggregatePaths, tracker: Tracker = NO_RUN) -> di
     cols = ["method", "rate"] + [c for v in RATES for c in (v, f"{v}_sd")]
     write_text_atomic(out / "noise.csv", csv_text(cols, noise, dict.fromkeys(cols[2:], 2)))
     noise_methods = list(dict.fromkeys(r["method"] for r in noise))
-    line_plot_png({f"{METHOD_LABELS.get(m, m)} (mean, sd over {len(world.seeds)} world seeds)":
+    line_plot_png({f"{method_labels().get(m, m)} (mean, sd over {len(world.seeds)} world seeds)":
                    ([float(r["rate"]) for r in noise if r["method"] == m],
                     [r["sequence_arg"] for r in noise if r["method"] == m],
                     [r["sequence_arg_sd"] for r in noise if r["method"] == m]) for m in noise_methods},
@@ -93,7 +93,7 @@ def run(settings: World, paths: AggregatePaths, tracker: Tracker = NO_RUN) -> di
     ks = list(dict.fromkeys(r["k"] for r in fb))
     ns = list(dict.fromkeys(r["n"] for r in fb))
     fb_methods = list(dict.fromkeys(r["method"] for r in fb))
-    line_plot_png({f"{METHOD_LABELS.get(m, m)}, top {k}":
+    line_plot_png({f"{method_labels().get(m, m)}, top {k}":
                    (list(range(len(ns))), [r["sequence_arg"] for r in fb if r["k"] == k and r["method"] == m],
                     [r["sequence_arg_sd"] for r in fb if r["k"] == k and r["method"] == m])
                    for m in fb_methods for k in ks},
@@ -111,7 +111,7 @@ def run(settings: World, paths: AggregatePaths, tracker: Tracker = NO_RUN) -> di
     write_json_atomic(out / "recipes.json", recipes)
     write_json_atomic(out / "metrics.json", headline_groups(means, noise, fb, recipes))
     # the curves again, one column per line, for `dvc plots show` (it draws one line per column)
-    plot_labels = {**METHOD_LABELS, **{str(k): f"top {k}" for k in ks}}
+    plot_labels = {**method_labels(), **{str(k): f"top {k}" for k in ks}}
     for name, rows, x, series in (("noise", noise, "rate", ["method"]), ("feedback", fb, "n", ["method", "k"])):
         columns, wide = plot_columns(rows, x, series, "sequence_arg", plot_labels)
         write_text_atomic(out / "plots" / f"{name}.csv", csv_text(columns, wide, dict.fromkeys(columns[1:], 2)))

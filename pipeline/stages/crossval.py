@@ -13,9 +13,9 @@ from pathlib import Path
 from typing import Any
 
 from ..evaluate.crossval import cross_validate
-from ..evaluate.labels import METHOD_LABELS
 from ..evaluate.methods import method_params, table1_methods
 from ..evaluate.metrics import confusion, headline_metrics, summarize
+from ..evaluate.registry import method_labels
 from ..features.dataset import read_features
 from ..io import write_json_atomic, write_text_atomic
 from ..logs.benchmark import load_benchmark
@@ -57,7 +57,7 @@ def run(settings: Settings, paths: CrossvalPaths, tracker: Tracker = NO_RUN, n_j
                              group_by=crossval.group_by, max_steps=crossval.max_steps, n_jobs=n_jobs, verbose=5,
                              keep_programs={"full": recorded})
     summary = summarize(results, contexts, {k: v().predicts_args for k, v in factories.items()})
-    rows = table_rows(summary, METHOD_LABELS)
+    rows = table_rows(summary, method_labels())
     out = Path(output)
     write_text_atomic(out / "table1.csv", to_csv(rows))
     write_text_atomic(out / "table1.md", to_markdown(rows))

@@ -11,8 +11,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from ..evaluate.labels import METHOD_LABELS
 from ..evaluate.methods import method_params, mrf_methods
+from ..evaluate.registry import method_labels
 from ..evaluate.robustness import Condition, evaluate_conditions, feedback_rows, feedback_steps
 from ..features.dataset import read_features
 from ..io import write_text_atomic
@@ -65,7 +65,7 @@ def run(settings: Settings, paths: EvaluationPaths, tracker: Tracker = NO_RUN, n
             child.metrics({k: r[k] for k in DECIMALS})
             child.table([q for q in sequences if (q["method"], q["k"], q["n"]) == (name, r["k"], r["n"])],
                         "sequences")
-    series = {f"{METHOD_LABELS[m]}, top {k}": (list(range(len(ns))), [r["sequence_arg"] for r in rows
+    series = {f"{method_labels()[m]}, top {k}": (list(range(len(ns))), [r["sequence_arg"] for r in rows
                                                                      if r["k"] == k and r["method"] == m], None)
               for m in methods for k in feedback.k}
     line_plot_png(series, str(out / "feedback.png"), "Sequence accuracy (arg) with an observer's feedback",

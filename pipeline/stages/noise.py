@@ -11,8 +11,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from ..evaluate.labels import METHOD_LABELS
 from ..evaluate.methods import method_params, mrf_methods
+from ..evaluate.registry import method_labels
 from ..evaluate.robustness import Condition, evaluate_conditions, noise_curve, noise_runs
 from ..features.dataset import read_features
 from ..io import write_text_atomic
@@ -69,7 +69,7 @@ def run(settings: Settings, paths: EvaluationPaths, tracker: Tracker = NO_RUN, n
             child.metrics({"sequence_arg": row["sequence_arg"], "sequence_arg_std": row["sequence_arg_std"],
                            "sequence_prim": row["sequence_prim"], "success": row["success"]})
             child.table([r for r in sequences if r["method"] == name and r["rate"] == row["rate"]], "sequences")
-    series = {f"{METHOD_LABELS[m]} (mean, std over noise draws)":
+    series = {f"{method_labels()[m]} (mean, std over noise draws)":
               (list(noise.rates), [r["sequence_arg"] for r in curve if r["method"] == m],
                [r["sequence_arg_std"] for r in curve if r["method"] == m]) for m in methods}
     line_plot_png(series, str(out / "noise.png"), "Sequence accuracy (arg) with binary attributes flipped",

@@ -12,9 +12,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from ..evaluate.labels import METHOD_LABELS
 from ..evaluate.methods import method_params, mrf_methods
 from ..evaluate.recipes import PROGRAM_COLUMNS, RECIPES, evaluate_recipes, program_rows, recipe_report
+from ..evaluate.registry import method_labels
 from ..features.dataset import read_features
 from ..io import write_json_atomic, write_text_atomic
 from ..logs.benchmark import load_benchmark
@@ -56,7 +56,7 @@ def run(settings: Settings, paths: EvaluationPaths, tracker: Tracker = NO_RUN) -
                 child.table([r for r in mine if r["recipe"] == name], "programs")
         totals = report["totals"]
         tracker.metrics({f"{method}.{k}": float(v) for k, v in totals.items()})
-        print(f"== {METHOD_LABELS[method]}")
+        print(f"== {method_labels()[method]}")
         for o in outcomes:
             print(f"{o.recipe:24s} {o.env_id} feedback={'yes' if o.feedback else 'no ':3s} "
                   f"{'SUCCESS' if o.success else 'failed '}  "

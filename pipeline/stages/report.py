@@ -5,7 +5,7 @@ With `plots_template`, also the page `dvc plots show` fills, with its JavaScript
 
 from __future__ import annotations
 
-from ..evaluate.labels import METHOD_LABELS
+from ..evaluate.registry import method_labels
 from ..io import write_text_atomic
 from ..report.plots_page import offline_template
 from ..report.summary import build_summary
@@ -20,7 +20,7 @@ def settings(params: Params, world_seed: int | None = None) -> None:
 
 def run(settings: None, paths: ReportPaths, tracker: Tracker = NO_RUN) -> str:
     output, plots_template = paths.output, paths.plots_template
-    text = build_summary(paths.reports, METHOD_LABELS)
+    text = build_summary(paths.reports, method_labels())
     write_text_atomic(output, text + "\n")
     tracker.artifact(output)
     print(f"wrote {output}")

@@ -1,0 +1,82 @@
+"""Table I's methods by name: the built-in ones' labels, and the methods that modules register.
+
+Light on purpose: the stages that only write tables (aggregate, report) read
+the labels from here without importing the methods themselves, nor
+scikit-learn and Numba with them.
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from .. import methods as added_package
+
+# The built-in methods, in the tables' order, as the tables print them.
+BUILT_IN_LABELS = {
+    "chance": "chance",
+    "multiclass": "multiclass",
+    "symb_plan_svm": "symb-plan-svm",
+    "symb_plan_manual": "symb-plan-manual",
+    "only_edge": "only edge features",
+    "only_clique": "only clique features",
+    "full": "ours - full",
+    # beyond the paper: relation features, then those with one kind of training data beyond the logs each;
+    # their rows sit below the paper-faithful ones in every table
+    "relations": "ours + relations",
+    "chained": "ours + relations + chained starts",
+    "dagger": "ours + relations + dagger",
+}
+
+
+@dataclass(frozen=True)
+class MethodSettings:
+    """What a method's factory is given: the settings in force (`pipeline.settings`) and the model store."""
+
+    crossval: Any  # settings.Crossval: baselines' seeds and C
+    learner: Any  # settings.Learner: the structural SVM's settings, C as `select` chose it
+    horizon: int  # longest plan of symbolic planners
+    store: str | None  # folder of fold models (`folds` stage); an MRF method loads its models from it
+
+
+@dataclass(frozen=True)
+class AddedMethod:
+    name: str  # its key in every table, file and run
+    label: str  # its row name in the tables
+    make: Callable[[MethodSettings], Any]  # an unfitted method (`pipeline.evaluate.methods.Method`)
+
+
+_ADDED: dict[str, AddedMethod] = {}
+_loaded = False
+
+
+def register(name: str, label: str) -> Callable[[Callable[[MethodSettings], Any]], Callable[[MethodSettings], Any]]:
+    """Decorate a factory `make(settings) -> method` to add the method to Table I as `name`, printed `label`."""
+    if not name.isidentifier():
+        raise ValueError(f"method name {name!r} must be a Python identifier (it names files and runs)")
+
+    def add(make: Callable[[MethodSettings], Any]) -> Callable[[MethodSettings], Any]:
+        if name in BUILT_IN_LABELS or (name in _ADDED and _ADDED[name].make is not make):
+            raise ValueError(f"method {name!r} is registered twice")
+        _ADDED[name] = AddedMethod(name, label, make)
+        return make
+
+    return add
+
+
+def added_methods() -> dict[str, AddedMethod]:
+    """Every method the modules of `pipeline.methods` register, by name (imported once, in name order)."""
+    global _loaded
+    if not _loaded:
+        _loaded = True
+        for module in sorted(pkgutil.iter_modules(added_package.__path__), key=lambda m: m.name):
+            importlib.import_module(f"{added_package.__name__}.{module.name}")
+    return dict(sorted(_ADDED.items()))
+
+
+def method_labels() -> dict[str, str]:
+    """Every method's label, built-in ones first in Table I's order, then the added ones by name."""
+    return {**BUILT_IN_LABELS, **{name: m.label for name, m in added_methods().items()}}
