@@ -74,7 +74,7 @@ def _bench_options(p: argparse.ArgumentParser) -> None:
 
 
 def _bench(args: argparse.Namespace) -> int:
-    from .bench import format_bench, run_bench
+    from .timing import format_bench, run_bench
     from .io import write_json_atomic
     from .logs.benchmark import load_benchmark
     from .stages.command import load_params

@@ -8,7 +8,7 @@ from pipeline.evaluate.crossval import cross_validate
 from pipeline.evaluate.fold_models import train_fold_models, training_jobs
 from pipeline.evaluate.methods import MRFMethod, mrf_methods
 from pipeline.evaluate.recipes import evaluate_recipes
-from pipeline.evaluate.robustness import Condition, evaluate_conditions
+from pipeline.evaluate.robustness import NoiseCondition, evaluate_conditions
 from pipeline.features.dataset import build_steps
 from pipeline.learn.estimator import MRFPlanner
 from pipeline.logs.benchmark import Benchmark
@@ -65,7 +65,7 @@ def test_evaluation_stages_load_the_stored_models_without_training(small, store,
     mrf = partial(MRFMethod, **SETTINGS, store=str(out))
     methods = {"full": partial(mrf, "full", name="full"), "only_edge": partial(mrf, "edge", name="only_edge")}
     cross_validate(methods, contexts, meta, Benchmark.from_records(records), n_folds=2)
-    evaluate_conditions({"full": partial(mrf, "full")}, contexts, meta, scenarios, [Condition("noise", 0.1, 0)],
+    evaluate_conditions({"full": partial(mrf, "full")}, contexts, meta, scenarios, [NoiseCondition(0.1, 0)],
                         Folds(folds=2), max_steps=20)
     evaluate_recipes(partial(mrf, "full"), contexts, meta, scenarios)
     evaluate_recipes(partial(METHODS["chained"], store=str(out)), contexts, meta, scenarios)

@@ -64,12 +64,22 @@ def observer(demonstrations: tuple[tuple[Action, ...], ...], n_feedback: int):
 
 
 @dataclass(frozen=True)
-class Condition:
-    """One way of running the test scenarios: noise rate and seed, or feedback k and n."""
+class NoiseCondition:
+    """The test scenarios seen with each binary attribute flipped with probability `rate`, in noise draw `draw`."""
 
-    kind: str  # "noise" or "feedback"
-    a: float  # rate, or k
-    b: int  # seed, or n
+    rate: float
+    draw: int
+
+
+@dataclass(frozen=True)
+class FeedbackCondition:
+    """The test scenarios run with an observer who picks among the top `k` candidates at the first `n` steps."""
+
+    k: int
+    n: int
+
+
+Condition = NoiseCondition | FeedbackCondition
 
 
 def _fold(make, contexts, meta, scenarios, test, conditions, max_steps, seed):
@@ -86,13 +96,13 @@ def _replay(make, contexts, meta, scenarios, test, conditions, max_steps, seed):
             sc = scenarios[sid]
             perceive = choose = None
             top_k = 3
-            if c.kind == "noise":
+            if isinstance(c, NoiseCondition):
                 # one draw per (seed, scenario): the same scenario sees the same errors in every fold layout
-                rng = np.random.default_rng([seed, c.b, sorted(scenarios).index(sid)])
-                perceive = noisy_perception(flip_masks(sorted(sc.initial.specs), c.a, rng))
+                rng = np.random.default_rng([seed, c.draw, sorted(scenarios).index(sid)])
+                perceive = noisy_perception(flip_masks(sorted(sc.initial.specs), c.rate, rng))
             else:
-                top_k = int(c.a)
-                choose = observer(sc.demonstrations, c.b)
+                top_k = c.k
+                choose = observer(sc.demonstrations, c.n)
             program = plan(method.planner_, sc.initial, sc.task, max_steps=max_steps, top_k=top_k,
                            perceive=perceive, choose=choose)
             out.append((c, judge(sc, program)))
@@ -129,7 +139,7 @@ def rates(outcomes: list[SequenceOutcome]) -> dict[str, float]:
 
 def noise_runs(settings: Noise, results: list[tuple[Condition, SequenceOutcome]]) -> list[dict[str, float]]:
     """One row per (rate, noise draw) over all scenarios."""
-    return [{"rate": r, "seed": s, **rates([o for c, o in results if c == Condition("noise", r, s)])}
+    return [{"rate": r, "seed": s, **rates([o for c, o in results if c == NoiseCondition(r, s)])}
             for r in settings.rates for s in range(settings.draws)]
 
 
@@ -153,5 +163,5 @@ def feedback_steps(settings: Feedback, max_steps: int) -> list[int]:
 def feedback_rows(settings: Feedback, max_steps: int,
                   results: list[tuple[Condition, SequenceOutcome]]) -> list[dict[str, float]]:
     """One row per (k, n) over all scenarios; n as the settings write it, so `all` stays `all`."""
-    return [{"k": k, "n": label, **rates([o for c, o in results if c == Condition("feedback", k, n)])}
+    return [{"k": k, "n": label, **rates([o for c, o in results if c == FeedbackCondition(k, n)])}
             for k in settings.k for label, n in zip(settings.n, feedback_steps(settings, max_steps), strict=True)]

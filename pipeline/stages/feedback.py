@@ -13,7 +13,7 @@ from typing import Any
 
 from ..evaluate.methods import method_params, mrf_methods
 from ..evaluate.registry import method_labels
-from ..evaluate.robustness import Condition, evaluate_conditions, feedback_rows, feedback_steps
+from ..evaluate.robustness import FeedbackCondition, evaluate_conditions, feedback_rows, feedback_steps
 from ..features.dataset import read_features
 from ..io import write_text_atomic
 from ..logs.benchmark import load_benchmark
@@ -46,14 +46,14 @@ def run(settings: Settings, paths: EvaluationPaths, tracker: Tracker = NO_RUN, n
     store = None if paths.model_store is None else str(paths.model_store)
     methods = mrf_methods(settings.learner, store, feedback.methods)
     ns = feedback_steps(feedback, settings.max_steps)
-    conditions = [Condition("feedback", k, n) for k in feedback.k for n in ns]
+    conditions = [FeedbackCondition(k, n) for k in feedback.k for n in ns]
     label = dict(zip(ns, feedback.n, strict=True))  # steps -> as the settings write them ("all")
     rows, sequences = [], []
     outcomes = evaluate_conditions(methods, contexts, meta, bench.scenarios, conditions, settings.folds,
                                    settings.max_steps, n_jobs=n_jobs)
     for name, results in outcomes.items():
         rows += [{"method": name, **r} for r in feedback_rows(feedback, settings.max_steps, results)]
-        sequences += [{"method": name, "k": int(c.a), "n": label[c.b], **outcome_row(o)} for c, o in results]
+        sequences += [{"method": name, "k": c.k, "n": label[c.n], **outcome_row(o)} for c, o in results]
     out = paths.output
     text = csv_text(["method", "k", "n", "sequence_arg", "sequence_prim", "success"], rows, DECIMALS)
     write_text_atomic(out / "feedback.csv", text)

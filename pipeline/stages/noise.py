@@ -13,7 +13,7 @@ from typing import Any
 
 from ..evaluate.methods import method_params, mrf_methods
 from ..evaluate.registry import method_labels
-from ..evaluate.robustness import Condition, evaluate_conditions, noise_curve, noise_runs
+from ..evaluate.robustness import NoiseCondition, evaluate_conditions, noise_curve, noise_runs
 from ..features.dataset import read_features
 from ..io import write_text_atomic
 from ..logs.benchmark import load_benchmark
@@ -46,7 +46,7 @@ def run(settings: Settings, paths: EvaluationPaths, tracker: Tracker = NO_RUN, n
     bench = load_benchmark(paths.processed)
     store = None if paths.model_store is None else str(paths.model_store)
     methods = mrf_methods(settings.learner, store, noise.methods)
-    conditions = [Condition("noise", r, s) for r in noise.rates for s in range(noise.draws)]
+    conditions = [NoiseCondition(r, s) for r in noise.rates for s in range(noise.draws)]
     runs, curve, sequences = [], [], []
     outcomes = evaluate_conditions(methods, contexts, meta, bench.scenarios, conditions, settings.folds,
                                    settings.max_steps, noise.seed, n_jobs)
@@ -54,7 +54,7 @@ def run(settings: Settings, paths: EvaluationPaths, tracker: Tracker = NO_RUN, n
         mine = noise_runs(noise, results)
         runs += [{"method": name, **r} for r in mine]
         curve += [{"method": name, **r} for r in noise_curve(noise, mine)]
-        sequences += [{"method": name, "rate": c.a, "draw": c.b, **outcome_row(o)} for c, o in results]
+        sequences += [{"method": name, "rate": c.rate, "draw": c.draw, **outcome_row(o)} for c, o in results]
     out = paths.output
     write_text_atomic(out / "noise_runs.csv", csv_text(["method", "rate", "seed", "sequence_arg", "sequence_prim",
                                                         "success"], runs, RATE))
