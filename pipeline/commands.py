@@ -74,10 +74,10 @@ def _bench_options(p: argparse.ArgumentParser) -> None:
 
 
 def _bench(args: argparse.Namespace) -> int:
-    from .timing import format_bench, run_bench
     from .io import write_json_atomic
     from .logs.benchmark import load_benchmark
     from .stages.command import load_params
+    from .timing import format_bench, run_bench
 
     learner = load_params(args).train
     result = run_bench(load_benchmark(args.processed).records, **learner.ssvm, repeats=args.repeats)

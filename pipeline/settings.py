@@ -54,7 +54,7 @@ class Learner:
 
     @property
     def ssvm(self) -> dict[str, float | int]:
-        """The structural SVM's own settings (what `MRFPlanner` takes besides its feature set)."""
+        """The structural SVM's own settings (what `StepScorer` takes besides its feature set)."""
         return {"C": self.C, "tol": self.tol, "max_iter": self.max_iter, "n_slacks": self.n_slacks}
 
 

@@ -19,7 +19,7 @@ import numpy as np
 
 from .features.context import step_context
 from .features.dataset import build_steps, write_features
-from .learn.estimator import MRFPlanner
+from .learn.estimator import StepScorer
 from .sim.catalog import OBJECTS
 from .sim.objects import ObjectSpec
 from .sim.state import ON, WorldState
@@ -47,8 +47,8 @@ def synthetic_world(n: int, seed: int = 0) -> tuple[WorldState, Task]:
 
 
 def _train_row(contexts: list, features: str, C: float, tol: float, max_iter: int, n_slacks: int,
-               progress: bool) -> tuple[dict[str, Any], MRFPlanner]:
-    planner = MRFPlanner(features, C=C, tol=tol, max_iter=max_iter, n_slacks=n_slacks).fit(contexts, progress=progress)
+               progress: bool) -> tuple[dict[str, Any], StepScorer]:
+    planner = StepScorer(features, C=C, tol=tol, max_iter=max_iter, n_slacks=n_slacks).fit(contexts, progress=progress)
     ssvm = planner.ssvm_
     return {
         "features": features,

@@ -10,7 +10,7 @@ from pipeline.evaluate.methods import MRFMethod, mrf_methods
 from pipeline.evaluate.recipes import evaluate_recipes
 from pipeline.evaluate.robustness import NoiseCondition, evaluate_conditions
 from pipeline.features.dataset import build_steps
-from pipeline.learn.estimator import MRFPlanner
+from pipeline.learn.estimator import StepScorer
 from pipeline.logs.benchmark import Benchmark
 from pipeline.settings import Folds, Learner
 
@@ -40,13 +40,13 @@ def store(small, tmp_path_factory):
 def count_fits(monkeypatch):
     calls = []
 
-    real = MRFPlanner.fit
+    real = StepScorer.fit
 
     def counting(self, *args, **kwargs):
         calls.append(self.n_slacks)
         return real(self, *args, **kwargs)
 
-    monkeypatch.setattr(MRFPlanner, "fit", counting)
+    monkeypatch.setattr(StepScorer, "fit", counting)
     return calls
 
 

@@ -16,7 +16,7 @@ from pipeline.features.dataset import build_steps
 from pipeline.imitation.dagger import fit_imitation, rollout_contexts
 from pipeline.imitation.expert import DONE, next_actions
 from pipeline.imitation.starts import chained_scenarios, demonstration_contexts
-from pipeline.learn.estimator import MRFPlanner
+from pipeline.learn.estimator import StepScorer
 from pipeline.logs.benchmark import Benchmark
 from pipeline.sim.primitives import Action, PreconditionError, execute, try_execute
 from pipeline.sim.tasks import goal_reached
@@ -116,7 +116,7 @@ def test_demonstration_contexts_equal_the_feature_pipelines(small, benchmark_tab
 
 def test_rollouts_label_only_states_off_the_demonstrations(small):
     contexts, _, scenarios = small
-    fit = MRFPlanner("full", **SSVM).fit(contexts)
+    fit = StepScorer("full", **SSVM).fit(contexts)
     sc = next(iter(scenarios.values()))
     detour = next(a for a in (Action("move_close", (o,)) for o in sorted(sc.initial.specs))
                   if a not in {d[0] for d in sc.demonstrations} and try_execute(sc.initial, a) is not None)
@@ -142,15 +142,15 @@ def test_rollouts_label_only_states_off_the_demonstrations(small):
 
 def test_no_augmentation_is_the_plain_fit(small):
     contexts, _, scenarios = small
-    plain = MRFPlanner("full", **SSVM).fit(contexts)
-    same = fit_imitation(MRFPlanner("full", **SSVM), contexts, list(scenarios.values()), rounds=0, chained=False)
+    plain = StepScorer("full", **SSVM).fit(contexts)
+    same = fit_imitation(StepScorer("full", **SSVM), contexts, list(scenarios.values()), rounds=0, chained=False)
     assert plain.w_.tobytes() == same.w_.tobytes()
 
 
 def test_augmented_fits_are_deterministic_and_grow_the_data(small):
     contexts, _, scenarios = small
-    a = fit_imitation(MRFPlanner("full", **SSVM), contexts, list(scenarios.values()), rounds=1, chained=True)
-    b = fit_imitation(MRFPlanner("full", **SSVM), contexts, list(scenarios.values()), rounds=1, chained=True)
+    a = fit_imitation(StepScorer("full", **SSVM), contexts, list(scenarios.values()), rounds=1, chained=True)
+    b = fit_imitation(StepScorer("full", **SSVM), contexts, list(scenarios.values()), rounds=1, chained=True)
     assert a.w_.tobytes() == b.w_.tobytes()
     assert a.n_steps_ > len(contexts)
 
@@ -187,8 +187,8 @@ def test_augmented_methods_need_the_scenarios(small):
 
 def test_dagger_from_a_given_base_equals_dagger_from_scratch(small):
     contexts, _, scenarios = small
-    base = MRFPlanner("full", **SSVM).fit(contexts)
-    given = fit_imitation(MRFPlanner("full", **SSVM), contexts, list(scenarios.values()), rounds=1, chained=False,
+    base = StepScorer("full", **SSVM).fit(contexts)
+    given = fit_imitation(StepScorer("full", **SSVM), contexts, list(scenarios.values()), rounds=1, chained=False,
                           base=base)
-    scratch = fit_imitation(MRFPlanner("full", **SSVM), contexts, list(scenarios.values()), rounds=1, chained=False)
+    scratch = fit_imitation(StepScorer("full", **SSVM), contexts, list(scenarios.values()), rounds=1, chained=False)
     assert given.w_.tobytes() == scratch.w_.tobytes()

@@ -8,7 +8,7 @@ import pytest
 
 from pipeline.cli import main
 from pipeline.features.dataset import build_steps
-from pipeline.learn.estimator import MRFPlanner
+from pipeline.learn.estimator import StepScorer
 from pipeline.learn.persist import load_model
 from pipeline.logs.records import parse_record, state_from_dict
 from pipeline.plan.planner import DONE, plan
@@ -19,7 +19,7 @@ def small_fit(benchmark_tables):
     """A model trained on the demonstrations of two environments."""
     records = [i.record for i in benchmark_tables[1] if i.record["env_id"] in ("env01", "env02")]
     contexts, _ = build_steps(records)
-    planner = MRFPlanner("full", C=5.0, tol=1e-3, max_iter=300).fit(contexts)
+    planner = StepScorer("full", C=5.0, tol=1e-3, max_iter=300).fit(contexts)
     return planner, records
 
 
@@ -62,7 +62,7 @@ def test_plan_records_scores_and_alternatives(small_fit):
 def test_plan_stops_at_the_step_cap(small_fit):
     fit, records = small_fit
     state, task, _ = scenario(records[0])
-    program = plan(MRFPlanner.from_weights("full", np.zeros_like(fit.w_)), state, task, max_steps=3)
+    program = plan(StepScorer.from_weights("full", np.zeros_like(fit.w_)), state, task, max_steps=3)
     # with zero weights every score ties and the first candidate (move_close) always wins
     assert program.status == "step_cap" and len(program.steps) == 3
 
@@ -83,7 +83,7 @@ def test_saved_and_loaded_model_plans_identically(small_fit, tmp_path):
     fit, records = small_fit
     path = tmp_path / "mrf.npz"
     fit.save(path, n_steps=7)
-    loaded = MRFPlanner.load(path)
+    loaded = StepScorer.load(path)
     assert loaded.get_params() == fit.get_params()
     assert loaded.meta_["features"] == "full" and loaded.meta_["C"] == 5.0 and loaded.meta_["n_steps"] == 7
     np.testing.assert_array_equal(loaded.w_, fit.w_)
@@ -104,13 +104,13 @@ def test_the_planner_is_a_scikit_learn_estimator(small_fit):
     assert fresh.get_params() == fit.get_params() and not hasattr(fresh, "w_")
     assert fit.clone().get_params() == fit.get_params() and not hasattr(fit.clone(), "w_")
     assert fresh.set_params(C=1.0) is fresh and fresh.C == 1.0
-    assert repr(fresh) == "MRFPlanner(features='full', C=1.0, tol=0.001, max_iter=300, n_slacks=0)"
+    assert repr(fresh) == "StepScorer(features='full', C=1.0, tol=0.001, max_iter=300, n_slacks=0)"
     with pytest.raises(ValueError, match="no parameter gamma"):
         fresh.set_params(gamma=2.0)
     with pytest.raises(ValueError, match="not fitted"):
         fresh.predict(build_steps(records)[0])
     with pytest.raises(ValueError, match="features must be one of"):
-        MRFPlanner("nonsense").fit(build_steps(records)[0])
+        StepScorer("nonsense").fit(build_steps(records)[0])
     contexts, _ = build_steps(records[:4])
     again = clone(fit).fit(contexts)
     np.testing.assert_array_equal(again.w_, clone(fit).fit(contexts).w_)  # deterministic, bit for bit

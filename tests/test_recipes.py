@@ -3,7 +3,7 @@
 import numpy as np
 
 from pipeline.evaluate.recipes import RECIPES, evaluate_recipes
-from pipeline.learn.estimator import MRFPlanner
+from pipeline.learn.estimator import StepScorer
 from pipeline.learn.mrf import MRFModel
 from pipeline.sim.catalog import ENVIRONMENTS_BY_ID, build_environment
 from pipeline.sim.demonstrator import demonstrate
@@ -37,7 +37,7 @@ class Fake:
 
     def fit(self, contexts, meta, scenarios=None):
         Fake.seen.append({m.scenario_id.split("/")[0] for m in meta})
-        self.planner_ = MRFPlanner.from_weights("full", np.zeros(MRFModel("full").size_joint_feature))
+        self.planner_ = StepScorer.from_weights("full", np.zeros(MRFModel("full").size_joint_feature))
         return self
 
 

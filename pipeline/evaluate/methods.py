@@ -17,7 +17,7 @@ import numpy as np
 from ..features.context import N_PRIM, OBJECT_COLUMNS, StepContext, candidate_index, step_context
 from ..features.dataset import StepMeta
 from ..imitation.dagger import fit_imitation
-from ..learn.estimator import MRFPlanner
+from ..learn.estimator import StepScorer
 from ..learn.store import ModelStore, training_key
 from ..logs.benchmark import Benchmark
 from ..plan.planner import Program, plan, run_loop
@@ -147,12 +147,12 @@ class MRFMethod:
     def key(self, contexts: list[StepContext]) -> str:
         return training_key(self.features, self.learner_params(), contexts)
 
-    def estimator(self) -> MRFPlanner:
+    def estimator(self) -> StepScorer:
         """The unfitted planner with this method's feature set and learner settings."""
-        return MRFPlanner(self.features, C=self.C, tol=self.tol, max_iter=self.max_iter, n_slacks=self.n_slacks)
+        return StepScorer(self.features, C=self.C, tol=self.tol, max_iter=self.max_iter, n_slacks=self.n_slacks)
 
     def fit(self, contexts: list[StepContext], meta: list[StepMeta],
-            scenarios: Mapping[str, Scenario] | None = None, base: MRFPlanner | None = None) -> MRFMethod:
+            scenarios: Mapping[str, Scenario] | None = None, base: StepScorer | None = None) -> MRFMethod:
         """Sets `planner_`: loaded from the store when it holds these steps and settings, else fitted.
 
         `base` is this method's planner without DAgger, fitted on the same

@@ -14,7 +14,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 
 from ..features.context import StepContext, step_context
-from ..learn.estimator import MRFPlanner
+from ..learn.estimator import StepScorer
 from ..plan.planner import Policy, greedy, run_loop
 from ..sim.primitives import Action
 from ..sim.scenarios import Scenario
@@ -52,8 +52,8 @@ def rollout_contexts(policy: Policy, scenario: Scenario, seen: set[tuple[Action,
     return out
 
 
-def fit_imitation(planner: MRFPlanner, contexts: list[StepContext], scenarios: Sequence[Scenario], rounds: int,
-                  chained: bool, expert: Expert | None = None, base: MRFPlanner | None = None) -> MRFPlanner:
+def fit_imitation(planner: StepScorer, contexts: list[StepContext], scenarios: Sequence[Scenario], rounds: int,
+                  chained: bool, expert: Expert | None = None, base: StepScorer | None = None) -> StepScorer:
     """`planner` (unfitted) fitted on the demonstrations' `contexts` (of `scenarios`), with chained starts and
     DAgger rounds added; returns the fitted planner of the last round.
 

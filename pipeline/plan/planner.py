@@ -18,7 +18,7 @@ from ..sim.state import WorldState
 from ..sim.tasks import Task, goal_reached
 
 if TYPE_CHECKING:  # only named in hints: the stages that read programs need not import the learner (Numba, scipy)
-    from ..learn.estimator import MRFPlanner
+    from ..learn.estimator import StepScorer
 
 DONE = "done"
 STEP_CAP = "step_cap"
@@ -89,12 +89,12 @@ class Abstain(Exception):
     infeasible, with the exception's message as its error."""
 
 
-def greedy(planner: MRFPlanner, top_k: int = 3) -> Policy:
+def greedy(planner: StepScorer, top_k: int = 3) -> Policy:
     """The learned planner as a policy: its `top_k` candidates of the step."""
     return lambda ctx, state: planner.top_k(ctx, top_k)
 
 
-def plan(planner: MRFPlanner, state: WorldState, task: Task, max_steps: int = 20,
+def plan(planner: StepScorer, state: WorldState, task: Task, max_steps: int = 20,
          top_k: int = 3, perceive: Perceive | None = None, choose: Choose | None = None) -> Program:
     """Run the loop in the simulator until `done`, an infeasible step, or `max_steps` primitives.
 

@@ -7,7 +7,7 @@ from typing import Any
 from ..evaluate.metrics import step_accuracy
 from ..features.dataset import read_features
 from ..io import write_json_atomic, write_text_atomic
-from ..learn.estimator import MRFPlanner
+from ..learn.estimator import StepScorer
 from ..learn.ssvm import learning_curve
 from ..report.csvs import csv_text
 from ..settings import Params, Train
@@ -23,7 +23,7 @@ def settings(params: Params, world_seed: int | None = None) -> Train:
 def run(settings: Train, paths: TrainPaths, tracker: Tracker = NO_RUN) -> dict[str, Any]:
     features, model, metrics, curve = paths.features, paths.model, paths.metrics, paths.curve
     contexts, _ = read_features(features)
-    planner = MRFPlanner(settings.feature_set, **settings.ssvm).fit(contexts, progress=True)
+    planner = StepScorer(settings.feature_set, **settings.ssvm).fit(contexts, progress=True)
     planner.save(model, n_steps=len(contexts))
     ssvm = planner.ssvm_
     acc = step_accuracy(contexts, planner.predict(contexts))
