@@ -62,7 +62,8 @@ def _table(name: str) -> str:
 
 def results_page(files: list[Path]) -> str:
     """The Markdown of the Results page."""
-    parts = [_table("summary.md").rstrip("\n")]
+    # the site's navigation is hidden on this page: its tables are wide (Table I per primitive has 19 columns)
+    parts = ["---\nhide:\n  - navigation\n---\n\n" + _table("summary.md").rstrip("\n")]
     parts.append("## Table I per primitive\n\n`reports/table1.md` (also `table1.csv` and `table1.tex`): "
                  "mean ± sd over world seeds, the best of each column in bold.\n\n" + _table("table1.md"))
     parts.append("## Why programs fail, per method and task\n\n`reports/failures.md`.\n\n" + _table("failures.md"))
