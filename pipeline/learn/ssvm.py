@@ -17,7 +17,7 @@ oracle; more groups add one cut per group from the same call; `n_slacks=0`
 gives every example its own slack (the n-slack cutting plane), which the
 pipeline uses: one exhaustive oracle call then adds a cut for every example
 it finds violated beyond that example's current slack, and training needs
-about 20 oracle calls where 1-slack needs over 600 (measured in the README).
+about 20 oracle calls where 1-slack needs over 600 (measured by `taskseq bench`, docs/speed.md).
 The working-set QP is solved in its dual by `WorkingSet`. The working set is
 the cache of labellings found so far; the QP starts from the previous optimum;
 neither changes the optimum, which only the exhaustive oracle certifies.
