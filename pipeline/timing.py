@@ -1,6 +1,6 @@
 """`taskseq bench`: how long training and planning take on this machine.
 
-Timings are measurements, not tests: they go to reports/bench.json and the README.
+Timings are measurements, not tests: they go to reports/bench.json and docs/speed.md.
 """
 
 from __future__ import annotations

@@ -46,7 +46,7 @@ def _needed(extras: tuple[str, ...] = ("dev", "dask")) -> set[str]:
 
 def test_every_needed_package_is_pinned():
     missing = sorted(_needed() - set(_locked()) - {"setuptools", "pip"})
-    assert not missing, f"missing from {LOCK.name} (re-lock as the README says): {missing}"
+    assert not missing, f"missing from {LOCK.name} (re-lock as docs/getting-started.md says): {missing}"
 
 
 def test_the_key_packages_are_pinned_to_exact_versions():

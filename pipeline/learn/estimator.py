@@ -38,17 +38,30 @@ class StepScorer:
 
     Parameters
     ----------
-    features : "full", "edge", "clique" or "relations" (`mrf.FEATURE_SETS`).
-    C, tol, max_iter, n_slacks : the learner's settings (`ssvm.CuttingPlaneSSVM`);
-        defaults are the pipeline's (`settings.Learner`).
+    features : str
+        "full", "edge", "clique" or "relations" (`mrf.FEATURE_SETS`).
+    C : float
+        Weight of the slack; like the three below, a setting of the learner
+        (`ssvm.CuttingPlaneSSVM`) whose default is the pipeline's (`settings.Learner`).
+    tol : float
+        Relative primal-dual gap to stop at.
+    max_iter : int
+        Cutting-plane iterations at most.
+    n_slacks : int
+        Slack groups (0: one slack per step).
 
-    Attributes after `fit` (or `load`)
-    ----------------------------------
-    model_ : MRFModel, the scoring model.
-    w_ : (d,) weights.
-    ssvm_ : the fitted learner with its history (None for a loaded planner).
-    fit_seconds_ : wall time of the fits that led to these weights (a DAgger
-        refit adds its rounds'), n_steps_ : steps of the last fit.
+    Attributes
+    ----------
+    model_ : MRFModel
+        The scoring model (set by `fit` or `load`, as are the others).
+    w_ : numpy.ndarray
+        The (d,) weights.
+    ssvm_ : CuttingPlaneSSVM or None
+        The fitted learner with its history (None for a loaded planner).
+    fit_seconds_ : float
+        Wall time of the fits that led to these weights (a DAgger refit adds its rounds').
+    n_steps_ : int
+        Steps of the last fit.
     """
 
     def __init__(self, features: str = "full", C: float = _DEFAULT.C, tol: float = _DEFAULT.tol,

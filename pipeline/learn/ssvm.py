@@ -17,7 +17,7 @@ oracle; more groups add one cut per group from the same call; `n_slacks=0`
 gives every example its own slack (the n-slack cutting plane), which the
 pipeline uses: one exhaustive oracle call then adds a cut for every example
 it finds violated beyond that example's current slack, and training needs
-about 20 oracle calls where 1-slack needs over 600 (measured in the README).
+about 20 oracle calls where 1-slack needs over 600 (measured by `taskseq bench`, docs/speed.md).
 The working-set QP is solved in its dual by `WorkingSet`. The working set is
 the cache of labellings found so far; the QP starts from the previous optimum;
 neither changes the optimum, which only the exhaustive oracle certifies.
@@ -83,17 +83,23 @@ class CuttingPlaneSSVM:
     Parameters
     ----------
     model : StructuredModel
-    C : float, weight of the slack (`C * sum_i xi_i`).
-    tol : float, stop when (best primal - dual) <= tol * max(1, |best primal|).
-    max_iter : int, upper bound on oracle calls (cutting-plane iterations).
-    n_slacks : int, slack groups, each adding one cut per iteration (1: the
-        1-slack cutting plane; 0: one slack per example, the n-slack problem;
-        capped at the number of examples). The optimum does not depend on it.
-    inactive_window : int, a cut whose dual weight stayed zero this many
-        iterations leaves the working set (it keeps the QP small; 0 keeps all).
-        A cut dropped too soon is found again by the oracle if it is needed,
-        so this changes the time to the optimum, never the optimum.
-    progress : callable or None, called with each `Iteration` (for progress bars).
+        What is learned: joint feature, loss and (loss-augmented) inference.
+    C : float
+        Weight of the slack (`C * sum_i xi_i`).
+    tol : float
+        Stop when (best primal - dual) <= tol * max(1, |best primal|).
+    max_iter : int
+        Upper bound on oracle calls (cutting-plane iterations).
+    n_slacks : int
+        Slack groups, each adding one cut per iteration (1: the 1-slack cutting plane;
+        0: one slack per example, the n-slack problem; capped at the number of examples).
+        The optimum does not depend on it.
+    inactive_window : int
+        A cut whose dual weight stayed zero this many iterations leaves the working set
+        (it keeps the QP small; 0 keeps all). A cut dropped too soon is found again by the
+        oracle if it is needed, so this changes the time to the optimum, never the optimum.
+    progress : callable or None
+        Called with each `Iteration` (for progress bars).
     """
 
     def __init__(self, model: StructuredModel, C: float = 1.0, tol: float = 1e-3, max_iter: int = 2000,
