@@ -35,7 +35,7 @@ def test_the_site_builds_without_a_warning(tmp_path):
     results = (tmp_path / "site" / "results" / "index.html").read_text()
     assert "Table I per primitive" in results
     api = (tmp_path / "site" / "api" / "learn" / "index.html").read_text()
-    assert "CuttingPlaneSSVM" in api and "MRFPlanner" in api
+    assert "CuttingPlaneSSVM" in api and "StepScorer" in api
 
 
 def test_the_results_page_holds_the_reports_as_they_are():
