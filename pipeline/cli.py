@@ -127,6 +127,10 @@ def dispatch(args: argparse.Namespace, tracker) -> int:
         else:
             print_program(program, names)
         return 0 if program.success else 1
+    elif c == "serve":
+        from .serve.server import serve
+
+        return serve(args.host, args.port, args.data, args.model, args.top_k)
     elif c == "bench":
         from .bench import format_bench, run_bench
         from .io import write_json_atomic
@@ -338,6 +342,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--processed", type=Path, default=Path("data/worlds/0/processed"), help="folder of Parquet tables")
     p.add_argument("--output", type=Path, required=True, help="folder to write (replaced)")
     p.add_argument("--horizon", type=int, default=P.horizon, help=f"longest plan searched (default {P.horizon})")
+
+    p = add("serve", "a web page where people demonstrate tasks and correct the planner (records: DATA/people)")
+    p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1: this machine only)")
+    p.add_argument("--port", type=int, default=8765, help="port (default 8765; 0 picks a free one)")
+    p.add_argument("--data", type=Path, default=Path("data"),
+                   help="data folder: records are appended to DATA/people/<environment>.jsonl, environment files "
+                        "are offered from DATA/environments/ (default: data)")
+    p.add_argument("--model", type=Path, default=Path("models/mrf.npz"), help="planner of the assist page (.npz)")
+    p.add_argument("--top-k", type=int, default=3, help="proposals shown per step in assist (default 3)")
 
     p = add("bench", "time training, per-step inference (10 to 100 objects) and features memory")
     p.add_argument("--processed", type=Path, default=Path("data/worlds/0/processed"), help="folder of Parquet tables")
