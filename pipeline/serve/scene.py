@@ -11,8 +11,8 @@ from dataclasses import dataclass, field
 from ..sim.objects import FURNITURE
 from ..sim.state import INSIDE, REACH, WorldState
 
-MAX_SCALE = 150.0  # pixels per metre at most
-WIDTH = 1000.0  # pixels the room is fitted into
+MAX_SCALE = 240.0  # pixels per metre at most
+WIDTH = 1060.0  # pixels the room is fitted into at most
 MARGIN = 30.0
 TOP = 120.0  # room above the wall for the slanted labels of items
 
@@ -76,7 +76,7 @@ def top_view(state: WorldState) -> TopView:
     boxes = [state.box(o) for o in furniture] or [state.box(o) for o in shown]
     xmin = min([b[0] for b in boxes] + [state.robot[0] - 0.5])
     xmax = max([b[3] for b in boxes] + [state.robot[0] + 0.5])
-    ymin = min([b[1] for b in boxes] + [state.robot[1] - 0.4])
+    ymin = min([b[1] for b in boxes] + [state.robot[1] - REACH - 0.05])
     ymax = max([b[4] for b in boxes] + [state.robot[1]])
     scale = min(MAX_SCALE, (WIDTH - 2 * MARGIN) / (xmax - xmin))
 
@@ -102,7 +102,8 @@ def top_view(state: WorldState) -> TopView:
         if state.held_above is not None:
             held += f", above {state.specs[state.held_above].name}"
     height = TOP + (ymax - ymin) * scale + 2 * MARGIN + 20
-    return TopView(WIDTH, round(height, 1), shapes, (rx, ry), round(REACH * scale, 1), held)
+    width = 2 * MARGIN + (xmax - xmin) * scale + 160  # room for the robot's label
+    return TopView(round(width, 1), round(height, 1), shapes, (rx, ry), round(REACH * scale, 1), held)
 
 
 def support_tree(state: WorldState) -> list[Node]:

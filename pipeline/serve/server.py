@@ -2,10 +2,10 @@
 
 Werkzeug's threaded server answers each request in its own thread. A
 stopping signal reaches the main thread (`pipeline.stopping` turns SIGTERM
-into `KeyboardInterrupt` as for every command); the writer is closed before
-the process exits, which waits for an append under way, so every
-demonstration whose page said "saved" is whole on disk, and no other is
-started.
+into `KeyboardInterrupt` as for every command), which ends `serve_forever`.
+The writer is then closed before the process exits: that waits for an
+append under way, so every demonstration whose page said "saved" is whole
+on disk, and no other is started.
 """
 
 from __future__ import annotations
@@ -15,7 +15,6 @@ from pathlib import Path
 
 from werkzeug.serving import make_server
 
-from .. import stopping
 from .app import create_app
 
 
@@ -26,11 +25,9 @@ def serve(host: str, port: int, data: Path, model: Path, top_k: int) -> int:
     print(f"taskseq serve: open http://{host}:{server.port}/ (records go to {served.people}); "
           "Ctrl-C stops it", flush=True)
     try:
-        server.serve_forever()
-    except KeyboardInterrupt as err:
-        how = "SIGTERM" if isinstance(err, stopping.Stopped) else "Ctrl-C"
-        print(f"taskseq serve: stopped by {how}; every saved demonstration is whole on disk", file=sys.stderr)
+        server.serve_forever()  # returns on Ctrl-C or SIGTERM (Werkzeug ends it on KeyboardInterrupt)
     finally:
         served.writer.close()
         server.server_close()
+    print("taskseq serve: stopped; every demonstration it saved is whole on disk", file=sys.stderr)
     return 0
