@@ -89,7 +89,8 @@ def dispatch(args: argparse.Namespace, tracker) -> int:
             from dataclasses import replace
 
             train = replace(train, C=_learner(args).C)
-        stage.run(train, args.features, args.model, args.metrics, args.curve, tracker)
+        stage.run(train, args.features, args.model, args.metrics, args.curve, tracker,
+                  people=args.people_logs if args.with_people else None)
     elif c == "pddl":
         stage.run(_settings(S.Pddl, args), args.processed, args.output, tracker)
     elif c == "folds":
@@ -108,6 +109,11 @@ def dispatch(args: argparse.Namespace, tracker) -> int:
     elif c == "recipes":
         stage.run(S.Crossval(max_steps=args.max_steps), _learner(args), args.features, args.processed,
                   args.output, _store(args.model_store), tracker)
+    elif c == "people":
+        stage.run(_settings(S.People, args), _learner(args), args.max_steps, args.features, args.output, tracker)
+    elif c == "teach":
+        stage.run(S.World(seeds=tuple(args.seeds), dev_seed=args.dev_seed), _settings(S.Teach, args), _learner(args),
+                  args.max_steps, args.worlds, args.output, tracker)
     elif c == "report":
         stage.run(args.reports, args.output, args.plots_template, tracker)
     elif c == "replay":
@@ -151,6 +157,13 @@ def _feedback_steps(value: str) -> str:
     return value
 
 
+def _switch(value: str) -> bool:
+    """A params.yaml switch as DVC writes it into a command: true or false."""
+    if value.lower() not in ("true", "false"):
+        raise argparse.ArgumentTypeError(f"expected true or false, got {value!r}")
+    return value.lower() == "true"
+
+
 def _positive(value: str) -> int:
     if not value.isdigit() or int(value) < 1:
         raise argparse.ArgumentTypeError(f"expected a positive whole number, got {value!r}")
@@ -170,7 +183,7 @@ def build_parser() -> argparse.ArgumentParser:
         return sub.add_parser(name, help=help_, description=help_)
 
     G, T, P, C, N, F = S.Generate(), S.Train(), S.Pddl(), S.Crossval(), S.Noise(), S.Feedback()
-    W, SEL = S.World(), S.Select()
+    W, SEL, PE, TE = S.World(), S.Select(), S.People(), S.Teach()
 
     def world_options(p: argparse.ArgumentParser) -> None:
         # dvc.yaml passes the `world` section as `${world}`, which DVC writes as --seeds ... --dev_seed ...
@@ -232,6 +245,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--model", type=Path, required=True, help="model file to write (.npz)")
     p.add_argument("--metrics", type=Path, default=None, help="training metrics (JSON; default: not written)")
     p.add_argument("--curve", type=Path, default=None, help="objective per iteration (CSV; default: not written)")
+    p.add_argument("--people-logs", type=Path, default=Path(PE.logs),
+                   help=f"folder of people's demonstrations (taskseq serve; default {PE.logs})")
+    p.add_argument("--with-people", type=_switch, default=PE.train,
+                   help=f"true: add people's demonstrations to the training steps (default {str(PE.train).lower()})")
 
     p = add("plan", "plan a program for a task in an environment with a trained model")
     p.add_argument("--model", type=Path, default=Path("models/mrf.npz"), help="model file (.npz)")
@@ -331,6 +348,26 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--worlds", type=Path, default=Path("reports/worlds"),
                    help="folder of the per-world results, one subfolder per seed")
     p.add_argument("--output", type=Path, required=True, help="folder for the tables over seeds")
+
+    p = add("people", "check people's demonstrations, count them, and compare the planner with and without them")
+    p.add_argument("--logs", type=Path, default=Path(PE.logs), help=f"folder of their logs (default {PE.logs})")
+    p.add_argument("--features", type=Path, default=Path("data/worlds/0/features"),
+                   help="the steps the planner is trained on before them")
+    training_options(p)
+    p.add_argument("--max-steps", type=int, default=C.max_steps, help="step cap of closed-loop runs")
+    p.add_argument("--output", type=Path, required=True, help="folder for dataset.json and before_after.{json,md}")
+
+    p = add("teach", "success on unseen environments after a scripted person demonstrates k tasks in each")
+    world_options(p)
+    p.add_argument("--worlds", type=Path, default=Path("data/worlds"),
+                   help="folder of the worlds' data, one subfolder per seed with its processed tables")
+    p.add_argument("--environments", nargs="+", default=list(TE.environments),
+                   help=f"environments held out of training (default {' '.join(TE.environments)})")
+    p.add_argument("--k", type=int, nargs="+", default=list(TE.k), help="tasks demonstrated per environment")
+    p.add_argument("--seed", type=int, default=TE.seed, help="seed of the order tasks are demonstrated in")
+    training_options(p)
+    p.add_argument("--max-steps", type=int, default=C.max_steps, help="step cap of closed-loop runs")
+    p.add_argument("--output", type=Path, required=True, help="folder for teach.{csv,md,png} and teach_seeds.csv")
 
     p = add("report", "write reports/summary.md: every result next to the paper's figures")
     p.add_argument("--reports", type=Path, default=Path("reports"), help="folder of the stages' results")

@@ -99,6 +99,23 @@ class Feedback:
     n: tuple[str, ...] = ("0", "1", "2", "3", "5", "all")  # steps with feedback
 
 
+@dataclass(frozen=True)
+class People:
+    """People's demonstrations (`taskseq serve`): where they are, and whether `train` learns from them."""
+
+    logs: str = "data/people"  # folder of *.jsonl logs; empty by default, which changes no figure
+    train: bool = False  # add them to the training steps of the `train` stage
+
+
+@dataclass(frozen=True)
+class Teach:
+    """Teaching unseen environments: a scripted person demonstrates k tasks in each; the rest are tested."""
+
+    environments: tuple[str, ...] = ("env11", "env12", "env13")  # held out of the training data
+    k: tuple[int, ...] = (0, 1, 2, 3)  # tasks demonstrated per environment
+    seed: int = 0  # order in which tasks are demonstrated
+
+
 SECTIONS: dict[str, type] = {
     "world": World,
     "select": Select,
@@ -107,6 +124,8 @@ SECTIONS: dict[str, type] = {
     "crossval": Crossval,
     "noise": Noise,
     "feedback": Feedback,
+    "people": People,
+    "teach": Teach,
 }
 
 

@@ -6,4 +6,4 @@ and logs to the tracker it is given. Argument parsing stays in `pipeline.cli`.
 """
 
 STAGES = ("select", "generate", "ingest", "features", "train", "pddl", "folds", "crossval", "noise", "feedback",
-          "recipes", "aggregate", "report")
+          "recipes", "aggregate", "people", "teach", "report")

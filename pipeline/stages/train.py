@@ -6,18 +6,25 @@ from pathlib import Path
 from typing import Any
 
 from ..evaluate.metrics import step_accuracy
-from ..features.dataset import read_features
+from ..features.dataset import build_steps, read_features
 from ..io import write_json_atomic, write_text_atomic
 from ..learn.estimator import MRFPlanner
 from ..learn.ssvm import learning_curve
+from ..logs.people import people_records
 from ..report.csvs import csv_text
 from ..settings import Train
 from ..track.mlflow_runs import NO_RUN, Tracker
 
 
 def run(settings: Train, features: Path, model: Path, metrics: Path | None = None, curve: Path | None = None,
-        tracker: Tracker = NO_RUN) -> dict[str, Any]:
+        tracker: Tracker = NO_RUN, people: Path | None = None) -> dict[str, Any]:
+    """`people`: a folder of people's demonstrations whose steps are added to the training steps."""
     contexts, _ = read_features(features)
+    n_people = 0
+    if people is not None:
+        records, _ = people_records(people)
+        extra, _ = build_steps(records)
+        contexts, n_people = contexts + extra, len(records)
     planner = MRFPlanner(settings.feature_set, **settings.ssvm).fit(contexts, progress=True)
     planner.save(model, n_steps=len(contexts))
     ssvm = planner.ssvm_
@@ -33,6 +40,8 @@ def run(settings: Train, features: Path, model: Path, metrics: Path | None = Non
         "dual_objective": ssvm.dual_objective_,
         "relative_gap": last.gap / max(1.0, abs(last.best_primal)),
     }
+    if people is not None:  # the file is the same as before when people's demonstrations are not asked for
+        out["people_sequences"] = n_people
     if metrics:
         write_json_atomic(metrics, out)
     if curve:
