@@ -137,6 +137,10 @@ def dispatch(args: argparse.Namespace, tracker) -> int:
         from .serve.server import serve
 
         return serve(args.host, args.port, args.data, args.model, args.top_k)
+    elif c == "layout":
+        from .serve.layout import write_environment
+
+        print(f"wrote {args.output}: {write_environment(args.layout, args.output)} objects")
     elif c == "bench":
         from .bench import format_bench, run_bench
         from .io import write_json_atomic
@@ -388,6 +392,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "are offered from DATA/environments/ (default: data)")
     p.add_argument("--model", type=Path, default=Path("models/mrf.npz"), help="planner of the assist page (.npz)")
     p.add_argument("--top-k", type=int, default=3, help="proposals shown per step in assist (default 3)")
+
+    p = add("layout", "write an environment file (for serve and plan) from a short YAML layout of new objects")
+    p.add_argument("layout", type=Path, help="layout file (YAML): objects, furniture, items, robot_x")
+    p.add_argument("--output", type=Path, required=True, help="environment file to write (.json)")
 
     p = add("bench", "time training, per-step inference (10 to 100 objects) and features memory")
     p.add_argument("--processed", type=Path, default=Path("data/worlds/0/processed"), help="folder of Parquet tables")
