@@ -15,6 +15,7 @@ MAX_SCALE = 240.0  # pixels per metre at most
 WIDTH = 1060.0  # pixels the room is fitted into at most
 MARGIN = 30.0
 TOP = 120.0  # room above the wall for the slanted labels of items
+LABEL_GAP = 13.0  # pixels between the starts of two slanted labels
 
 
 @dataclass(frozen=True)
@@ -29,6 +30,7 @@ class Shape:
     kind: str  # furniture, bin, vessel, item
     label: str
     full: bool  # holds a liquid
+    anchor: float  # x where its slanted label starts
 
 
 @dataclass(frozen=True)
@@ -84,7 +86,8 @@ def top_view(state: WorldState) -> TopView:
         return round(MARGIN + (x - xmin) * scale, 1), round(TOP + (ymax - y) * scale, 1)
 
     order = sorted(shown, key=lambda o: (state.specs[o].category not in FURNITURE, state.poses[o][2], o))
-    shapes = []
+    shapes: list[Shape] = []
+    anchors: list[float] = []  # where item labels start: a stacked item's label moves right of its base's
     for o in order:
         spec = state.specs[o]
         x0, y0, _, x1, y1, _ = state.box(o)
@@ -94,7 +97,12 @@ def top_view(state: WorldState) -> TopView:
                 else "vessel" if spec.has("container") else "item")
         level = _level(state, o)
         label = _label(state, o) + (f" · level {level}" if level else "")
-        shapes.append(Shape(o, ax, ay, round(w, 1), round(h, 1), kind, label, bool(state.liquids_in(o))))
+        anchor = ax + w / 2
+        while kind in ("vessel", "item") and any(abs(anchor - a) < LABEL_GAP for a in anchors):
+            anchor += LABEL_GAP
+        anchors.append(anchor)
+        shapes.append(Shape(o, ax, ay, round(w, 1), round(h, 1), kind, label, bool(state.liquids_in(o)),
+                            round(anchor, 1)))
     rx, ry = px(*state.robot)
     held = None
     if state.held is not None:
