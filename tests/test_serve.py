@@ -324,7 +324,8 @@ def test_a_load_of_concurrent_browsers_loses_no_record_and_leaves_no_partial_fil
     assert main(["replay", str(data / "people")]) == 0
 
 
-def test_sigterm_stops_the_server_with_every_saved_record_whole(data, zero_model):
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_a_stopped_server_keeps_every_saved_record_whole(data, zero_model, signum):
     proc = subprocess.Popen([sys.executable, "-m", "pipeline.cli", "serve", "--port", "0", "--data", str(data),
                              "--model", str(zero_model)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
@@ -335,7 +336,7 @@ def test_sigterm_stops_the_server_with_every_saved_record_whole(data, zero_model
             client.demonstrate(0, "env01", task, actions)
         assert result.errors == [] and len(result.saved) == 2
     finally:
-        proc.send_signal(signal.SIGTERM)
+        proc.send_signal(signum)
         _, err = proc.communicate()
     assert proc.returncode == 0 and "stopped; every demonstration it saved is whole" in err
     lines = (data / "people" / "w0-env01.jsonl").read_text().splitlines()
