@@ -148,3 +148,30 @@ def test_two_browsers_at_once_write_two_whole_records(server, browser):
     records = [json.loads(line) for line in (data / "people" / "w0-env01.jsonl").read_text().splitlines()]
     got = {r["participant"]: (r["task"]["name"], [s["primitive"] for s in r["steps"]]) for r in records}
     assert got == {w: (t.name, [a.primitive for a in p[:-1]]) for w, t, p in zip("ab", tasks, plans, strict=True)}
+
+
+def test_markup_in_an_uploaded_environment_file_is_shown_as_text_and_never_run(server, browser, tmp_path):
+    from pipeline.logs.records import spec_to_dict, state_to_dict
+
+    url, data = server
+    state = world_environment(0, "env01").state
+    env = {"objects": [spec_to_dict(s) for s in state.specs.values()], "state": state_to_dict(state)}
+    next(o for o in env["objects"] if o["id"] == "obj20")["name"] = "<script>alert(1)</script>"
+    path = tmp_path / "kitchen.json"
+    path.write_text(json.dumps(env))
+    page = browser.new_page()
+    dialogs: list[str] = []
+    page.on("dialog", lambda d: (dialogs.append(d.message), d.dismiss()))
+    page.goto(url + "/")
+    page.set_input_files("#upload-form input[name=file]", str(path))
+    page.click("#upload-form button")
+    assert "<script>alert(1)</script>" in page.inner_text("#tree")
+    assert page.locator("#scene text", has_text="<script>alert(1)</script>").count() == 1
+    assert dialogs == []
+    del env["objects"][3]["size"]
+    path.write_text(json.dumps(env))
+    page.goto(url + "/")
+    page.set_input_files("#upload-form input[name=file]", str(path))
+    page.click("#upload-form button")
+    assert page.inner_text("#message") == "kitchen.json:1: objects[3]: 'size' is a required property"
+    assert not data.exists()
