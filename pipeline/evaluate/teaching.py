@@ -38,11 +38,12 @@ from ..sim.tasks import Task
 
 @dataclass(frozen=True)
 class Outcome:
-    """The planner's result on the held-out tasks of one environment."""
+    """The planner's result on the held-out tasks of one environment, in all and by task kind."""
 
     env_id: str
     n_tasks: int
     n_success: int
+    by_kind: dict[str, tuple[int, int]]  # task name -> (tasks, successes)
 
     @property
     def success(self) -> float:
@@ -66,9 +67,12 @@ def fit(contexts: list[StepContext], learner: Learner) -> MRFPlanner:
 
 def success_on(planner: MRFPlanner, env_id: str, state: WorldState, tasks: Iterable[Task],
                max_steps: int) -> Outcome:
-    tasks = list(tasks)
-    n_success = sum(plan(planner, state, t, max_steps=max_steps).success for t in tasks)
-    return Outcome(env_id, len(tasks), int(n_success))
+    by_kind: dict[str, tuple[int, int]] = {}
+    for task in tasks:
+        ok = plan(planner, state, task, max_steps=max_steps).success
+        n, k = by_kind.get(task.name, (0, 0))
+        by_kind[task.name] = (n + 1, k + int(ok))
+    return Outcome(env_id, sum(n for n, _ in by_kind.values()), sum(k for _, k in by_kind.values()), by_kind)
 
 
 def written_and_read_back(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -82,10 +86,11 @@ def written_and_read_back(records: list[dict[str, Any]]) -> list[dict[str, Any]]
         return [item.record for item in load_logs(tmp)[1]]
 
 
-def pooled(outcomes: list[Outcome]) -> float:
-    """Success over every held-out task of the environments together (%)."""
-    n = sum(o.n_tasks for o in outcomes)
-    return 100.0 * sum(o.n_success for o in outcomes) / n if n else float("nan")
+def pooled(outcomes: list[Outcome], kind: str | None = None) -> float:
+    """Success over every held-out task of the environments together, or every task of one kind (%)."""
+    counts = [o.by_kind.get(kind, (0, 0)) if kind else (o.n_tasks, o.n_success) for o in outcomes]
+    n = sum(c[0] for c in counts)
+    return 100.0 * sum(c[1] for c in counts) / n if n else float("nan")
 
 
 def teaching_order(tasks: list[tuple[Task, list[Action]]], rng: np.random.Generator) -> list[int]:

@@ -26,6 +26,7 @@ from ..report.tables import line_plot_png
 from ..serve.environments import world_environment
 from ..serve.writer import person_record
 from ..settings import Learner, Teach, World
+from ..sim.tasks import TASKS
 from ..track.mlflow_runs import NO_RUN, Tracker
 
 SCRIPTED = "scripted"  # the participant id of the scripted person's records
@@ -55,15 +56,18 @@ def run(world: World, teach: Teach, learner: Learner, max_steps: int, worlds: Pa
             outcomes = [success_on(planner, env.env_id, env.state, tested[e], max_steps)
                         for e, (env, _) in taught.items()]
             rows.append({"world_seed": seed, "k": k, "held_out_tasks": sum(o.n_tasks for o in outcomes),
-                         "successes": sum(o.n_success for o in outcomes), "success": pooled(outcomes)})
+                         "successes": sum(o.n_success for o in outcomes), "success": pooled(outcomes),
+                         **{f"success_{t}": pooled(outcomes, t) for t in TASKS}})
             print(f"world {seed}, k = {k}: {rows[-1]['successes']}/{rows[-1]['held_out_tasks']} held-out tasks "
                   f"succeed ({rows[-1]['success']:.1f}%)")
     table = _over_seeds(rows, teach.k)
     out = Path(output)
-    write_text_atomic(out / "teach_seeds.csv", csv_text(["world_seed", "k", "held_out_tasks", "successes", "success"],
-                                                        rows, {"success": 2}))
-    write_text_atomic(out / "teach.csv", csv_text(["k", "success_mean", "success_sd", "n_seeds"], table,
-                                                  {"success_mean": 2, "success_sd": 2}))
+    kinds = [f"success_{t}" for t in TASKS]
+    write_text_atomic(out / "teach_seeds.csv", csv_text(["world_seed", "k", "held_out_tasks", "successes", "success",
+                                                         *kinds], rows, dict.fromkeys(["success", *kinds], 2)))
+    means = [f"{c}_mean" for c in ["success", *kinds]]
+    write_text_atomic(out / "teach.csv", csv_text(["k", *means, "success_sd", "n_seeds"], table,
+                                                  dict.fromkeys([*means, "success_sd"], 2)))
     write_text_atomic(out / "teach.md", _markdown(table, teach))
     out.mkdir(parents=True, exist_ok=True)
     line_plot_png({"full model": ([r["k"] for r in table], [r["success_mean"] for r in table],
@@ -80,8 +84,10 @@ def run(world: World, teach: Teach, learner: Learner, max_steps: int, worlds: Pa
 def _over_seeds(rows: list[dict[str, Any]], ks: tuple[int, ...]) -> list[dict[str, Any]]:
     out = []
     for k in ks:
-        values = [r["success"] for r in rows if r["k"] == k]
-        out.append({"k": k, "success_mean": statistics.fmean(values),
+        mine = [r for r in rows if r["k"] == k]
+        values = [r["success"] for r in mine]
+        kinds = {f"success_{t}_mean": statistics.fmean(r[f"success_{t}"] for r in mine) for t in TASKS}
+        out.append({"k": k, "success_mean": statistics.fmean(values), **kinds,
                     "success_sd": statistics.stdev(values) if len(values) > 1 else 0.0, "n_seeds": len(values)})
     return out
 
@@ -91,6 +97,9 @@ def _markdown(table: list[dict[str, Any]], teach: Teach) -> str:
              f"Environments {', '.join(teach.environments)}, held out of the training data; a scripted person "
              "demonstrates k tasks in each; success of the full model on the other tasks there "
              "(mean ± sd over world seeds).", "",
-             "| k | success (%) | world seeds |", "|---:|---:|---:|"]
-    lines += [f"| {r['k']} | {r['success_mean']:.1f} ± {r['success_sd']:.1f} | {r['n_seeds']} |" for r in table]
+             "| k | success (%) | " + " | ".join(TASKS) + " | world seeds |", "|---:|---:|" + "---:|" * len(TASKS)
+             + "---:|"]
+    lines += [f"| {r['k']} | {r['success_mean']:.1f} ± {r['success_sd']:.1f} | "
+              + " | ".join(f"{r[f'success_{t}_mean']:.1f}" for t in TASKS) + f" | {r['n_seeds']} |" for r in table]
+    lines += ["", "Task kinds: mean over world seeds of the success on the held-out tasks of that kind."]
     return "\n".join(lines) + "\n"
