@@ -1,4 +1,5 @@
-"""The commands that are not pipeline stages: replay logs, plan one task, time the learner.
+"""The commands that are not pipeline stages: replay logs, plan one task, serve the web pages, lay out an
+environment, time the learner.
 
 Each is an entry of `TOOLS`: its help, a function adding its options to its
 parser and a function running it from the parsed options (returning the exit
@@ -87,10 +88,42 @@ def _bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def _serve_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1: this machine only)")
+    p.add_argument("--port", type=int, default=8765, help="port (default 8765; 0 picks a free one)")
+    p.add_argument("--data", type=Path, default=Path("data"),
+                   help="data folder: records are appended to DATA/people/<environment>.jsonl, environment files "
+                        "are offered from DATA/environments/ (default: data)")
+    p.add_argument("--model", type=Path, default=Path("models/mrf.npz"), help="planner of the assist page (.npz)")
+    p.add_argument("--top-k", type=int, default=3, help="proposals shown per step in assist (default 3)")
+
+
+def _serve(args: argparse.Namespace) -> int:
+    from .serve.server import serve
+
+    return serve(args.host, args.port, args.data, args.model, args.top_k)
+
+
+def _layout_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("layout", type=Path, help="layout file (YAML): objects, furniture, items, robot_x")
+    p.add_argument("--output", type=Path, required=True, help="environment file to write (.json)")
+
+
+def _layout(args: argparse.Namespace) -> int:
+    from .serve.layout import write_environment
+
+    print(f"wrote {args.output}: {write_environment(args.layout, args.output)} objects")
+    return 0
+
+
 TOOLS: dict[str, Tool] = {
     "replay": Tool("re-execute every logged sequence and report states or goals that differ", _replay_options,
                    _replay),
     "plan": Tool("plan a program for a task in an environment with a trained model", _plan_options, _plan),
+    "serve": Tool("a web page where people demonstrate tasks and correct the planner (records: DATA/people)",
+                  _serve_options, _serve),
+    "layout": Tool("write an environment file (for serve and plan) from a short YAML layout of new objects",
+                   _layout_options, _layout),
     "bench": Tool("time training, per-step inference (10 to 100 objects) and features memory", _bench_options,
                   _bench),
 }

@@ -122,6 +122,23 @@ class Recipes:
     observer_k: int = 3  # candidates the observer picks among at the start of each program (feedback runs)
 
 
+@dataclass(frozen=True)
+class People:
+    """People's demonstrations (`taskseq serve`): where they are, and whether `train` learns from them."""
+
+    logs: str = "data/people"  # folder of *.jsonl logs; empty by default, which changes no figure
+    train: bool = False  # add them to the training steps of the `train` stage
+
+
+@dataclass(frozen=True)
+class Teach:
+    """Teaching unseen environments: a scripted person demonstrates k tasks in each; the rest are tested."""
+
+    environments: tuple[str, ...] = ("env11", "env12", "env13")  # held out of the training data
+    k: tuple[int, ...] = (0, 1, 2, 3)  # tasks demonstrated per environment
+    seed: int = 0  # order in which tasks are demonstrated
+
+
 # What a key may hold beyond its type, checked when the file is read.
 CHOICES: dict[tuple[str, str], tuple[str, ...]] = {
     ("train", "feature_set"): ("full", "edge", "clique"),
@@ -144,6 +161,8 @@ class Params:
     noise: Noise = Noise()
     feedback: Feedback = Feedback()
     recipes: Recipes = Recipes()
+    people: People = People()
+    teach: Teach = Teach()
 
     @classmethod
     def load(cls, path: Path | str | None = Path("params.yaml"), overrides: Iterable[str] = ()) -> Params:
@@ -199,6 +218,10 @@ SECTIONS: dict[str, type] = {f.name: type(getattr(Params(), f.name)) for f in fi
 
 def _value(kind: type, value: Any, key: str, source: str) -> Any:
     """One value as the field's type, or a `ValueError` that names the key and what it got."""
+    if kind is bool:
+        if isinstance(value, bool) or str(value).lower() in ("true", "false"):
+            return value if isinstance(value, bool) else str(value).lower() == "true"
+        raise ValueError(f"{source}: {key} must be true or false, got {value!r}")
     if isinstance(value, (bool, list, dict)):
         raise ValueError(f"{source}: {key} must be {kind.__name__}, got {value!r}")
     try:

@@ -14,6 +14,7 @@ from .logs.records import load_schema, spec_from_dict, state_from_dict
 from .logs.validate import LogError, check_record, check_references, check_schema, log_files, read_records
 from .logs.validate import _field as field_name  # the log checks' way of writing a field's path
 from .plan.planner import Program, plan
+from .sim.state import WorldState
 from .sim.tasks import Task
 
 
@@ -44,8 +45,17 @@ def load_environment(path: Path, record: int) -> tuple[list[dict[str, Any]], dic
         check_references(item)
         return item.record["objects"], item.record["steps"][0]["state"]
     try:
-        env = json.loads(path.read_text())
-    except (OSError, ValueError) as err:
+        text = path.read_text()
+    except OSError as err:
+        raise ValueError(f"{path}: cannot read the environment: {err}") from None
+    return parse_environment(path, text)
+
+
+def parse_environment(path: Path | str, text: str) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+    """(objects, state) of an environment file's text, checked field by field; `path` names it in errors."""
+    try:
+        env = json.loads(text)
+    except ValueError as err:
         raise ValueError(f"{path}: cannot read the environment: {err}") from None
     _check_environment(path, env)
     return env["objects"], env["state"]
@@ -89,12 +99,18 @@ def plan_task(model_path: Path, env: Path, record: int, task_text: str, max_step
     objects, state_dict = load_environment(env, record)
     specs = {o["id"]: spec_from_dict(o) for o in objects}
     state = state_from_dict(specs, state_dict)
+    task = parse_task(task_text, state)
+    return plan(planner, state, task, max_steps=max_steps, top_k=top_k), {o: s.name for o, s in specs.items()}
+
+
+def parse_task(task_text: str, state: WorldState) -> Task:
+    """The task a user typed, checked against the environment: its objects exist, a liquid task names a liquid."""
     task = Task.parse(task_text)
     task.check_objects(state)
     if task.name in LIQUID_TASKS and not state.specs[task.args[0]].has("liquid"):
         raise ValueError(f"task {task}: {task.args[0]} ({state.specs[task.args[0]].name}) is not a liquid; "
                          f"{task.name} takes the liquid, e.g. the water, not its bottle")
-    return plan(planner, state, task, max_steps=max_steps, top_k=top_k), {o: s.name for o, s in specs.items()}
+    return task
 
 
 def program_json(program: Program) -> str:

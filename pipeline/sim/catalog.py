@@ -10,6 +10,7 @@ forced by attributes and geometry.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -187,19 +188,23 @@ ENVIRONMENTS: tuple[EnvironmentSpec, ...] = (
 ENVIRONMENTS_BY_ID = {e.id: e for e in ENVIRONMENTS}
 
 
-def build_environment(env: EnvironmentSpec, rng: np.random.Generator | None = None) -> WorldState:
-    """The initial state of `env`; `rng` jitters item positions by up to a centimetre."""
+def build_environment(env: EnvironmentSpec, rng: np.random.Generator | None = None,
+                      objects: Mapping[str, ObjectSpec] = OBJECTS_BY_ID) -> WorldState:
+    """The initial state of `env`; `rng` jitters item positions by up to a centimetre.
+
+    `objects` are the objects it may place by id: the catalog's, or a user's layout's (`serve.layout`).
+    """
     floor = OBJECTS_BY_ID["obj01"]
     specs = {floor.id: floor}
     poses = {floor.id: (0.0, 0.0, -floor.h)}  # the floor's top face is at z = 0
     support: dict[str, tuple[str, str]] = {}
     for obj, x in env.furniture:
-        spec = OBJECTS_BY_ID[obj]
+        spec = objects[obj]
         specs[obj] = spec
         poses[obj] = (x, spec.l / 2, 0.0)
         support[obj] = (floor.id, ON)
     for pl in env.items:
-        spec = OBJECTS_BY_ID[pl.obj]
+        spec = objects[pl.obj]
         if pl.obj in specs:
             raise ValueError(f"{env.id}: {pl.obj} placed twice")
         if pl.on not in specs:

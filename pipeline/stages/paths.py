@@ -103,6 +103,22 @@ class CrossvalPaths(EvaluationPaths):
 
 
 @dataclass(frozen=True, kw_only=True)
+class PeoplePaths:
+    features: Path = option("the steps the planner is trained on before people's demonstrations", WORLD / "features",
+                            input=True)
+    selection: Path | None = _selection()
+    output: Path = option("folder for dataset.json and before_after.{json,md}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class TeachPaths:
+    worlds: Path = option("folder of the worlds' data, one subfolder per seed with its processed tables",
+                          Path("data/worlds"), input=True)
+    selection: Path | None = _selection()
+    output: Path = option("folder for teach.{csv,md,png} and teach_seeds.csv")
+
+
+@dataclass(frozen=True, kw_only=True)
 class AggregatePaths:
     worlds: Path = option("folder of the per-world results, one subfolder per seed", Path("reports/worlds"),
                           input=True)

@@ -1,0 +1,109 @@
+"""What people's demonstrations buy: the planner's success on the other tasks of the environments they taught.
+
+Two uses, one protocol. `taskseq people` compares the planner trained on a
+world's benchmark with the same planner trained also on people's
+demonstrations, in the environments people demonstrated, on the tasks they
+did not demonstrate. `taskseq teach` measures the same with a scripted
+person: the demonstrator drives the server's record writer in environments
+held out of the benchmark's training data, k tasks each, and the planner is
+judged on a fixed set of the other tasks of those environments.
+
+A task counts as held out only if the scripted demonstrator can do it there
+(so success is possible), and success is `Program.success`: stopped by
+choice, goal reached, no safety rule broken.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..features.context import StepContext
+from ..learn.estimator import StepScorer
+from ..logs.ingest import load_logs
+from ..plan.planner import plan
+from ..serve.writer import RecordWriter
+from ..settings import Learner
+from ..sim.demonstrator import NoDemonstration, demonstrate
+from ..sim.primitives import Action, PreconditionError
+from ..sim.scenarios import task_candidates
+from ..sim.state import WorldState
+from ..sim.tasks import Task
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """The planner's result on the held-out tasks of one environment, in all and by task kind."""
+
+    env_id: str
+    n_tasks: int
+    n_success: int
+    by_kind: dict[str, tuple[int, int]]  # task name -> (tasks, successes)
+
+    @property
+    def success(self) -> float:
+        return 100.0 * self.n_success / self.n_tasks if self.n_tasks else float("nan")
+
+
+def doable_tasks(state: WorldState) -> list[tuple[Task, list[Action]]]:
+    """Every task that reads sensibly here and that the scripted demonstrator can do, with its first sequence."""
+    out = []
+    for task in task_candidates(state):
+        try:
+            out.append((task, demonstrate(state, task)[0]))
+        except (NoDemonstration, PreconditionError):
+            continue
+    return out
+
+
+def fit(contexts: list[StepContext], learner: Learner) -> StepScorer:
+    return StepScorer("full", **learner.ssvm).fit(contexts)
+
+
+def success_on(planner: StepScorer, env_id: str, state: WorldState, tasks: Iterable[Task],
+               max_steps: int) -> Outcome:
+    by_kind: dict[str, tuple[int, int]] = {}
+    for task in tasks:
+        ok = plan(planner, state, task, max_steps=max_steps).success
+        n, k = by_kind.get(task.name, (0, 0))
+        by_kind[task.name] = (n + 1, k + int(ok))
+    return Outcome(env_id, sum(n for n, _ in by_kind.values()), sum(k for _, k in by_kind.values()), by_kind)
+
+
+def written_and_read_back(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The records as the server writes them (`RecordWriter`) and `taskseq ingest` reads them back."""
+    if not records:
+        return []
+    with tempfile.TemporaryDirectory(prefix="taskseq-teach-") as tmp:
+        writer = RecordWriter(Path(tmp))
+        for record in records:
+            writer.append(record)
+        return [item.record for item in load_logs(tmp)[1]]
+
+
+def pooled(outcomes: list[Outcome], kind: str | None = None) -> float:
+    """Success over every held-out task of the environments together, or every task of one kind (%)."""
+    counts = [o.by_kind.get(kind, (0, 0)) if kind else (o.n_tasks, o.n_success) for o in outcomes]
+    n = sum(c[0] for c in counts)
+    return 100.0 * sum(c[1] for c in counts) / n if n else float("nan")
+
+
+def teaching_order(tasks: list[tuple[Task, list[Action]]], rng: np.random.Generator) -> list[int]:
+    """Which tasks a scripted person demonstrates first: a seeded order, one task kind after another, so
+    two or three demonstrations cover different kinds (a pour, a pick-and-place, ...)."""
+    order = [int(i) for i in rng.permutation(len(tasks))]
+    by_kind: dict[str, list[int]] = {}
+    for i in order:
+        by_kind.setdefault(tasks[i][0].name, []).append(i)
+    kinds = sorted(by_kind, key=lambda k: order.index(by_kind[k][0]))
+    out = []
+    while any(by_kind.values()):
+        for k in kinds:
+            if by_kind[k]:
+                out.append(by_kind[k].pop(0))
+    return out

@@ -1,0 +1,317 @@
+"""The web application: choose an environment and a task, demonstrate it, or correct the learned planner.
+
+Every request reads its session (cookie id, server-side state) under that
+session's lock; every form value is checked against the session's world
+before anything changes; a refused step changes nothing. Pages follow
+post/redirect/get, so reloading a page never repeats a step.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from flask import Flask, Response, g, redirect, render_template, request
+
+from ..features.context import step_context
+from ..learn.estimator import StepScorer
+from ..sim.catalog import ENVIRONMENTS, OBJECTS_BY_ID
+from ..sim.primitives import ALL_PRIMITIVES, ARITY, Action, PreconditionError, execute
+from ..sim.tasks import TASK_ARITY, goal_reached
+from ..tools import LIQUID_TASKS, parse_task
+from .environments import SAFE_NAME, file_environment, named_files, read_named, world_environment
+from .scene import support_tree, top_view
+from .sessions import ASSIST, DEMONSTRATE, MODES, Activity, Session, SessionStore
+from .writer import RecordWriter, WriterClosed, person_record
+
+COOKIE = "taskseq_session"
+MAX_UPLOAD = 2 * 1024 * 1024  # bytes of an uploaded environment file
+# no script runs in these pages, whatever an environment file holds; forms post only here
+POLICY = "default-src 'none'; style-src 'unsafe-inline'; img-src 'self'; form-action 'self'; frame-ancestors 'none'"
+
+
+class Refused(Exception):
+    """A request the page answers with a message and no change: bad input (400) or a refused step (409)."""
+
+    def __init__(self, message: str, status: int = 400) -> None:
+        super().__init__(message)
+        self.status = status
+
+
+@dataclass(frozen=True)
+class Candidate:
+    action: Action
+    score: float
+    refusal: str | None  # why the simulator (or the goal, for done) would refuse it; None if it can run
+
+
+class Served:
+    """What the application serves from: its folders, the sessions, the record writer and the planner."""
+
+    def __init__(self, data: Path, model: Path, top_k: int) -> None:
+        self.data = Path(data).resolve()
+        self.people = self.data / "people"
+        self.environments = self.data / "environments"
+        self.model = Path(model)
+        self.top_k = top_k
+        self.sessions = SessionStore()
+        self.writer = RecordWriter(self.people)
+        self._planner: StepScorer | None = None
+        self._planner_lock = threading.Lock()  # one scoring at a time: the model caches per batch
+
+    def candidates(self, activity: Activity) -> list[Candidate]:
+        """The planner's top k for the next step, best first, each marked with whether it can run."""
+        with self._planner_lock:
+            if self._planner is None:
+                try:
+                    self._planner = StepScorer.load(self.model)
+                except (FileNotFoundError, ValueError) as err:
+                    raise Refused(f"the planner cannot be loaded: {err}", 503) from None
+            ctx = step_context(activity.state, activity.task, activity.actions)
+            ranked = self._planner.top_k(ctx, self.top_k)
+        out = []
+        for y, score in ranked:
+            action = ctx.action(y)
+            out.append(Candidate(action, float(score), _refusal(activity, action)))
+        return out
+
+
+def _refusal(activity: Activity, action: Action) -> str | None:
+    if action.primitive == "done":
+        return None if activity.actions and activity.goal_reached else "the goal does not hold yet"
+    try:
+        execute(activity.state, action)
+    except PreconditionError as err:
+        return err.reason
+    return None
+
+
+def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
+    """The application; records go to `data/people/`, named environment files come from `data/environments/`."""
+    app = Flask(__name__)
+    app.config["MAX_CONTENT_LENGTH"] = MAX_UPLOAD
+    served = Served(data, model, top_k)
+    app.extensions["taskseq"] = served
+
+    def session() -> Session:
+        g.sid, s = served.sessions.get(request.cookies.get(COOKIE))
+        return s
+
+    @app.after_request
+    def headers(resp: Response) -> Response:
+        if "sid" in g and request.cookies.get(COOKIE) != g.sid:
+            resp.set_cookie(COOKIE, g.sid, httponly=True, samesite="Strict")
+        resp.headers["Content-Security-Policy"] = POLICY
+        resp.headers["X-Content-Type-Options"] = "nosniff"
+        return resp
+
+    def page(template: str, s: Session, status: int = 200, **kw: Any) -> tuple[str, int]:
+        kw.setdefault("error", None)
+        env = s.env
+        common: dict[str, Any] = {"env": env, "activity": s.activity}
+        if env is not None:
+            state = s.activity.state if s.activity is not None else env.state
+            common.update(view=top_view(state), tree=support_tree(state), state=state,
+                          objects=sorted(state.specs.values(), key=lambda o: (o.name, o.id)))
+        return render_template(template, **common, **kw), status
+
+    def choose_page(s: Session, status: int = 200, error: str | None = None):
+        return page("choose.html", s, status, error=error, environments=ENVIRONMENTS, names=OBJECTS_BY_ID,
+                    files=named_files(served.environments), folder=served.environments)
+
+    def task_page(s: Session, status: int = 200, error: str | None = None, form: dict | None = None):
+        return page("task.html", s, status, error=error, tasks=TASK_ARITY, liquid_tasks=LIQUID_TASKS,
+                    modes=MODES, form=form or {}, model=served.model)
+
+    def run_page(s: Session, status: int = 200, error: str | None = None):
+        activity = s.activity
+        assert activity is not None
+        candidates = served.candidates(activity) if activity.mode == ASSIST else []
+        return page("run.html", s, status, error=error, candidates=candidates, primitives=ALL_PRIMITIVES,
+                    arity=ARITY, goal=activity.goal_reached)
+
+    @app.errorhandler(413)
+    def too_large(_err):
+        s = session()
+        with s.lock:
+            return choose_page(s, 413, f"the file is larger than {MAX_UPLOAD // 1024 // 1024} MB; nothing was read")
+
+    @app.get("/")
+    def choose():
+        s = session()
+        with s.lock:
+            return choose_page(s)
+
+    @app.post("/environment")
+    def environment():
+        s = session()
+        with s.lock:
+            form = request.form
+            try:
+                source = form.get("source", "")
+                if source == "world":
+                    seed_text = form.get("seed", "").strip()
+                    if not seed_text.isdigit():
+                        raise Refused(f"world seed must be a whole number, got {seed_text!r}")
+                    env = world_environment(int(seed_text), form.get("env_id", ""))
+                elif source == "named":
+                    env = read_named(served.environments, form.get("name", ""))
+                elif source == "upload":
+                    upload = request.files.get("file")
+                    if upload is None or not upload.filename:
+                        raise Refused("choose an environment file (.json) to upload")
+                    try:
+                        text = upload.read().decode("utf-8")
+                    except UnicodeDecodeError:
+                        raise Refused(f"{upload.filename}: not a text file (UTF-8 JSON expected)") from None
+                    env = file_environment(upload.filename, text)
+                else:
+                    raise Refused(f"unknown environment source {source!r}: world, named or upload")
+            except Refused as err:
+                return choose_page(s, err.status, str(err))
+            except (ValueError, KeyError) as err:  # a file's error names the file and its field
+                return choose_page(s, 400, str(err).strip("'\""))
+            s.env, s.activity = env, None
+            return redirect("/task", 303)
+
+    @app.get("/task")
+    def task():
+        s = session()
+        with s.lock:
+            if s.env is None:
+                return redirect("/", 303)
+            return task_page(s)
+
+    @app.post("/task")
+    def start():
+        s = session()
+        with s.lock:
+            if s.env is None:
+                return choose_page(s, 409, "choose an environment first")
+            form = request.form
+            try:
+                mode = form.get("mode", "")
+                if mode not in MODES:
+                    raise Refused(f"unknown mode {mode!r}: {' or '.join(MODES)}")
+                participant = form.get("participant", "").strip()
+                if participant and not SAFE_NAME.match(participant):
+                    raise Refused(f"participant id {participant!r}: use letters, digits, _ and - only "
+                                  f"(at most 64, starting with a letter or digit), or leave it empty")
+                args = [a.strip() for a in (form.get("arg1", ""), form.get("arg2", "")) if a.strip()]
+                for a in args:
+                    if a not in s.env.state.specs:
+                        raise Refused(f"unknown object {a!r}: it is not in this environment")
+                task = parse_task(f"{form.get('task', '')}({','.join(args)})", s.env.state)
+                if goal_reached(task, s.env.state, s.env.state):
+                    raise Refused(f"the goal of {task} already holds here; choose another task")
+            except (Refused, ValueError) as err:
+                return task_page(s, getattr(err, "status", 400), str(err), dict(form))
+            s.activity = Activity(s.env, task, mode, participant or None)
+            return redirect(f"/{mode}", 303)
+
+    def show(mode: str):
+        s = session()
+        with s.lock:
+            if s.activity is None or s.activity.mode != mode:
+                return redirect("/task" if s.env is not None else "/", 303)
+            try:
+                return run_page(s)
+            except Refused as err:
+                return task_page(s, err.status, str(err))
+
+    app.add_url_rule("/demonstrate", "demonstrate", lambda: show(DEMONSTRATE))
+    app.add_url_rule("/assist", "assist", lambda: show(ASSIST))
+
+    def current(s: Session) -> Activity:
+        if s.activity is None:
+            raise Refused("no task is under way in this browser; choose one first", 409)
+        n = request.form.get("n", "")
+        if n != str(len(s.activity.actions)):
+            raise Refused(f"this page was out of date (the demonstration has {len(s.activity.actions)} steps now); "
+                          f"nothing was done", 409)
+        return s.activity
+
+    def chosen(activity: Activity) -> tuple[Action, bool]:
+        """The step the form names and whether it overrides the planner's best (assist only)."""
+        form = request.form
+        candidates = served.candidates(activity) if activity.mode == ASSIST else []
+        if "choice" in form:
+            if not candidates:
+                raise Refused("there are no proposals to choose from in this mode")
+            pick = form["choice"]
+            if not pick.isdigit() or int(pick) >= len(candidates):
+                raise Refused(f"no proposal number {pick!r}: choose one of the {len(candidates)} shown")
+            return candidates[int(pick)].action, int(pick) != 0
+        primitive = form.get("primitive", "")
+        if primitive not in ARITY:
+            raise Refused(f"unknown primitive {primitive!r}; known: {', '.join(ALL_PRIMITIVES)}")
+        args = [a.strip() for a in (form.get("a1", ""), form.get("a2", "")) if a.strip()]
+        for a in args:
+            if a not in activity.state.specs:
+                raise Refused(f"unknown object {a!r}: it is not in this environment")
+        action = Action(primitive, tuple(args))  # ValueError names a wrong number of objects
+        return action, bool(candidates) and action != candidates[0].action
+
+    @app.post("/step")
+    def step():
+        s = session()
+        with s.lock:
+            try:
+                activity = current(s)
+                action, overridden = chosen(activity)
+                if action.primitive == "done":
+                    return finish(s, activity, overridden)
+                activity.step(action, overridden)
+            except PreconditionError as err:
+                return run_page(s, 409, f"{err.action} is refused: {err.reason} (check: {err.check}); "
+                                        "nothing was done")
+            except Refused as err:
+                return (run_page(s, err.status, str(err)) if s.activity is not None
+                        else choose_page(s, err.status, str(err)))
+            except ValueError as err:
+                return run_page(s, 400, str(err))
+            return redirect(f"/{activity.mode}", 303)
+
+    def finish(s: Session, activity: Activity, overridden: bool):
+        if not activity.actions:
+            raise Refused("done is refused: no step has been taken yet", 409)
+        if not activity.goal_reached:
+            raise Refused(f"done is refused: the goal of {activity.task} does not hold yet", 409)
+        corrected = None
+        if activity.mode == ASSIST:
+            corrected = activity.corrected + ([len(activity.actions)] if overridden else [])
+        record = person_record(activity.env, activity.task, activity.actions, activity.participant, corrected)
+        try:
+            path = served.writer.append(record)
+        except (WriterClosed, OSError) as err:
+            raise Refused(f"the demonstration could not be recorded: {err}; it is kept, try done again", 503) from None
+        s.finished = {"demo_id": record["demo_id"], "file": str(path.relative_to(served.data)),
+                      "steps": [str(a) for a in activity.actions], "task": str(activity.task),
+                      "corrected": corrected, "participant": activity.participant}
+        s.activity = None
+        return redirect("/finished", 303)
+
+    @app.post("/undo")
+    def undo():
+        s = session()
+        with s.lock:
+            try:
+                current(s).undo()
+            except Refused as err:
+                return (run_page(s, err.status, str(err)) if s.activity is not None
+                        else choose_page(s, err.status, str(err)))
+            except ValueError as err:
+                return run_page(s, 400, str(err))
+            return redirect(f"/{s.activity.mode}", 303)
+
+    @app.get("/finished")
+    def finished():
+        s = session()
+        with s.lock:
+            if s.finished is None:
+                return redirect("/", 303)
+            return page("finished.html", s, finished=s.finished)
+
+    return app

@@ -1,0 +1,89 @@
+"""Environment files from a short layout: new objects by size and attributes, where furniture and items stand.
+
+The benchmark's environments are built from its catalog; a layout lists its
+own objects (any id, name, size, flags and shelf levels, in the simulator's
+categories), may reuse catalog objects by id (`obj10` is the trash can), and
+places them as the catalog does: furniture along the wall at an x, items on
+furniture (level, sideways offset, back row), on other items, or inside
+containers, each item `at` what holds it. The result is the environment file `taskseq plan --env` and
+`taskseq serve` read: every object with its 14 attributes, and the state.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from ..logs.records import spec_to_dict, state_to_dict
+from ..sim.catalog import OBJECTS_BY_ID, EnvironmentSpec, Placement, build_environment
+from ..sim.objects import ObjectSpec
+from .environments import SAFE_NAME
+
+OBJECT_FIELDS = {"id": True, "name": True, "category": True, "size": True, "flags": False, "levels": False}
+ITEM_FIELDS = {"id": True, "at": True, "level": False, "dx": False, "back": False}  # YAML reads `on` as true
+
+
+def _fields(where: str, entry: Any, allowed: dict[str, bool]) -> dict[str, Any]:
+    if not isinstance(entry, dict):
+        raise ValueError(f"{where}: expected a mapping with {', '.join(allowed)}")
+    missing = [k for k, required in allowed.items() if required and k not in entry]
+    unknown = sorted(set(entry) - set(allowed))
+    if missing:
+        raise ValueError(f"{where}: missing field {missing[0]!r}")
+    if unknown:
+        raise ValueError(f"{where}: unknown field {unknown[0]!r} (known: {', '.join(allowed)})")
+    return entry
+
+
+def environment_from_layout(layout: Any, where: str = "layout") -> dict[str, Any]:
+    """The environment file's content; every error names the field of the layout that is wrong."""
+    layout = _fields(where, layout, {"objects": False, "furniture": True, "items": False, "robot_x": False})
+    objects = dict(OBJECTS_BY_ID)
+    for i, entry in enumerate(layout.get("objects") or []):
+        at = f"{where}: objects[{i}]"
+        entry = _fields(at, entry, OBJECT_FIELDS)
+        oid = str(entry["id"])
+        if not SAFE_NAME.match(oid):
+            raise ValueError(f"{at}.id: {oid!r}: use letters, digits, _ and - only")
+        if oid in objects and oid not in OBJECTS_BY_ID:
+            raise ValueError(f"{at}.id: {oid} is listed twice")
+        try:
+            objects[oid] = ObjectSpec(oid, str(entry["name"]), str(entry["category"]),
+                                      tuple(float(v) for v in entry["size"]), frozenset(entry.get("flags") or ()),
+                                      tuple(float(v) for v in entry.get("levels") or ()))
+        except (TypeError, ValueError) as err:
+            raise ValueError(f"{at}: {err}") from None
+    furniture = layout["furniture"]
+    if not isinstance(furniture, dict) or not furniture:
+        raise ValueError(f"{where}: furniture: expected a mapping of object id to x (m)")
+    items = []
+    for i, entry in enumerate(layout.get("items") or []):
+        entry = _fields(f"{where}: items[{i}]", entry, ITEM_FIELDS)
+        items.append(Placement(str(entry["id"]), str(entry["at"]), int(entry.get("level", 0)),
+                               float(entry.get("dx", 0.0)), bool(entry.get("back", False))))
+    for oid in [*furniture, *(p.obj for p in items)]:
+        if oid not in objects:
+            raise ValueError(f"{where}: {oid!r} is placed but is neither listed in objects nor a catalog object")
+    spec = EnvironmentSpec(where, tuple((str(k), float(x)) for k, x in furniture.items()), tuple(items),
+                           float(layout.get("robot_x", 0.0)))
+    try:
+        state = build_environment(spec, objects=objects)
+    except (IndexError, KeyError) as err:
+        raise ValueError(f"{where}: items: a level or object that does not exist ({err})") from None
+    return {"objects": [spec_to_dict(state.specs[o]) for o in state.specs], "state": state_to_dict(state)}
+
+
+def write_environment(layout_path: Path, output: Path) -> int:
+    """Read a YAML (or JSON) layout, write the environment file; returns its number of objects."""
+    from ..io import write_text_atomic
+
+    try:
+        layout = yaml.safe_load(Path(layout_path).read_text(encoding="utf-8"))
+    except yaml.YAMLError as err:
+        raise ValueError(f"{layout_path}: not valid YAML: {err}") from None
+    env = environment_from_layout(layout, str(layout_path))
+    write_text_atomic(output, json.dumps(env, indent=1) + "\n")
+    return len(env["objects"])

@@ -1,0 +1,129 @@
+"""The scene as a person reads it: a top view (shapes for an inline SVG) and a tree of what stands where.
+
+Only numbers and the objects' names leave this module; the template escapes
+every name, so an environment file cannot put markup in the page.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from ..sim.objects import FURNITURE
+from ..sim.state import INSIDE, REACH, WorldState
+
+MAX_SCALE = 240.0  # pixels per metre at most
+WIDTH = 1060.0  # pixels the room is fitted into at most
+MARGIN = 30.0
+TOP = 120.0  # room above the wall for the slanted labels of items
+LABEL_GAP = 13.0  # pixels between the starts of two slanted labels
+
+
+@dataclass(frozen=True)
+class Shape:
+    """One object's footprint in pixels, with its label."""
+
+    id: str
+    x: float
+    y: float
+    w: float
+    h: float
+    kind: str  # furniture, bin, vessel, item
+    label: str
+    full: bool  # holds a liquid
+    anchor: float  # x where its slanted label starts
+
+
+@dataclass(frozen=True)
+class TopView:
+    width: float
+    height: float
+    shapes: list[Shape]
+    robot: tuple[float, float]
+    reach: float  # radius of the arm's reach, pixels
+    held: str | None  # label of the held object, drawn beside the robot
+
+
+@dataclass
+class Node:
+    """An object and what rests on or in it."""
+
+    id: str
+    name: str
+    relation: str  # "on" or "inside" its parent ("" for furniture)
+    level: int | None  # shelf level it stands on, from 1 at the bottom
+    children: list[Node] = field(default_factory=list)
+
+
+def _label(state: WorldState, obj: str) -> str:
+    name = state.specs[obj].name
+    liquids = state.liquids_in(obj)
+    return f"{name} ({', '.join(state.specs[li].name for li in liquids)})" if liquids else name
+
+
+def _level(state: WorldState, obj: str) -> int | None:
+    """Which level of a multi-level parent `obj` stands on, if its parent has levels."""
+    parent = state.support.get(obj)
+    if parent is None or len(state.specs[parent[0]].surface_heights()) < 2:
+        return None
+    z = state.poses[obj][2] - state.poses[parent[0]][2]
+    heights = state.specs[parent[0]].surface_heights()
+    return min(range(len(heights)), key=lambda k: abs(heights[k] - z)) + 1
+
+
+def top_view(state: WorldState) -> TopView:
+    """Footprints seen from above, the wall at the top and the robot below; liquids show in their container."""
+    shown = [o for o in state.specs if state.specs[o].category != "floor" and o != state.held
+             and state.container_of(o) is None]
+    furniture = [o for o in shown if state.specs[o].category in FURNITURE or state.specs[o].category == "bin"]
+    boxes = [state.box(o) for o in furniture] or [state.box(o) for o in shown]
+    xmin = min([b[0] for b in boxes] + [state.robot[0] - 0.5])
+    xmax = max([b[3] for b in boxes] + [state.robot[0] + 0.5])
+    ymin = min([b[1] for b in boxes] + [state.robot[1] - REACH - 0.05])
+    ymax = max([b[4] for b in boxes] + [state.robot[1]])
+    scale = min(MAX_SCALE, (WIDTH - 2 * MARGIN) / (xmax - xmin))
+
+    def px(x: float, y: float) -> tuple[float, float]:
+        return round(MARGIN + (x - xmin) * scale, 1), round(TOP + (ymax - y) * scale, 1)
+
+    order = sorted(shown, key=lambda o: (state.specs[o].category not in FURNITURE, state.poses[o][2], o))
+    shapes: list[Shape] = []
+    anchors: list[float] = []  # where item labels start: a stacked item's label moves right of its base's
+    for o in order:
+        spec = state.specs[o]
+        x0, y0, _, x1, y1, _ = state.box(o)
+        (ax, ay), (bx, by) = px(x0, y1), px(x1, y0)
+        w, h = max(bx - ax, 8.0), max(by - ay, 8.0)
+        kind = ("furniture" if spec.category in FURNITURE else "bin" if spec.category == "bin"
+                else "vessel" if spec.has("container") else "item")
+        level = _level(state, o)
+        label = _label(state, o) + (f" · level {level}" if level else "")
+        anchor = ax + w / 2
+        while kind in ("vessel", "item") and any(abs(anchor - a) < LABEL_GAP for a in anchors):
+            anchor += LABEL_GAP
+        anchors.append(anchor)
+        shapes.append(Shape(o, ax, ay, round(w, 1), round(h, 1), kind, label, bool(state.liquids_in(o)),
+                            round(anchor, 1)))
+    rx, ry = px(*state.robot)
+    held = None
+    if state.held is not None:
+        held = _label(state, state.held)
+        if state.held_above is not None:
+            held += f", above {state.specs[state.held_above].name}"
+    height = TOP + (ymax - ymin) * scale + 2 * MARGIN + 20
+    width = 2 * MARGIN + (xmax - xmin) * scale + 160  # room for the robot's label
+    return TopView(round(width, 1), round(height, 1), shapes, (rx, ry), round(REACH * scale, 1), held)
+
+
+def support_tree(state: WorldState) -> list[Node]:
+    """Furniture (and anything standing on the floor), each with what rests on or in it, recursively."""
+
+    def node(obj: str) -> Node:
+        rel = state.support.get(obj, ("", ""))[1]
+        n = Node(obj, state.specs[obj].name, "inside" if rel == INSIDE else "on", _level(state, obj))
+        n.children = [node(c) for c in state.children(obj)]
+        return n
+
+    floor = [o for o in state.specs if state.specs[o].category == "floor"]
+    roots = [c for f in floor for c in state.children(f)]
+    roots += [o for o in state.specs if o not in state.support and o not in floor and o != state.held]
+    return [node(o) for o in sorted(roots, key=lambda o: (state.poses[o][0], o))]

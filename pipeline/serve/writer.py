@@ -1,0 +1,106 @@
+"""People's demonstrations on disk: one JSON Lines file per environment, each append whole or not at all.
+
+An append takes an exclusive `flock` on the folder's lock file (so servers,
+threads and the teaching script never interleave), writes the old content
+plus the new line to a temporary file beside the log, syncs it, renames it
+over the log and reads it back. A reader, or a server stopped at any moment,
+sees the log before or after the record, never a part of it.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import secrets
+import tempfile
+import threading
+from pathlib import Path
+from typing import Any
+
+from ..logs.records import demonstration_record, dumps
+from ..logs.validate import LoggedRecord, check_record
+from ..sim.primitives import Action
+from ..sim.scenarios import Scenario
+from ..sim.tasks import Task
+from .environments import SAFE_NAME, Environment
+
+LOCK_NAME = ".lock"
+
+
+class WriterClosed(RuntimeError):
+    """The server is stopping: no new record is started."""
+
+
+def person_record(env: Environment, task: Task, actions: list[Action], participant: str | None = None,
+                  corrected: list[int] | None = None) -> dict[str, Any]:
+    """The log record of a demonstration made in the browser; `corrected` only for a program made with the planner."""
+    record = demonstration_record(Scenario(env.env_id, task, env.state, (tuple(actions),)), 0)
+    # people may demonstrate one scenario many times: a random suffix keeps every demo_id unique
+    record["demo_id"] = f"{record['scenario_id']}/{participant or 'person'}-{secrets.token_hex(6)}"
+    if participant:
+        record["participant"] = participant
+    if corrected is not None:
+        record["corrected"] = sorted(corrected)
+    return record
+
+
+class RecordWriter:
+    """Appends checked records to `<folder>/<env_id>.jsonl`; never writes anywhere else."""
+
+    def __init__(self, folder: Path) -> None:
+        self.folder = Path(folder).resolve()
+        self._busy = threading.Lock()
+        self._closed = False
+
+    def path_for(self, env_id: str) -> Path:
+        if not SAFE_NAME.match(env_id):
+            raise ValueError(f"environment id {env_id!r} cannot name a log file (letters, digits, _ and - only)")
+        path = self.folder / f"{env_id}.jsonl"
+        if path.parent != self.folder:  # SAFE_NAME already excludes it; kept as the guarantee this class gives
+            raise ValueError(f"{env_id!r} would write outside {self.folder}")
+        return path
+
+    def append(self, record: dict[str, Any]) -> Path:
+        """Check the record as `taskseq ingest` will (schema, references, replay, goal), then append it."""
+        path = self.path_for(record["env_id"])
+        check_record(LoggedRecord(path, 0, record))
+        line = (dumps(record) + "\n").encode("utf-8")
+        with self._busy:
+            if self._closed:
+                raise WriterClosed("the server is stopping; the demonstration was not recorded")
+            self.folder.mkdir(parents=True, exist_ok=True)
+            with open(self.folder / LOCK_NAME, "a") as lock:
+                fcntl.flock(lock, fcntl.LOCK_EX)
+                try:
+                    self._replace(path, line)
+                finally:
+                    fcntl.flock(lock, fcntl.LOCK_UN)
+        return path
+
+    def _replace(self, path: Path, line: bytes) -> None:
+        old = path.read_bytes() if path.exists() else b""
+        if old and not old.endswith(b"\n"):
+            raise ValueError(f"{path.name} does not end with a whole line; it was not written by this server")
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=self.folder)
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(old + line)
+                fh.flush()
+                os.fsync(fh.fileno())
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+        dir_fd = os.open(self.folder, os.O_RDONLY)
+        try:
+            os.fsync(dir_fd)  # the rename itself survives a crash
+        finally:
+            os.close(dir_fd)
+        written = path.read_bytes()
+        if written != old + line:
+            raise OSError(f"{path.name}: read back {len(written)} bytes, expected {len(old) + len(line)}")
+
+    def close(self) -> None:
+        """Wait for the append under way, if any, and refuse new ones (the server is stopping)."""
+        with self._busy:
+            self._closed = True

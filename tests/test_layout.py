@@ -1,0 +1,58 @@
+"""`taskseq layout`: an environment file from a layout of new objects, readable by serve and plan; clear errors."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import yaml
+
+from pipeline.cli import main
+from pipeline.evaluate.teaching import doable_tasks
+from pipeline.serve.environments import file_environment
+from pipeline.serve.layout import environment_from_layout
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "docs" / "examples" / "workshop.yaml"
+
+
+def test_the_workshop_example_is_an_environment_with_tasks_to_demonstrate(tmp_path, capsys):
+    out = tmp_path / "workshop.json"
+    assert main(["layout", str(EXAMPLE), "--output", str(out)]) == 0
+    assert "16 objects" in capsys.readouterr().out
+    env = file_environment(out.name, out.read_text())
+    assert env.state.support["green_tea"] == ("thermos", "inside")
+    assert env.state.support["wrench"] == ("rag", "on")
+    names = {str(t) for t, _ in doable_tasks(env.state)}
+    assert {"stir(broth)", "pour(green_tea)", "throw_away(rag)"} <= names
+
+
+def layout(edit):
+    data = yaml.safe_load(EXAMPLE.read_text())
+    edit(data)
+    return data
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda d: d["objects"][3].pop("size"), "objects[3]: missing field 'size'"),
+    (lambda d: d["objects"][3].update(size=[0.1, 0.1]), "objects[3]: object thermos: size must be three"),
+    (lambda d: d["objects"][3].update(category="flask"), "unknown category 'flask'"),
+    (lambda d: d["objects"][3].update(flags=["shiny"]), "unknown flags ['shiny']"),
+    (lambda d: d["objects"][3].update(id="../x"), "objects[3].id"),
+    (lambda d: d["items"][0].update(colour="red"), "items[0]: unknown field 'colour'"),
+    (lambda d: d["items"][0].update(at="sofa"), "placed on sofa, which is not placed before it"),
+    (lambda d: d["items"][8].update(level=7), "a level or object that does not exist"),
+    (lambda d: d["furniture"].update(sofa=3.0), "'sofa' is placed but is neither listed"),
+    (lambda d: d["items"][2].update(dx=-0.6), "beaker and thermos overlap on workbench"),
+])
+def test_a_bad_layout_names_its_field(edit, message):
+    with pytest.raises(ValueError) as err:
+        environment_from_layout(layout(edit))
+    assert message in str(err.value)
+
+
+def test_the_layout_command_reports_a_bad_file_and_writes_nothing(tmp_path, capsys):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(json.dumps(layout(lambda d: d["objects"][3].pop("size"))))
+    assert main(["layout", str(bad), "--output", str(tmp_path / "out.json")]) == 2
+    assert "missing field 'size'" in capsys.readouterr().err and not (tmp_path / "out.json").exists()

@@ -1,0 +1,39 @@
+"""The scene a person reads: what stands where, shelf levels, what the robot holds, every shape on the page."""
+
+from __future__ import annotations
+
+from pipeline.serve.environments import world_environment
+from pipeline.serve.scene import support_tree, top_view
+from pipeline.sim.primitives import Action, execute
+
+
+def nodes_by_id(nodes, out=None):
+    out = {} if out is None else out
+    for n in nodes:
+        out[n.id] = n
+        nodes_by_id(n.children, out)
+    return out
+
+
+def test_the_tree_nests_what_rests_on_and_in_what_with_shelf_levels():
+    state = world_environment(0, "env01").state
+    tree = support_tree(state)
+    assert [n.name for n in tree] == ["trash_can", "kitchen_table", "kitchen_shelf"]  # left to right
+    nodes = nodes_by_id(tree)
+    assert [c.name for c in nodes["obj40"].children] == ["chopstick", "crumpled_paper"]  # on the magazine
+    assert [(c.name, c.relation) for c in nodes["obj20"].children] == [("water", "inside")]
+    assert nodes["obj17"].level == 3 and nodes["obj02"].level is None
+
+
+def test_the_top_view_draws_every_object_once_and_what_the_robot_holds_beside_it():
+    state = world_environment(0, "env01").state
+    view = top_view(state)
+    drawn = {s.id for s in view.shapes}
+    liquids = {o for o in state.specs if state.specs[o].has("liquid")}
+    assert drawn == set(state.specs) - liquids - {"obj01"}  # liquids show in their container's label
+    assert next(s for s in view.shapes if s.id == "obj20").label == "water_bottle (water)"
+    assert all(0 <= s.x <= view.width and 0 <= s.y <= view.height for s in view.shapes)
+    held = execute(execute(state, Action("move_close", ("obj20",))), Action("grasp", ("obj20",)))
+    view = top_view(held)
+    assert "obj20" not in {s.id for s in view.shapes} and view.held == "water_bottle (water)"
+    assert "obj20" not in nodes_by_id(support_tree(held))

@@ -1,0 +1,343 @@
+"""`taskseq serve` over HTTP: the demonstrate and assist flows, every bad input refused with nothing written,
+separate sessions, whole records under concurrent appends and load, and a stop that loses no saved record."""
+
+from __future__ import annotations
+
+import html
+import json
+import re
+import signal
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+from werkzeug.serving import make_server
+
+from pipeline.cli import main
+from pipeline.learn.estimator import StepScorer
+from pipeline.learn.mrf import MRFModel
+from pipeline.serve.app import create_app
+from pipeline.serve.environments import world_environment
+from pipeline.serve.load import Client, LoadResult, run_load, scripted_tasks
+from pipeline.serve.writer import RecordWriter, person_record
+from pipeline.sim.demonstrator import demonstrate
+from pipeline.sim.primitives import Action
+from pipeline.sim.tasks import Task
+
+POUR = Task("pour", ("obj27",))  # env01: the water in its bottle, on the kitchen table
+
+
+def message(resp) -> str:
+    """The page's message as a person reads it (the HTML escapes undone)."""
+    found = re.search(r'id="message">([^<]*)<', resp.get_data(as_text=True))
+    return html.unescape(found.group(1)) if found else ""
+
+
+def step_form(n: int, action: Action) -> dict[str, str]:
+    args = list(action.args) + [""] * (2 - len(action.args))
+    return {"n": str(n), "primitive": action.primitive, "a1": args[0], "a2": args[1]}
+
+
+def files_under(root: Path) -> list[str]:
+    return sorted(str(p.relative_to(root)) for p in root.rglob("*") if p.is_file())
+
+
+@pytest.fixture
+def data(tmp_path) -> Path:
+    return tmp_path / "data"
+
+
+@pytest.fixture
+def zero_model(tmp_path) -> Path:
+    """A planner whose scores all tie: its best proposal is the first candidate, never a demonstrated step."""
+    path = tmp_path / "zero.npz"
+    StepScorer.from_weights("full", np.zeros(MRFModel("full").size_joint_feature)).save(path)
+    return path
+
+
+@pytest.fixture
+def client(data, zero_model):
+    return create_app(data, zero_model).test_client()
+
+
+def start(client, task: Task = POUR, mode: str = "demonstrate", participant: str = "", env_id: str = "env01"):
+    assert client.post("/environment", data={"source": "world", "seed": "0", "env_id": env_id}).status_code == 303
+    args = {"arg1": task.args[0], "arg2": task.args[1] if len(task.args) > 1 else ""}
+    return client.post("/task", data={"task": task.name, **args, "mode": mode, "participant": participant})
+
+
+def demonstrated(task: Task = POUR, env_id: str = "env01") -> list[Action]:
+    return demonstrate(world_environment(0, env_id).state, task)[0]
+
+
+def test_a_demonstration_is_refused_an_infeasible_step_and_saved_as_a_log_record(client, data, capsys):
+    assert start(client, participant="p07").headers["Location"] == "/demonstrate"
+    page = client.get("/demonstrate").get_data(as_text=True)
+    assert "water_bottle" in page and "<svg" in page and "the goal does not hold yet" in page
+    refused = client.post("/step", data=step_form(0, Action("grasp", ("obj20",))))
+    assert refused.status_code == 409
+    assert "grasp(obj20) is refused" in message(refused) and "from the robot" in message(refused)
+    assert not (data / "people").exists()
+    early = client.post("/step", data=step_form(0, Action("done")))
+    assert "no step has been taken yet" in message(early)
+    actions = demonstrated()
+    for k, action in enumerate(actions):
+        assert client.post("/step", data=step_form(k, action)).status_code == 303
+    assert "the goal holds" in client.get("/demonstrate").get_data(as_text=True)
+    assert client.post("/step", data=step_form(len(actions), Action("done"))).headers["Location"] == "/finished"
+    assert "people/w0-env01.jsonl" in client.get("/finished").get_data(as_text=True)
+    [line] = (data / "people" / "w0-env01.jsonl").read_text().splitlines()
+    record = json.loads(line)
+    assert record["participant"] == "p07" and "corrected" not in record
+    assert [s["primitive"] for s in record["steps"]] == [a.primitive for a in actions]
+    assert main(["replay", str(data / "people")]) == 0
+    assert main(["--no-mlflow", "ingest", "--input", str(data / "people"), "--output", str(data.parent / "t")]) == 0
+    assert "ingested 1 sequences" in capsys.readouterr().out
+
+
+def test_undo_takes_back_the_last_step(client):
+    start(client)
+    client.post("/step", data=step_form(0, Action("move_close", ("obj20",))))
+    assert client.post("/undo", data={"n": "1"}).status_code == 303
+    assert "None yet." in client.get("/demonstrate").get_data(as_text=True)
+    assert "no step to undo" in message(client.post("/undo", data={"n": "0"}))
+
+
+@pytest.mark.parametrize("form, expected", [
+    ({"primitive": "grasp", "a1": "obj99"}, "unknown object 'obj99'"),
+    ({"primitive": "grasp", "a1": "<b>obj20</b>"}, "unknown object '<b>obj20</b>'"),
+    ({"primitive": "teleport", "a1": "obj20"}, "unknown primitive 'teleport'"),
+    ({"primitive": "place_above", "a1": "obj20"}, "place_above takes 2 argument(s), got 1"),
+    ({"primitive": "grasp", "a1": "obj20", "a2": "obj14"}, "grasp takes 1 argument(s), got 2"),
+    ({"primitive": "hold_above", "a1": "obj20", "a2": "obj20"}, "needs two different objects"),
+    ({"primitive": "grasp", "a1": "obj20", "n": "3"}, "this page was out of date"),
+    ({"primitive": "grasp", "a1": "obj20", "n": "x"}, "this page was out of date"),
+    ({"choice": "0"}, "no proposals to choose from"),
+])
+def test_a_bad_step_is_refused_with_a_message_and_changes_nothing(client, data, form, expected):
+    start(client)
+    resp = client.post("/step", data={"n": "0", "a1": "", "a2": "", **form})
+    assert resp.status_code in (400, 409)
+    assert expected in message(resp)
+    assert "None yet." in client.get("/demonstrate").get_data(as_text=True)
+    assert not (data / "people").exists()
+
+
+@pytest.mark.parametrize("form, expected", [
+    ({"task": "pour", "arg1": "obj20"}, "obj20 (water_bottle) is not a liquid"),
+    ({"task": "pour", "arg1": "obj99"}, "unknown object 'obj99'"),
+    ({"task": "pour", "arg1": "obj27", "arg2": "obj14"}, "task pour takes 1 argument(s), got 2"),
+    ({"task": "pick_and_place", "arg1": "obj40"}, "task pick_and_place takes 2 argument(s), got 1"),
+    ({"task": "fly", "arg1": "obj27"}, "unknown task 'fly'"),
+    ({"task": "pick_and_place", "arg1": "obj43", "arg2": "obj40"}, "already holds"),
+    ({"task": "pour", "arg1": "obj27", "mode": "watch"}, "unknown mode 'watch'"),
+    ({"task": "pour", "arg1": "obj27", "participant": "../../x"}, "participant id '../../x'"),
+    ({"task": "pour", "arg1": "obj27", "participant": "a b"}, "participant id 'a b'"),
+])
+def test_a_bad_task_is_refused_with_a_message(client, data, form, expected):
+    client.post("/environment", data={"source": "world", "seed": "0", "env_id": "env01"})
+    resp = client.post("/task", data={"arg2": "", "mode": "demonstrate", **form})
+    assert resp.status_code == 400
+    assert expected in message(resp)
+    assert not (data / "people").exists()
+
+
+def environment_file(edit=None) -> str:
+    state = world_environment(0, "env01").state
+    from pipeline.logs.records import spec_to_dict, state_to_dict
+
+    env = {"objects": [spec_to_dict(s) for s in state.specs.values()], "state": state_to_dict(state)}
+    if edit:
+        edit(env)
+    return json.dumps(env)
+
+
+def upload(client, text: str, name: str = "kitchen.json"):
+    import io
+
+    return client.post("/environment", data={"source": "upload", "file": (io.BytesIO(text.encode()), name)},
+                       content_type="multipart/form-data")
+
+
+def _drop_size(env):
+    del env["objects"][1]["size"]
+
+
+def _loop(env):
+    env["state"]["objects"]["obj02"]["support"] = "obj20"
+
+
+@pytest.mark.parametrize("text, expected", [
+    ("{not json", "kitchen.json: cannot read the environment"),
+    (environment_file(_drop_size), "objects[1]: 'size' is a required property"),
+    (environment_file(lambda e: e["objects"][2].update(category="sofa")), "objects[2].category"),
+    (environment_file(lambda e: e["state"]["objects"].pop("obj27")), "state.objects.obj27"),
+    (environment_file(_loop), "form a loop"),
+])
+def test_a_bad_environment_file_is_refused_naming_the_field(client, data, text, expected):
+    resp = upload(client, text)
+    assert resp.status_code == 400
+    assert expected in message(resp)
+    assert not data.exists()
+
+
+@pytest.mark.parametrize("form, expected", [
+    ({"source": "world", "seed": "-1", "env_id": "env01"}, "world seed must be a whole number"),
+    ({"source": "world", "seed": "0", "env_id": "env99"}, "unknown environment 'env99'"),
+    ({"source": "named", "name": "../../etc/passwd"}, "no environment file"),
+    ({"source": "disk"}, "unknown environment source"),
+])
+def test_a_bad_environment_choice_is_refused(client, form, expected):
+    resp = client.post("/environment", data=form)
+    assert resp.status_code == 400 and expected in message(resp)
+
+
+def test_names_from_an_environment_file_are_shown_as_text_and_no_file_leaves_the_data_folder(client, data, tmp_path):
+    def rename(env):
+        next(o for o in env["objects"] if o["id"] == "obj20")["name"] = "<script>alert(1)</script>"
+
+    assert upload(client, environment_file(rename), name="../../evil.json").status_code == 303
+    page = client.get("/task")
+    text = page.get_data(as_text=True)
+    assert "&lt;script&gt;alert(1)&lt;/script&gt;" in text and "<script>" not in text
+    assert "script-src" not in page.headers["Content-Security-Policy"]  # default-src 'none': no script runs
+    client.post("/task", data={"task": "pour", "arg1": "obj27", "arg2": "", "mode": "demonstrate",
+                               "participant": "p1"})
+    actions = demonstrated()
+    for k, action in enumerate(actions + [Action("done")]):
+        client.post("/step", data=step_form(k, action))
+    assert [p for p in files_under(tmp_path) if not p.endswith("zero.npz")] == [
+        "data/people/.lock", next(p for p in files_under(tmp_path) if p.startswith("data/people/evil-"))]
+    assert main(["replay", str(data / "people")]) == 0
+
+
+def test_named_environment_files_come_from_the_data_folder(client, data):
+    (data / "environments").mkdir(parents=True)
+    (data / "environments" / "flat.json").write_text(environment_file())
+    assert "flat.json" in client.get("/").get_data(as_text=True)
+    assert client.post("/environment", data={"source": "named", "name": "flat.json"}).status_code == 303
+    assert "flat.json" in client.get("/task").get_data(as_text=True)
+
+
+def test_two_browsers_on_one_environment_keep_their_own_steps(data, zero_model):
+    app = create_app(data, zero_model)
+    a, b = app.test_client(), app.test_client()
+    pick = Task("pick_and_place", ("obj40", "obj08"))
+    start(a)
+    start(b, pick)
+    seq_a, seq_b = demonstrated(), demonstrated(pick)
+    for k in range(max(len(seq_a), len(seq_b)) + 1):
+        for c, seq in ((a, seq_a), (b, seq_b)):
+            if k <= len(seq):
+                resp = c.post("/step", data=step_form(k, seq[k] if k < len(seq) else Action("done")))
+                assert resp.status_code == 303, message(resp)
+    records = [json.loads(line) for line in (data / "people" / "w0-env01.jsonl").read_text().splitlines()]
+    steps = {r["task"]["name"]: [s["primitive"] for s in r["steps"]] for r in records}
+    assert steps == {"pour": [x.primitive for x in seq_a], "pick_and_place": [x.primitive for x in seq_b]}
+
+
+def test_assist_records_the_steps_where_the_person_overrode_the_planner(client, data):
+    start(client, mode="assist")
+    page = client.get("/assist").get_data(as_text=True)
+    assert page.count('name="choice"') == 3 and "score" in page
+    assert "no proposal number" in message(client.post("/step", data={"n": "0", "choice": "7"}))
+    actions = demonstrated()
+    for k, action in enumerate(actions + [Action("done")]):
+        assert client.post("/step", data=step_form(k, action)).status_code == 303
+    record = json.loads((data / "people" / "w0-env01.jsonl").read_text())
+    # the tied planner always proposes move_close of the first object first, which the person never takes
+    assert record["corrected"] == list(range(len(actions) + 1))
+
+
+def test_assist_accepting_a_proposal_is_no_correction(client, data):
+    start(client, mode="assist")
+    assert client.post("/step", data={"n": "0", "choice": "0"}).status_code == 303  # take the planner's best
+    first = client.get("/assist").get_data(as_text=True)
+    assert "(your correction)" not in first
+    client.post("/undo", data={"n": "1"})
+    actions = demonstrated()
+    for k, action in enumerate(actions + [Action("done")]):
+        client.post("/step", data=step_form(k, action))
+    record = json.loads((data / "people" / "w0-env01.jsonl").read_text())
+    assert record["corrected"] == list(range(len(actions) + 1))
+
+
+def test_assist_names_a_missing_model(data):
+    client = create_app(data, data / "none.npz").test_client()
+    resp = start(client, mode="assist")
+    page = client.get(resp.headers["Location"])
+    assert "the planner cannot be loaded" in message(page) and "no such model file" in message(page)
+
+
+def test_concurrent_appends_write_every_record_whole(tmp_path):
+    env = world_environment(0, "env01")
+    actions = demonstrated()
+    writers = [RecordWriter(tmp_path), RecordWriter(tmp_path)]  # two servers on one folder
+    ids: list[str] = []
+
+    def work(i: int) -> None:
+        for _ in range(5):
+            record = person_record(env, POUR, actions, f"p{i}")
+            writers[i % 2].append(record)
+            ids.append(record["demo_id"])
+
+    threads = [threading.Thread(target=work, args=(i,)) for i in range(6)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    lines = (tmp_path / "w0-env01.jsonl").read_text().splitlines()
+    assert sorted(json.loads(line)["demo_id"] for line in lines) == sorted(ids) and len(ids) == 30
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".lock", "w0-env01.jsonl"]
+    with pytest.raises(ValueError, match="cannot name a log file"):
+        writers[0].path_for("../x")
+
+
+def test_a_record_that_does_not_reach_its_goal_is_never_written(tmp_path):
+    record = person_record(world_environment(0, "env01"), POUR, demonstrated()[:-1])
+    with pytest.raises(ValueError, match="goal of pour"):
+        RecordWriter(tmp_path).append(record)
+    assert not (tmp_path / "w0-env01.jsonl").exists()
+
+
+@pytest.fixture
+def server(data, zero_model):
+    srv = make_server("127.0.0.1", 0, create_app(data, zero_model), threaded=True)
+    thread = threading.Thread(target=srv.serve_forever)
+    thread.start()
+    yield f"http://127.0.0.1:{srv.port}"
+    srv.shutdown()
+    thread.join()
+
+
+def test_a_load_of_concurrent_browsers_loses_no_record_and_leaves_no_partial_file(server, data):
+    result = run_load(server, clients=4, rounds=5)
+    assert result.errors == []
+    assert result.requests >= 300
+    on_disk = [json.loads(line)["demo_id"] for f in sorted((data / "people").glob("*.jsonl"))
+               for line in f.read_text().splitlines()]
+    assert sorted(on_disk) == sorted(result.saved) and len(on_disk) == 20
+    assert sorted(p.name for p in (data / "people").iterdir()) == [".lock", "w0-env01.jsonl", "w0-env02.jsonl"]
+    assert main(["replay", str(data / "people")]) == 0
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_a_stopped_server_keeps_every_saved_record_whole(data, zero_model, signum):
+    proc = subprocess.Popen([sys.executable, "-m", "pipeline.cli", "serve", "--port", "0", "--data", str(data),
+                             "--model", str(zero_model)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        url = re.search(r"http://\S+/", proc.stdout.readline()).group(0).rstrip("/")
+        result = LoadResult()
+        client = Client(url, result, threading.Lock())
+        for task, actions in scripted_tasks(0, "env01", 2):
+            client.demonstrate(0, "env01", task, actions)
+        assert result.errors == [] and len(result.saved) == 2
+    finally:
+        proc.send_signal(signum)
+        _, err = proc.communicate()
+    assert proc.returncode == 0 and "stopped; every demonstration it saved is whole" in err
+    lines = (data / "people" / "w0-env01.jsonl").read_text().splitlines()
+    assert [json.loads(line)["demo_id"] for line in lines] == result.saved

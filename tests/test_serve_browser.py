@@ -1,0 +1,177 @@
+"""`taskseq serve` in a real browser: Debian's headless Chromium driven by Playwright, as a person clicks.
+
+A person demonstrates a task (refused an infeasible step on the way) and the
+record ingests; another corrects the learned planner in assist mode; two
+browsers at once write two whole records. Screenshots of each page go to
+the test's temporary folder.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+from pathlib import Path
+
+import pytest
+from playwright.sync_api import sync_playwright
+from werkzeug.serving import make_server
+
+from pipeline.cli import main
+from pipeline.features.dataset import build_steps
+from pipeline.learn.estimator import StepScorer
+from pipeline.logs.records import demonstration_record
+from pipeline.serve.app import create_app
+from pipeline.serve.environments import world_environment
+from pipeline.sim.demonstrator import demonstrate
+from pipeline.sim.primitives import Action
+from pipeline.sim.scenarios import candidate_scenarios
+from pipeline.sim.tasks import Task
+
+CHROMIUM = Path("/usr/bin/chromium")  # Debian's package; .ci/run installs it
+ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+        "--disable-component-update", "--no-first-run"]
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory) -> Path:
+    """A planner trained on a third of the scenarios of two other environments: right on some steps of env01."""
+    scenarios = [s for s in candidate_scenarios(0) if s.env_id in ("env02", "env03")][::3]
+    contexts, _ = build_steps([demonstration_record(s, 0) for s in scenarios])
+    path = tmp_path_factory.mktemp("model") / "mrf.npz"
+    StepScorer("full", C=3.0, tol=1e-2, max_iter=200).fit(contexts).save(path)
+    return path
+
+
+@pytest.fixture
+def server(tmp_path, model):
+    data = tmp_path / "data"
+    srv = make_server("127.0.0.1", 0, create_app(data, model), threaded=True)
+    thread = threading.Thread(target=srv.serve_forever)
+    thread.start()
+    yield f"http://127.0.0.1:{srv.port}", data
+    srv.shutdown()
+    thread.join()
+
+
+@pytest.fixture(scope="module")
+def browser():
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=str(CHROMIUM), args=ARGS)
+        yield b
+        b.close()
+
+
+def choose(page, url: str, task: Task, mode: str, participant: str = "") -> None:
+    """Open the first page, pick env01 of world 0 and the task, as a person clicks."""
+    page.goto(url + "/")
+    page.select_option("#world-form select[name=env_id]", "env01")
+    page.click("#world-form button")
+    page.select_option("#task-form select[name=task]", task.name)
+    page.select_option("#task-form select[name=arg1]", task.args[0])
+    page.select_option("#task-form select[name=arg2]", task.args[1] if len(task.args) > 1 else "")
+    page.fill("#task-form input[name=participant]", participant)
+    page.click(f"#task-form button[value={mode}]")
+
+
+def click_step(page, action: Action) -> None:
+    page.select_option("#step-form select[name=primitive]", action.primitive)
+    args = list(action.args) + [""] * (2 - len(action.args))
+    page.select_option("#step-form select[name=a1]", args[0])
+    page.select_option("#step-form select[name=a2]", args[1])
+    page.click("#step-form button")
+
+
+def demonstrated(task: Task) -> list[Action]:
+    return demonstrate(world_environment(0, "env01").state, task)[0]
+
+
+def test_a_person_demonstrates_a_task_in_the_browser_and_the_record_ingests(server, browser, tmp_path, capsys):
+    url, data = server
+    page = browser.new_page(viewport={"width": 1200, "height": 900})
+    task = Task("pour", ("obj27",))
+    choose(page, url, task, "demonstrate", participant="p01")
+    assert page.locator("#scene").is_visible() and "water_bottle" in page.inner_text("#tree")
+    click_step(page, Action("grasp", ("obj20",)))  # the bottle is out of reach from where the robot starts
+    assert "grasp(obj20) is refused" in page.inner_text("#message")
+    assert "from the robot" in page.inner_text("#message")
+    page.screenshot(path=str(tmp_path / "refused.png"), full_page=True)
+    assert not (data / "people").exists()
+    actions = demonstrated(task)
+    for action in actions:
+        click_step(page, action)
+        assert page.locator("#message").count() == 0
+    assert "the goal holds" in page.inner_text("#goal")
+    click_step(page, Action("done"))
+    assert "people/w0-env01.jsonl" in page.inner_text("#saved")
+    page.screenshot(path=str(tmp_path / "saved.png"), full_page=True)
+    record = json.loads((data / "people" / "w0-env01.jsonl").read_text())
+    assert record["participant"] == "p01" and len(record["steps"]) == len(actions)
+    assert main(["--no-mlflow", "ingest", "--input", str(data / "people"), "--output", str(tmp_path / "t")]) == 0
+    assert "ingested 1 sequences" in capsys.readouterr().out
+
+
+def test_a_person_corrects_the_planner_in_assist_mode(server, browser, tmp_path):
+    url, data = server
+    page = browser.new_page(viewport={"width": 1200, "height": 900})
+    task = Task("pour", ("obj27",))
+    choose(page, url, task, "assist")
+    overridden = []
+    for k, action in enumerate([*demonstrated(task), Action("done")]):
+        proposals = page.locator("#proposals tr td:nth-child(2) code").all_inner_texts()
+        assert len(proposals) == 3
+        if str(action) in proposals:  # accept the best, or take another proposal
+            if proposals.index(str(action)) != 0:
+                overridden.append(k)
+            page.click(f"#proposals button[value='{proposals.index(str(action))}']")
+        else:  # none of the proposals: choose the step by hand
+            overridden.append(k)
+            click_step(page, action)
+        if k == 0:
+            page.screenshot(path=str(tmp_path / "assist.png"), full_page=True)
+    assert "people/w0-env01.jsonl" in page.inner_text("#saved")
+    record = json.loads((data / "people" / "w0-env01.jsonl").read_text())
+    assert record["corrected"] == overridden
+    assert main(["replay", str(data / "people")]) == 0
+
+
+def test_two_browsers_at_once_write_two_whole_records(server, browser):
+    url, data = server
+    tasks = [Task("pour", ("obj27",)), Task("pick_and_place", ("obj40", "obj08"))]
+    pages = [browser.new_context().new_page() for _ in tasks]  # separate contexts: separate cookies
+    for page, task, who in zip(pages, tasks, ("a", "b"), strict=True):
+        choose(page, url, task, "demonstrate", participant=who)
+    plans = [[*demonstrated(t), Action("done")] for t in tasks]
+    for k in range(max(len(p) for p in plans)):
+        for page, plan in zip(pages, plans, strict=True):
+            if k < len(plan):
+                click_step(page, plan[k])
+    records = [json.loads(line) for line in (data / "people" / "w0-env01.jsonl").read_text().splitlines()]
+    got = {r["participant"]: (r["task"]["name"], [s["primitive"] for s in r["steps"]]) for r in records}
+    assert got == {w: (t.name, [a.primitive for a in p[:-1]]) for w, t, p in zip("ab", tasks, plans, strict=True)}
+
+
+def test_markup_in_an_uploaded_environment_file_is_shown_as_text_and_never_run(server, browser, tmp_path):
+    from pipeline.logs.records import spec_to_dict, state_to_dict
+
+    url, data = server
+    state = world_environment(0, "env01").state
+    env = {"objects": [spec_to_dict(s) for s in state.specs.values()], "state": state_to_dict(state)}
+    next(o for o in env["objects"] if o["id"] == "obj20")["name"] = "<script>alert(1)</script>"
+    path = tmp_path / "kitchen.json"
+    path.write_text(json.dumps(env))
+    page = browser.new_page()
+    dialogs: list[str] = []
+    page.on("dialog", lambda d: (dialogs.append(d.message), d.dismiss()))
+    page.goto(url + "/")
+    page.set_input_files("#upload-form input[name=file]", str(path))
+    page.click("#upload-form button")
+    assert "<script>alert(1)</script>" in page.inner_text("#tree")
+    assert page.locator("#scene text", has_text="<script>alert(1)</script>").count() == 1
+    assert dialogs == []
+    del env["objects"][3]["size"]
+    path.write_text(json.dumps(env))
+    page.goto(url + "/")
+    page.set_input_files("#upload-form input[name=file]", str(path))
+    page.click("#upload-form button")
+    assert page.inner_text("#message") == "kitchen.json:1: objects[3]: 'size' is a required property"
+    assert not data.exists()
