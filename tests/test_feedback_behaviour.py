@@ -1,0 +1,103 @@
+"""An observer's feedback, end to end: the planner executes what the observer picks, and the feedback rows count it.
+
+The planner here is scripted (it prefers to stop at once and offers the demonstrated step second), so the
+effect of every pick is known in advance and no model has to be trained.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from pipeline.evaluate.crossval import judge
+from pipeline.evaluate.robustness import Condition, _replay, feedback_rows, observer
+from pipeline.plan.planner import DONE, plan
+from pipeline.settings import Feedback
+from pipeline.sim.primitives import Action
+from pipeline.sim.scenarios import Scenario
+from pipeline.sim.tasks import Task
+from tests.conftest import world
+
+TABLE, TRASH, CUP, MUG = "obj02", "obj10", "obj14", "obj13"
+DEMO = tuple(Action.parse(t) for t in (f"move_close({CUP})", f"grasp({CUP})", f"move_close({TRASH})",
+                                      f"hold_above({CUP},{TRASH})", f"release({CUP})"))
+
+
+class ScriptedPlanner:
+    """Ranks, at step t: `done` first, the demonstration's step t second, a detour to the mug third."""
+
+    def __init__(self) -> None:
+        self.calls = 0
+
+    def top_k(self, ctx, k: int):
+        t, self.calls = self.calls, self.calls + 1
+        ranked = [Action("done")] + ([DEMO[t]] if t < len(DEMO) else []) + [Action.parse(f"move_close({MUG})")]
+        return [(ctx.encode(a), float(-i)) for i, a in enumerate(ranked)][:k]
+
+
+@pytest.fixture
+def scenario() -> Scenario:
+    state = world({2: 0.0, 10: -1.2, 8: 2.2}, [(14, 2, 0, 0.4), (13, 8, 1, 0.0)])
+    return Scenario("envX", Task("throw_away", (CUP,)), state, (DEMO,))
+
+
+def test_without_feedback_the_robot_takes_its_own_best(scenario):
+    program = plan(ScriptedPlanner(), scenario.initial, scenario.task, top_k=3)
+    assert program.actions == [] and program.status == DONE
+
+
+@pytest.mark.parametrize("n", [1, 2, 4])
+def test_the_planner_executes_the_observers_pick_at_the_first_n_steps(scenario, n):
+    program = plan(ScriptedPlanner(), scenario.initial, scenario.task, top_k=3,
+                   choose=observer(scenario.demonstrations, n))
+    assert program.actions == list(DEMO[:n])  # the observer's picks, then the robot's own `done`
+    assert judge(scenario, program).failure == "stopped_early"
+
+
+def test_feedback_at_every_step_where_the_demonstration_is_offered_gives_the_demonstration(scenario):
+    program = plan(ScriptedPlanner(), scenario.initial, scenario.task, top_k=2,
+                   choose=observer(scenario.demonstrations, 20))
+    assert program.actions == list(DEMO) and program.success
+    outcome = judge(scenario, program)
+    assert outcome.arg_correct and outcome.failure == "exact"
+
+
+def test_feedback_changes_nothing_when_the_demonstration_is_not_among_the_top_k(scenario):
+    program = plan(ScriptedPlanner(), scenario.initial, scenario.task, top_k=1,
+                   choose=observer(scenario.demonstrations, 20))
+    assert program.actions == []
+
+
+def test_the_observer_picks_done_where_the_demonstration_ends(scenario):
+    offered = [Action.parse(f"move_close({MUG})"), Action("done")]
+    assert observer(scenario.demonstrations, 20)(list(DEMO), offered) == 1
+    assert observer(scenario.demonstrations, 20)(list(DEMO[:2]), offered) == 0  # nothing right on offer
+
+
+def test_the_observer_only_follows_a_demonstration_the_history_agrees_with():
+    first = (Action.parse("move_close(obj1)"), Action.parse("grasp(obj1)"))
+    second = (Action.parse("move_close(obj2)"), Action.parse("grasp(obj2)"))
+    choose = observer((first, second), 5)
+    offered = [Action.parse("grasp(obj1)"), Action.parse("grasp(obj2)")]
+    assert choose([second[0]], offered) == 1 and choose([first[0]], offered) == 0
+
+
+class ScriptedMethod:
+    """What `_replay` trains per fold, with the scripted planner (fresh for every program)."""
+
+    @property
+    def planner_(self) -> ScriptedPlanner:
+        return ScriptedPlanner()
+
+    def fit(self, contexts, meta, scenarios=None) -> ScriptedMethod:
+        return self
+
+
+def test_feedback_rows_count_the_programs_the_observer_corrected(scenario):
+    conditions = [Condition("feedback", k, n) for k in (1, 2) for n in (0, 2, 20)]
+    results = _replay(ScriptedMethod, [], [], {scenario.id: scenario}, {scenario.id}, conditions, 20, 0)
+    rows = feedback_rows(Feedback(k=(1, 2), n=("0", "2", "all")), 20, results)
+    arg = {(r["k"], r["n"]): r["sequence_arg"] for r in rows}
+    assert arg == {(1, "0"): 0.0, (1, "2"): 0.0, (1, "all"): 0.0, (2, "0"): 0.0, (2, "2"): 0.0, (2, "all"): 100.0}
+    success = {(r["k"], r["n"]): r["success"] for r in rows}
+    assert success[(2, "all")] == 100.0 and success[(2, "2")] == 0.0
+
