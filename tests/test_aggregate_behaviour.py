@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -15,6 +16,8 @@ from pipeline.evaluate.failures import KINDS
 from pipeline.report.csvs import SEQUENCE_COLUMNS
 from pipeline.report.seeds import mean_sd
 from pipeline.report.tables import COLUMNS
+from pipeline.settings import World
+from pipeline.stages import aggregate
 
 SEEDS = (0, 3, 7)
 # per seed: full model's sequence arg and success, Table I prim, noise at 0.3, feedback top-2 all, recipes
@@ -39,11 +42,12 @@ def _write_world(d: Path, w: dict) -> None:
             lines.append(f"{m},{c},{prim:.2f},{arg}")
     (d / "table1.csv").write_text("\n".join(lines) + "\n")
     programs = {k: w["programs"].get(k, 0) for k in KINDS}
+    stir = {k: (1 if k == "stopped_late" else 0) for k in KINDS}  # one program, stopped late, in every world
     (d / "crossval.json").write_text(json.dumps({
+        "multiclass": {"steps": {"average/prim": 95.0, "average/arg": None}},
         "full": {"steps": {"average/prim": w["prim"], "average/arg": w["arg"] - 10}, "sequence/prim": w["prim"],
                  "sequence/arg": w["arg"], "success": w["success"], "goal_reached": w["success"] + 5,
-                 "programs": programs, "per_task": {"pour": {"programs": programs}}},
-        "multiclass": {"steps": {"average/prim": 95.0, "average/arg": None}}}))
+                 "programs": programs, "per_task": {"pour": {"programs": programs}, "stir": {"programs": stir}}}}))
     (d / "noise.csv").write_text("method,rate,sequence_arg,sequence_prim,success\n"
                                  f"full,0.0,{w['arg']},{w['prim']},{w['success']}\n"
                                  f"full,0.3,{w['noisy']},{w['noisy']},{w['noisy']}\n")
@@ -57,15 +61,49 @@ def _write_world(d: Path, w: dict) -> None:
         "recipes": 10, "no_feedback": none, "feedback_first_step": first}}}}))
 
 
-@pytest.fixture(scope="module")
-def aggregated(tmp_path_factory) -> Path:
-    root = tmp_path_factory.mktemp("worlds")
+class RecordingTracker:
+    """Stands in for a stage's MLflow run: keeps what the stage records."""
+
+    def __init__(self, name: str = "aggregate", params: dict | None = None) -> None:
+        self.name, self.params, self.children, self.recorded, self.artifacts = name, params, [], {}, []
+
+    def metrics(self, values: dict) -> None:
+        self.recorded.update(values)
+
+    def artifact(self, path) -> None:
+        self.artifacts.append(Path(path).name)
+
+    @contextmanager
+    def child(self, name: str, params: dict | None = None):
+        child = RecordingTracker(name, params)
+        self.children.append(child)
+        yield child
+
+
+@pytest.fixture
+def tracker() -> RecordingTracker:
+    return RecordingTracker()
+
+
+@pytest.fixture
+def aggregated(tmp_path, tracker) -> Path:
+    """The stage run on three different worlds (function-scoped, so every test sees the stage run under it)."""
     for seed, w in WORLD.items():
-        _write_world(root / "worlds" / str(seed), w)
-    out = root / "out"
-    assert main(["--no-mlflow", "aggregate", "--seeds", *map(str, SEEDS), "--dev_seed", "100",
-                 "--worlds", str(root / "worlds"), "--output", str(out)]) == 0
+        _write_world(tmp_path / "worlds" / str(seed), w)
+    out = tmp_path / "out"
+    means = aggregate.run(World(seeds=SEEDS, dev_seed=100), tmp_path / "worlds", out, tracker)
+    assert means == json.loads((out / "crossval_means.json").read_text())
     return out
+
+
+def test_the_command_line_runs_the_stage_over_the_seeds_it_is_given(tmp_path, capsys):
+    for seed, w in WORLD.items():
+        _write_world(tmp_path / "worlds" / str(seed), w)
+    assert main(["--no-mlflow", "aggregate", "--seeds", "0", "7", "--dev_seed", "100", "--worlds",
+                 str(tmp_path / "worlds"), "--output", str(tmp_path / "out")]) == 0
+    means = json.loads((tmp_path / "out" / "crossval_means.json").read_text())
+    assert means["full"]["sequence_arg"] == 77.5 and means["full"]["sequence_arg_min"] == 60.0
+    assert f"over world seeds 0, 7; failure kinds in {tmp_path / 'out' / 'failures.md'}" in capsys.readouterr().out
 
 
 def test_mean_sd_on_known_answers():
@@ -128,3 +166,68 @@ def test_failure_shares_over_worlds(aggregated):
     assert shares["stopped_late"] == "0.0 ± 0.0"
     rows = list(csv.DictReader((aggregated / "failures.csv").open()))
     assert sum(int(r["programs"]) for r in rows if r["task"] == "all" and r["world_seed"] == "7") == 20
+
+
+def test_every_table_names_its_columns_and_the_world_seeds(aggregated):
+    assert (aggregated / "table1_seeds.csv").read_text().splitlines()[1] == "0,ours - full,move_close,95.00,85.00"
+    assert (aggregated / "table1.csv").read_text().startswith("method,column,prim,prim_sd,arg,arg_sd\n")
+    assert "| ours - full |" in (aggregated / "table1.md").read_text()
+    tex = (aggregated / "table1.tex").read_text()
+    assert "over 3 world seeds (0, 3, 7), each a 6-fold cross-validation: percentage of primitives (prim)" in tex
+    assert "teacher-forced, and of closed-loop sequences equal to a demonstration." in tex
+    head = (aggregated / "crossval_seeds.csv").read_text().splitlines()
+    assert head[0] == "world_seed,method,average_prim,average_arg,sequence_prim,sequence_arg,success,goal_reached"
+    assert head[1] == "0,multiclass,95,,,,,"
+    assert (aggregated / "noise_seeds.csv").read_text().splitlines()[:2] == [
+        "world_seed,method,rate,sequence_arg,sequence_prim,success", "0,full,0.0,60.00,90.00,80.00"]
+    assert (aggregated / "feedback_seeds.csv").read_text().splitlines()[2] == "0,full,2,all,80.00,80.00,80.00"
+    assert (aggregated / "noise.csv").read_text().splitlines()[0] == (
+        "method,rate,sequence_arg,sequence_arg_sd,sequence_prim,sequence_prim_sd,success,success_sd")
+    assert (aggregated / "feedback.csv").read_text().splitlines()[0].startswith("method,k,n,sequence_arg,")
+    assert (aggregated / "failures.csv").read_text().splitlines()[1] == "0,full,all,exact,6"
+    assert (aggregated / "crossval_sequences.csv").read_text() == "world_seed," + ",".join(SEQUENCE_COLUMNS) + "\n"
+    assert json.loads((aggregated / "dataset.json").read_text()) == {s: {"environments": 2} for s in ("0", "3", "7")}
+    assert (aggregated / "plots" / "noise.csv").read_text().splitlines() == [
+        "rate,ours - full", "0.0,75.00", "0.3,30.00"]
+    assert (aggregated / "plots" / "feedback.csv").read_text().splitlines() == [
+        "n,ours - full top 2", "0,75.00", "all,90.00"]
+    assert (aggregated / "noise.png").stat().st_size > 0 and (aggregated / "feedback.png").stat().st_size > 0
+
+
+def test_the_run_records_per_world_children_means_and_artifacts(aggregated, tracker):
+    names = [c.name for c in tracker.children]
+    assert names == ["multiclass seed=0", "full seed=0", "multiclass seed=3", "full seed=3", "multiclass seed=7",
+                     "full seed=7"]
+    full7 = tracker.children[-1]
+    assert full7.params == {"method": "full", "world_seed": 7}
+    assert full7.recorded["sequence_arg"] == 95.0 and "method" not in full7.recorded
+    assert tracker.recorded["full.sequence_arg"] == 75.0 and tracker.recorded["full.sequence_arg_min"] == 60.0
+    assert sorted(tracker.artifacts) == sorted(["table1.md", "table1.tex", "metrics.json", "crossval_means.json",
+                                                "failures.md", "noise.png", "feedback.png", "recipes.json"])
+
+
+def test_the_failure_table_per_task(aggregated):
+    text = (aggregated / "failures.md").read_text()
+    first = "Programs by kind, % of each method's closed-loop programs, mean ± sd over 3 world seeds."
+    assert text.startswith(first + "\n\n")
+    lines = text.splitlines()
+    header = "| method | " + " | ".join(k.replace("_", " ") for k in KINDS) + " |"
+    assert lines[2] == header and lines[3] == "|---|" + "---:|" * len(KINDS)
+    assert not any(line.startswith("| multiclass") for line in lines)  # it runs no programs
+    start = lines.index("The full model per task:")
+    assert lines[start - 1] == "" and lines[start + 1] == "" and lines[start + 2] == header.replace("method", "task")
+    stir = next(line for line in lines if line.startswith("| stir |"))
+    cells = dict(zip(KINDS, [c.strip() for c in stir.strip("|").split("|")][1:], strict=True))
+    assert cells["stopped_late"] == "100.0 ± 0.0" and cells["exact"] == "0.0 ± 0.0"
+    assert text.endswith(" |\n") and [line for line in lines if line.startswith("| pour |")]
+
+
+def test_failure_shares_of_a_world_with_one_program_and_of_an_unknown_method():
+    from pipeline.report.seeds import failure_shares
+
+    rows = [{"world_seed": 0, "method": "m", "task": "all", "kind": "exact", "programs": 1},
+            {"world_seed": 0, "method": "m", "task": "pour", "kind": "exact", "programs": 0},
+            {"world_seed": 1, "method": "other", "task": "all", "kind": "exact", "programs": 0}]
+    assert failure_shares(rows, "m")["exact"] == (100.0, 0.0)
+    assert failure_shares(rows, "m", "pour")["exact"] == (0.0, 0.0)
+    assert failure_shares(rows, "nobody") == dict.fromkeys(KINDS, (0.0, 0.0))
