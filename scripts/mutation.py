@@ -103,7 +103,14 @@ def report(name: str, group: Group, scratch: Path, command: str) -> tuple[str, d
              "| mutants | killed | survived | equivalent | score |", "|---:|---:|---:|---:|---:|",
              f"| {len(status)} | {killed} | {len(survivors)} | {len(equivalent)} | {score:.1f}% |", "",
              "Score: killed / (mutants - equivalent); a mutant no selected test reaches counts as a survivor.", ""]
-    lines += ["## Survivors", ""] + (["None."] if not survivors else [])
+    lines += ["| module | mutants | killed | survived | equivalent | score |", "|---|---:|---:|---:|---:|---:|"]
+    for module in sorted({_module(m) for m in status}):
+        mine = {m: s for m, s in counted.items() if _module(m) == module}
+        k = sum(s in ("killed", "timeout") for s in mine.values())
+        n_eq = sum(_module(m) == module for m in equivalent)
+        lines.append(f"| `{module}` | {len(mine) + n_eq} | {k} | {len(mine) - k} | {n_eq} | "
+                     f"{100.0 * k / max(len(mine), 1):.1f}% |")
+    lines += ["", "## Survivors", ""] + (["None."] if not survivors else [])
     for m in survivors:
         lines += [f"### `{m}` ({counted[m]})", "", "```diff", _diff(scratch, m), "```", ""]
     lines += ["## Equivalent mutants", ""] + (["None."] if not equivalent else [])
@@ -115,6 +122,11 @@ def report(name: str, group: Group, scratch: Path, command: str) -> tuple[str, d
 def _diff(scratch: Path, mutant: str) -> str:
     text = _mutmut(scratch, "show", mutant)
     return "\n".join(line for line in text.splitlines() if not line.startswith("# ")).strip()
+
+
+def _module(mutant: str) -> str:
+    """`pipeline.report.seeds` of `pipeline.report.seeds.x_mean_sd__mutmut_3` (methods: `.xǁClassǁname`)."""
+    return re.match(r"(.+?)\.x[_ǁ]", mutant).group(1)
 
 
 def _natural(name: str) -> tuple:

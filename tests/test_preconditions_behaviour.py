@@ -69,6 +69,34 @@ CASES = {
                                         ((BOTTLE, SPOON), (BOTTLE, CUP))),
 }
 
+# what the error says, naming the objects and the numbers that decided it
+REASONS = {
+    ("any", "object exists"): "obj99 is not in this environment",
+    ("move_close", "not held"): "obj14 is in the gripper",
+    ("move_close", "free to move"): "obj14 rests on obj02 and is still gripped; release it first",
+    ("grasp", "gripper empty"): "the gripper holds obj14",
+    ("grasp", "movable"): "obj02 (kitchen_table) cannot be moved",
+    ("grasp", "within reach"): "obj14 is 1.62 m from the robot",
+    ("release", "held"): "obj14 is not in the gripper (holding None)",
+    ("release", "placed or held above"): "obj14 is neither placed on nor held above anything; it would fall",
+    ("release", "room below"): "obj14 does not fit on or in obj34",
+    ("place_above", "held"): "obj14 is not in the gripper (holding None)",
+    ("place_above", "separate objects"): "obj27 rests on or in obj20",
+    ("place_above", "within reach"): "obj10 is 1.44 m from the robot",
+    ("place_above", "free space"): "no room for obj14 on or in obj34",
+    ("hold_above", "held"): "obj14 is not in the gripper (holding None)",
+    ("hold_above", "separate objects"): "obj27 rests on or in obj20",
+    ("hold_above", "within reach"): "obj10 is 1.44 m from the robot",
+    ("follow_traj_circle", "held"): "obj34 is not in the gripper (holding None)",
+    ("follow_traj_circle", "held above"): "obj34 is not held above anything",
+    ("follow_traj_circle", "liquid below"): "obj02 holds no liquid to stir",
+    ("follow_traj_circle", "long enough"): "obj34 (0.14 m) does not reach into obj20 (0.25 m deep)",
+    ("follow_traj_pour", "held"): "obj20 is not in the gripper (holding None)",
+    ("follow_traj_pour", "held above"): "obj20 is not held above obj14",
+    ("follow_traj_pour", "liquid inside"): "obj14 holds no liquid to pour",
+    ("follow_traj_pour", "container"): "obj34 (teaspoon) holds nothing",
+}
+
 
 @pytest.fixture
 def kitchen():
@@ -110,7 +138,7 @@ def _checks_in_source() -> set[tuple[str, str]]:
 
 
 def test_every_precondition_in_the_code_has_a_case():
-    assert set(CASES) == _checks_in_source()
+    assert set(CASES) == set(REASONS) == _checks_in_source()
 
 
 @pytest.mark.parametrize("case", list(CASES), ids=lambda c: f"{c[0]}-{c[1]}")
@@ -120,7 +148,8 @@ def test_a_precondition_refuses_and_allows(kitchen, case):
     primitive, check = case
     with pytest.raises(PreconditionError) as err:
         run(kitchen, (*refused_history, refused))
-    assert err.value.check == check
+    assert err.value.check == check and err.value.reason == REASONS[case]
+    assert str(err.value) == f"{refused}: precondition '{check}' failed: {REASONS[case]}"
     assert primitive in ("any", err.value.action.primitive)
     before = run(kitchen, allowed_history)
     after = execute(before, Action.parse(allowed))  # the step runs and changes the world, or the held object
@@ -133,3 +162,81 @@ def test_a_bottle_cannot_be_held_above_its_own_contents(kitchen):
         execute(holding, Action.parse(f"hold_above({BOTTLE},{WATER})"))
     above = execute(holding, Action.parse(f"hold_above({BOTTLE},{CUP})"))
     assert above.held_above == CUP and above.support[WATER][0] == BOTTLE  # the water travels in the bottle
+
+
+@pytest.fixture
+def room():
+    """An empty kitchen table (1.6 x 0.9 m, centre (0, 0.45), top 0.75) with a bowl at x = 0.4, a shelf with four
+    levels (0.5, 0.8, 1.1, 1.4 m) at x = 2.2, a trash can at x = -1.2; a cup and a wastebasket on the table."""
+    return world({2: 0.0, 8: 2.2, 10: -1.2}, [(16, 2, 0, 0.4), (14, 2, 0, -0.5), (12, 2, 0, -0.2)])
+
+
+@pytest.mark.parametrize("robot, spot", [
+    ((0.12, -0.35), (0.1, 0.05)),  # the lattice point nearest the robot, in the front row (y = 0.45 - 8 * 0.05)
+    ((0.93, -0.35), (0.75, 0.05)),  # beyond the table: the last of 15 columns of 0.05 m from the centre
+    ((-0.93, 1.5), (-0.75, 0.85)),  # behind the table: the back row
+    ((0.4, -0.35), (0.25, 0.05)),  # the bowl blocks 0.30 to 0.50; 0.25 and 0.55 are as near: lattice order
+])
+def test_a_cup_goes_to_the_free_spot_nearest_the_robot(room, robot, spot):
+    from pipeline.sim.primitives import free_spot
+    from pipeline.sim.state import ON
+
+    room.robot = robot
+    assert free_spot(room, CUP, TABLE) == ((*spot, 0.75), ON)
+
+
+def test_a_shelf_takes_an_object_on_the_lowest_level_it_fits_under(room):
+    from pipeline.sim.primitives import free_spot
+    from pipeline.sim.state import ON
+
+    assert free_spot(room, CUP, "obj08") == ((1.65, 0.05, 0.5), ON)  # 9 cm cup: the lowest level
+    # the 35 cm wastebasket fits under no level but the top one (0.3 m between levels, 2 cm to spare)
+    assert free_spot(room, "obj12", "obj08") == ((1.8, 0.15, 1.4), ON)
+
+
+def test_a_container_takes_what_fits_inside_at_its_centre(room):
+    from pipeline.sim.primitives import free_spot
+    from pipeline.sim.state import INSIDE
+
+    assert free_spot(room, CUP, TRASH) == ((-1.2, 0.2, 0.005), INSIDE)
+    assert free_spot(room, CUP, "obj16") == ((0.4, 0.16, 0.755), INSIDE)  # a cup into the bowl
+    assert free_spot(room, "obj12", CUP) is None  # a wastebasket into a cup
+    assert free_spot(room, "obj16", CUP) is None  # nor a bowl
+
+
+def test_carried_and_contained_objects_move_with_what_holds_them(kitchen):
+    held = run(kitchen, HOLD_CUP)
+    held.robot = (held.robot[0], held.robot[1] - 0.45)  # the robot stands further back
+    moved = execute(held, Action.parse(f"move_close({TRASH})"))
+    offset = [a - b for a, b in zip(held.poses[CUP], (*held.robot, 0.0), strict=True)]
+    assert [a - b for a, b in zip(moved.poses[CUP], (*moved.robot, 0.0), strict=True)] == pytest.approx(offset)
+    bottle = run(kitchen, HOLD_BOTTLE)
+    above = execute(bottle, Action.parse(f"hold_above({BOTTLE},{CUP})"))
+    before = [w - b for w, b in zip(bottle.poses[WATER], bottle.poses[BOTTLE], strict=True)]
+    assert [w - b for w, b in zip(above.poses[WATER], above.poses[BOTTLE], strict=True)] == pytest.approx(before)
+    poured = execute(above, Action.parse(f"follow_traj_pour({BOTTLE},{CUP})"))
+    assert poured.poses[WATER] == (poured.poses[CUP][0], poured.poses[CUP][1], round(poured.poses[CUP][2] + 0.005, 6))
+
+
+def test_holding_above_lifts_a_placed_object_off_its_support(kitchen):
+    placed = run(kitchen, (*HOLD_CUP, f"place_above({CUP},{TABLE})"))
+    assert placed.support[CUP] == (TABLE, "on")
+    lifted = run(placed, [f"hold_above({CUP},{BOTTLE})"])
+    assert CUP not in lifted.support and lifted.held_above == BOTTLE
+    replaced = run(lifted, [f"place_above({CUP},{TABLE})"])
+    assert replaced.held_above is None
+    with pytest.raises(PreconditionError, match="'held above' failed"):
+        run(replaced, [f"follow_traj_circle({CUP})"])
+
+
+def test_a_long_object_fits_a_container_only_if_both_sides_do():
+    from pipeline.sim.primitives import free_spot
+
+    state = world({2: 0.0}, [(13, 2, 0, 0.0), (38, 2, 0, 0.4), (15, 2, 0, -0.4), (27, 15)])
+    assert free_spot(state, "obj38", "obj13") is None  # an 8 cm wide, 30 cm long spatula into a 8.5 x 12 cm mug
+
+
+def test_a_spoon_exactly_as_long_as_the_glass_is_deep_stirs():
+    state = world({2: 0.0}, [(15, 2, 0, 0.0), (27, 15), (34, 2, 0, 0.3)])  # teaspoon 0.14 m, glass 0.14 m deep
+    s = run(state, ["move_close(obj34)", "grasp(obj34)", "hold_above(obj34,obj15)", "follow_traj_circle(obj34)"])
+    assert WATER in s.stirred
