@@ -129,7 +129,11 @@ def test_summary_rates_each_come_from_their_own_field():
     contexts = [_ctx((g, 0, -1)), _ctx((g, 1, -1))]
     results = [FoldResult("m", 0, [0], [(g, 0, -1)], SEQUENCES[:2]),
                FoldResult("m", 1, [1], [(g, 2, -1)], SEQUENCES[2:])]
-    s = summarize(results, contexts, {"m": True})["m"]
+    both = summarize(results + [FoldResult("mc", 0, [0, 1], [(g, 0, -1), (g, 0, -1)], None)], contexts,
+                     {"m": True, "mc": False})
+    assert both["mc"]["steps"]["grasp/prim"] == 100.0 and both["mc"]["steps"]["grasp/arg"] is None
+    assert both["mc"]["steps"]["average/prim"] == 100.0 and "sequence/arg" not in both["mc"]
+    s = both["m"]
     assert (s["sequence/prim"], s["sequence/arg"], s["goal_reached"], s["success"]) == (80.0, 40.0, 60.0, 20.0)
     assert s["n_scenarios"] == 5 and s["n_steps"] == 2
     assert s["steps"]["grasp/prim"] == 100.0 and s["steps"]["grasp/arg"] == 50.0
@@ -150,7 +154,11 @@ def test_step_accuracy_keeps_done_out_of_the_average_and_confusion_counts_pairs(
     acc = step_accuracy(contexts, preds)
     assert acc["average/prim"] == 50.0 and acc["done/prim"] == 100.0 and acc["release/arg"] == 0.0
     m = confusion(contexts, preds)
-    assert m[g, g] == 1 and m[r, g] == 1 and m[d, d] == 1 and m.sum() == 3
+    assert m[g, g] == 1 and m[r, g] == 1 and m[d, d] == 1 and m.sum() == 3 and m.dtype.kind == "i"
+    assert confusion(contexts * 2, preds * 2)[r, g] == 2
+    for f in (step_accuracy, confusion):  # predictions that do not line up with the steps are refused
+        with pytest.raises(ValueError, match="zip"):
+            f(contexts, preds[:2])
 
 
 def _cand(C, arg, success):
@@ -175,9 +183,12 @@ def test_figures_equal_to_nine_decimals_tie():
     near = 70.0 + 1e-12  # the same figure summed in another order
     assert best_candidate([_cand(0.5, 70.0, 80.0), _cand(2.0, near, 80.0)])["C"] == 0.5
     assert best_candidate([_cand(0.5, 70.0, 80.0), _cand(2.0, 70.0 + 1e-6, 80.0)])["C"] == 2.0
+    assert best_candidate([_cand(0.5, 70.0, 80.0), _cand(2.0, 70.0 + 2e-10, 80.0)])["C"] == 0.5
+    assert best_candidate([_cand(0.5, 70.0, 80.0), _cand(2.0, 70.0, 80.0 + 2e-10)])["C"] == 0.5
+    assert best_candidate([_cand(0.5, 70.0, 80.2), _cand(2.0, 70.0, 80.4)])["C"] == 2.0  # not rounded to whole
 
 
 def test_the_criterion_is_written_as_applied_and_no_candidates_is_an_error():
     assert CRITERION == "sequence_arg, then success, then the smaller C"
-    with pytest.raises(ValueError, match="no candidates"):
+    with pytest.raises(ValueError, match="^select: no candidates to choose from$"):
         best_candidate([])

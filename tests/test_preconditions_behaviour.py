@@ -240,3 +240,28 @@ def test_a_spoon_exactly_as_long_as_the_glass_is_deep_stirs():
     state = world({2: 0.0}, [(15, 2, 0, 0.0), (27, 15), (34, 2, 0, 0.3)])  # teaspoon 0.14 m, glass 0.14 m deep
     s = run(state, ["move_close(obj34)", "grasp(obj34)", "hold_above(obj34,obj15)", "follow_traj_circle(obj34)"])
     assert WATER in s.stirred
+
+
+def test_try_execute_gives_the_next_state_or_none(kitchen):
+    from pipeline.sim.primitives import try_execute
+
+    assert try_execute(kitchen, Action.parse(f"grasp({CUP})")) is None  # out of reach
+    near = try_execute(kitchen, Action.parse(f"move_close({CUP})"))
+    assert near.robot == (0.4, -0.35) and kitchen.robot == (0.0, -1.5)
+
+
+def test_what_a_target_receives_inside_and_on_top(kitchen):
+    from pipeline.sim.primitives import receives_inside
+
+    assert receives_inside(kitchen, TRASH) and receives_inside(kitchen, CUP)
+    assert not receives_inside(kitchen, TABLE) and not receives_inside(kitchen, SPOON)
+    shelf = world({8: 0.0}, [])
+    assert not receives_inside(shelf, "obj08")
+
+
+def test_actions_print_and_refuse_as_documented():
+    assert str(Action.parse("place_above(obj02, obj26)")) == "place_above(obj02,obj26)"
+    with pytest.raises(ValueError, match=r"^unknown primitive 'fly'; known: move_close, grasp, release, "):
+        Action("fly", ())
+    with pytest.raises(ValueError, match=r"^cannot parse action 'grasp\(obj02'; expected e.g. grasp\(obj02\)$"):
+        Action.parse("grasp(obj02")

@@ -28,7 +28,8 @@ def _ctx(gold):
 
 def _fake_cross_validate(calls):
     def cross_validate(methods, contexts, meta, bench, n_folds, seed, group_by, max_steps, n_jobs, verbose):
-        calls.append({"n_folds": n_folds, "seed": seed, "group_by": group_by, "max_steps": max_steps})
+        calls.append({"data": (contexts, meta, bench), "n_folds": n_folds, "seed": seed, "group_by": group_by,
+                      "max_steps": max_steps, "workers": (n_jobs, verbose)})
         out = []
         for name, make in methods.items():
             method = make()
@@ -47,10 +48,11 @@ def _fake_cross_validate(calls):
 def test_select_c_cross_validates_each_c_and_applies_the_rule(monkeypatch):
     calls = []
     monkeypatch.setattr(selection, "cross_validate", _fake_cross_validate(calls))
-    contexts = [_ctx((GRASP, 0, -1)), _ctx((GRASP, 0, -1))]
+    contexts, meta, bench = [_ctx((GRASP, 0, -1)), _ctx((GRASP, 0, -1))], ["m0", "m1"], "the benchmark"
     result = select_C((0.5, 2.0, 8.0), Learner(C=99.0, tol=0.02, max_iter=7), Folds(folds=3, seed=4),
-                      contexts, [None, None], None, max_steps=9)
-    assert calls[0] == {"n_folds": 3, "seed": 4, "group_by": Folds().group_by, "max_steps": 9}
+                      contexts, meta, bench, max_steps=9, n_jobs=3, verbose=2)
+    assert calls[0] == {"data": (contexts, meta, bench), "n_folds": 3, "seed": 4, "group_by": Folds().group_by,
+                        "max_steps": 9, "workers": (3, 2)}
     assert calls[1:] == [("C=0.5", 0.5, 0.02, 7), ("C=2", 2.0, 0.02, 7), ("C=8", 8.0, 0.02, 7)]
     assert result["candidates"] == [
         {"C": 0.5, "sequence_arg": 50.0, "success": 100.0, "average_arg": 50.0},
@@ -62,7 +64,7 @@ def test_select_c_cross_validates_each_c_and_applies_the_rule(monkeypatch):
 
 
 def test_an_empty_grid_is_refused():
-    with pytest.raises(ValueError, match="the grid of C values is empty"):
+    with pytest.raises(ValueError, match="^select: the grid of C values is empty$"):
         select_C((), Learner(), Folds(), [], [], None, 20)
 
 
@@ -70,6 +72,8 @@ def test_read_selection_returns_c(tmp_path):
     path = tmp_path / "selection.json"
     path.write_text(json.dumps({"C": 2, "candidates": []}))
     assert read_selection(path) == 2.0 and isinstance(read_selection(path), float)
+    path.write_text(json.dumps({"C": 0.25}))
+    assert read_selection(path) == 0.25  # below 1 is a valid slack weight
 
 
 @pytest.mark.parametrize("text, message", [
