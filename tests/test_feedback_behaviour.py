@@ -6,6 +6,9 @@ effect of every pick is known in advance and no model has to be trained.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
+import numpy as np
 import pytest
 
 from pipeline.evaluate.crossval import judge
@@ -101,3 +104,86 @@ def test_feedback_rows_count_the_programs_the_observer_corrected(scenario):
     success = {(r["k"], r["n"]): r["success"] for r in rows}
     assert success[(2, "all")] == 100.0 and success[(2, "2")] == 0.0
 
+
+
+class ListPolicy:
+    """A policy that offers, at step t, the actions of `script[t]` in that order (scores 0, -1, ...)."""
+
+    def __init__(self, script) -> None:
+        self.script, self.seen = script, []
+
+    def __call__(self, ctx, state):
+        self.seen.append(ctx)
+        step = self.script[min(len(self.seen) - 1, len(self.script) - 1)]
+        return [(ctx.encode(Action.parse(a)), float(-i)) for i, a in enumerate(step)]
+
+
+def test_a_program_records_each_step_its_alternatives_and_every_state(scenario):
+    from pipeline.plan.planner import run_loop
+
+    policy = ListPolicy([[str(DEMO[0]), f"move_close({MUG})"], [str(DEMO[1]), "done"], ["done"]])
+    program = run_loop(policy, scenario.initial, scenario.task)
+    assert program.status == DONE and program.actions == list(DEMO[:2]) and program.error is None
+    assert [s.score for s in program.steps] == [0.0, 0.0]
+    assert program.steps[0].alternatives == [(Action.parse(f"move_close({MUG})"), -1.0)]
+    assert program.steps[1].alternatives == [(Action("done"), -1.0)]
+    assert len(program.states) == 3 and program.initial is scenario.initial
+    assert program.final.held == CUP and program.states[1].held is None
+    assert not program.goal_reached and program.safe and not program.success
+
+
+def test_the_loop_stops_at_the_step_cap(scenario):
+    from pipeline.plan.planner import STEP_CAP, run_loop
+
+    back_and_forth = ListPolicy([[f"move_close({MUG})"], [f"move_close({CUP})"]] * 5)
+    program = run_loop(back_and_forth, scenario.initial, scenario.task, max_steps=3)
+    assert program.status == STEP_CAP and len(program.actions) == 3 and len(program.states) == 4
+    assert len(back_and_forth.seen) == 4  # the fourth step was ranked, then refused by the cap
+    assert not program.success
+
+
+def test_an_infeasible_step_ends_the_program_with_the_reason(scenario):
+    from pipeline.plan.planner import INFEASIBLE, run_loop
+
+    program = run_loop(ListPolicy([[f"grasp({CUP})"]]), scenario.initial, scenario.task)
+    assert program.status == INFEASIBLE and program.actions == [Action.parse(f"grasp({CUP})")]
+    assert len(program.states) == 1 and program.final is scenario.initial  # the step changed nothing
+    assert program.error == f"grasp({CUP}): precondition 'within reach' failed: {CUP} is 1.62 m from the robot"
+
+
+def test_a_policy_that_abstains_ends_the_program_infeasible(scenario):
+    from pipeline.plan.planner import INFEASIBLE, Abstain, run_loop
+
+    def abstain(ctx, state):
+        raise Abstain("no plan within 4 steps")
+
+    program = run_loop(abstain, scenario.initial, scenario.task)
+    assert (program.status, program.steps, program.error) == (INFEASIBLE, [], "no plan within 4 steps")
+
+
+def test_an_unsafe_step_is_recorded_and_fails_the_program():
+    from pipeline.plan.planner import run_loop
+
+    state = world({2: 0.0}, [(41, 2, 0, 0.4), (14, 41)])  # a cup standing on a tray
+    task = Task("pick_and_place", ("obj41", "obj02"))
+    steps = [["move_close(obj41)"], ["grasp(obj41)"], ["place_above(obj41,obj02)"], ["release(obj41)"], ["done"]]
+    program = run_loop(ListPolicy(steps), state, task)
+    assert [s.unsafe for s in program.steps] == [[], ["grasp_with_load"], [], []]
+    assert program.goal_reached and not program.safe and not program.success
+
+
+def test_perception_changes_what_the_policy_sees_not_the_world(scenario):
+    from pipeline.plan.planner import run_loop
+
+    def blind(ctx):
+        return replace(ctx, objects=np.zeros_like(ctx.objects))
+
+    policy = ListPolicy([[str(DEMO[0])], ["done"]])
+    program = run_loop(policy, scenario.initial, scenario.task, perceive=blind)
+    assert all((ctx.objects == 0).all() for ctx in policy.seen)
+    assert program.actions == [DEMO[0]] and program.final.robot == (0.4, -0.35)
+
+
+def test_a_task_on_an_object_missing_from_the_world_is_refused(scenario):
+    with pytest.raises(ValueError, match="object obj99 is not in this environment"):
+        plan(ScriptedPlanner(), scenario.initial, Task("throw_away", ("obj99",)))
