@@ -4,8 +4,8 @@
 
 mutmut copies the sources into a `mutants/` folder and rewrites every function into a trampoline that runs one
 mutant at a time, so the run happens in a scratch copy of the project (`.mutation/<group>/`, git-ignored) whose
-pyproject.toml names the group's modules and the tests that judge them. The scratch copy is kept between runs:
-mutmut then re-tests only the functions whose code or tests changed. Functions with a decorator (the Numba
+pyproject.toml names the group's modules and the tests that judge them. Every run starts afresh: mutmut would
+reuse a mutant's verdict when only the tests changed. Functions with a decorator (the Numba
 `@njit` kernels among them) are never mutated by mutmut; the kernels are checked bit for bit against scipy by
 tests/test_ssvm.py and tests/test_mrf.py.
 
@@ -63,6 +63,8 @@ GROUPS = {
 def _scratch(name: str, group: Group) -> Path:
     """The scratch copy of the working tree's sources and tests, with the group's mutmut settings."""
     scratch = ROOT / ".mutation" / name
+    # mutmut re-tests a mutant only when its function changed, not when the tests did: start each run afresh
+    shutil.rmtree(scratch / "mutants", ignore_errors=True)
     for folder in ("pipeline", "tests"):
         shutil.copytree(ROOT / folder, scratch / folder, dirs_exist_ok=True,
                         ignore=shutil.ignore_patterns("__pycache__"))
