@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import datetime
+import json
 import re
 import shutil
 import subprocess
@@ -112,18 +113,30 @@ def report(name: str, group: Group, scratch: Path, command: str) -> tuple[str, d
         n_eq = sum(_module(m) == module for m in equivalent)
         lines.append(f"| `{module}` | {len(mine) + n_eq} | {k} | {len(mine) - k} | {n_eq} | "
                      f"{100.0 * k / max(len(mine), 1):.1f}% |")
+    diffs = _diffs(scratch, [*survivors, *equivalent])
     lines += ["", "## Survivors", ""] + (["None."] if not survivors else [])
     for m in survivors:
-        lines += [f"### `{m}` ({counted[m]})", "", "```diff", _diff(scratch, m), "```", ""]
+        lines += [f"### `{m}` ({counted[m]})", "", "```diff", diffs[m], "```", ""]
     lines += ["## Equivalent mutants", ""] + (["None."] if not equivalent else [])
     for m in sorted(equivalent, key=_natural):
-        lines += [f"### `{m}`", "", equivalent[m], "", "```diff", _diff(scratch, m), "```", ""]
+        lines += [f"### `{m}`", "", equivalent[m], "", "```diff", diffs[m], "```", ""]
     return "\n".join(lines).rstrip() + "\n", {**counts, "score": round(score, 1)}
 
 
-def _diff(scratch: Path, mutant: str) -> str:
-    text = _mutmut(scratch, "show", mutant)
-    return "\n".join(line for line in text.splitlines() if not line.startswith("# ")).strip()
+# every diff in one process: `mutmut show` per mutant starts Python (and reads mutmut's state) once each
+_DIFFS = """
+import json, sys
+from mutmut.mutation.diff_apply import find_mutant, get_diff_for_mutant
+names = json.load(sys.stdin)
+json.dump({n: get_diff_for_mutant(n, path=find_mutant(n).path) for n in names}, sys.stdout)
+"""
+
+
+def _diffs(scratch: Path, mutants: list[str]) -> dict[str, str]:
+    """The diff of each mutant against the original source (what `mutmut show` prints)."""
+    out = subprocess.run([sys.executable, "-c", _DIFFS], cwd=scratch, input=json.dumps(mutants), check=True,
+                         capture_output=True, text=True).stdout
+    return {name: diff.strip() for name, diff in json.loads(out).items()}
 
 
 def _module(mutant: str) -> str:
