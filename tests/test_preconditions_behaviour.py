@@ -265,3 +265,28 @@ def test_actions_print_and_refuse_as_documented():
         Action("fly", ())
     with pytest.raises(ValueError, match=r"^cannot parse action 'grasp\(obj02'; expected e.g. grasp\(obj02\)$"):
         Action.parse("grasp(obj02")
+
+
+def _resized(state, obj: str, **change):
+    """The state with one object's spec changed (a hand-made object the catalog does not have)."""
+    from dataclasses import replace
+
+    state.specs = {**state.specs, obj: replace(state.specs[obj], **change)}
+    return state
+
+
+def test_an_object_fits_inside_up_to_the_containers_own_footprint(kitchen):
+    from pipeline.sim.primitives import free_spot
+
+    bin_w, bin_l, _ = kitchen.specs[TRASH].size
+    exact = _resized(kitchen.copy(), CUP, size=(bin_w, bin_l, 0.09))
+    assert free_spot(exact, CUP, TRASH) is not None  # as wide and as long as the bin: fits
+    for size in ((bin_w + 1e-3, 0.05, 0.09), (0.05, bin_l + 1e-3, 0.09)):  # a millimetre too wide or too long
+        assert free_spot(_resized(kitchen.copy(), CUP, size=size), CUP, TRASH) is None
+
+
+def test_a_container_with_a_large_flat_top_takes_things_on_top(kitchen):
+    from pipeline.sim.primitives import receives_inside
+
+    flags = kitchen.specs[TRASH].flags | {"large_surface"}
+    assert not receives_inside(_resized(kitchen.copy(), TRASH, flags=flags), TRASH)
