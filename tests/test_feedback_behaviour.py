@@ -12,9 +12,16 @@ import numpy as np
 import pytest
 
 from pipeline.evaluate.crossval import judge
-from pipeline.evaluate.robustness import Condition, _replay, feedback_rows, observer
+from pipeline.evaluate.robustness import (
+    BINARY_COLUMNS,
+    Condition,
+    _replay,
+    evaluate_conditions,
+    feedback_rows,
+    observer,
+)
 from pipeline.plan.planner import DONE, plan
-from pipeline.settings import Feedback
+from pipeline.settings import Feedback, Folds
 from pipeline.sim.primitives import Action
 from pipeline.sim.scenarios import Scenario
 from pipeline.sim.tasks import Task
@@ -187,3 +194,57 @@ def test_perception_changes_what_the_policy_sees_not_the_world(scenario):
 def test_a_task_on_an_object_missing_from_the_world_is_refused(scenario):
     with pytest.raises(ValueError, match="object obj99 is not in this environment"):
         plan(ScriptedPlanner(), scenario.initial, Task("throw_away", ("obj99",)))
+
+
+SEEN: list[tuple[str, tuple]] = []  # (task, the binary attributes the planner saw first), in replay order
+
+
+class SeeingPlanner(ScriptedPlanner):
+    def top_k(self, ctx, k: int):
+        if self.calls == 0:
+            SEEN.append((str(ctx.object_ids), tuple(ctx.objects[:, BINARY_COLUMNS].ravel())))
+        return super().top_k(ctx, k)
+
+
+class SeeingMethod(ScriptedMethod):
+    @property
+    def planner_(self) -> SeeingPlanner:
+        return SeeingPlanner()
+
+
+@pytest.fixture
+def two_scenarios(scenario) -> dict:
+    other = world({2: 0.0, 10: -1.2, 8: 2.2}, [(14, 2, 0, 0.4), (13, 8, 1, 0.0), (34, 2, 0, 0.0)])
+    second = Scenario("envY", Task("throw_away", (CUP,)), other, (DEMO,))
+    return {scenario.id: scenario, second.id: second}
+
+
+@pytest.mark.parametrize("fold_seed", [0, 1])
+def test_every_condition_replays_every_scenario_once(two_scenarios, fold_seed):
+    conditions = [Condition("noise", 0.0, 0), Condition("feedback", 2, 20)]
+    out = evaluate_conditions({"full": SeeingMethod, "again": SeeingMethod}, [], [], two_scenarios, conditions,
+                              Folds(folds=2, seed=fold_seed), max_steps=20, seed=0, n_jobs=1)
+    assert list(out) == ["full", "again"]
+    for results in out.values():
+        assert sorted((c.kind, o.scenario_id) for c, o in results) == sorted(
+            (c.kind, sid) for c in conditions for sid in two_scenarios)
+        assert all(o.arg_correct == (c.kind == "feedback") for c, o in results)
+
+
+def test_noise_draws_depend_on_the_scenario_not_on_the_fold_layout(two_scenarios):
+    noisy = [Condition("noise", 0.5, 0), Condition("noise", 0.5, 1)]
+    seen = []
+    for fold_seed in (0, 1, 2):
+        SEEN.clear()
+        evaluate_conditions({"full": SeeingMethod}, [], [], two_scenarios, noisy, Folds(folds=2, seed=fold_seed),
+                            max_steps=20, seed=7, n_jobs=1)
+        seen.append(sorted(SEEN))
+    assert seen[0] == seen[1] == seen[2]
+    SEEN.clear()
+    evaluate_conditions({"full": SeeingMethod}, [], [], two_scenarios, noisy, Folds(folds=2), max_steps=20, seed=8,
+                        n_jobs=1)
+    assert sorted(SEEN) != seen[0]  # another noise seed, other errors
+    draws = {}
+    for ids, bits in seen[0]:
+        draws.setdefault(ids, []).append(bits)
+    assert all(len(set(b)) == 2 for b in draws.values())  # the two noise draws of a scenario differ
