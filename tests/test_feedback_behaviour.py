@@ -20,6 +20,7 @@ from pipeline.evaluate.robustness import (
     feedback_rows,
     observer,
 )
+from pipeline.features.context import step_context
 from pipeline.plan.planner import DONE, plan
 from pipeline.settings import Feedback, Folds
 from pipeline.sim.primitives import Action
@@ -117,10 +118,11 @@ class ListPolicy:
     """A policy that offers, at step t, the actions of `script[t]` in that order (scores 0, -1, ...)."""
 
     def __init__(self, script) -> None:
-        self.script, self.seen = script, []
+        self.script, self.seen, self.states = script, [], []
 
     def __call__(self, ctx, state):
         self.seen.append(ctx)
+        self.states.append(state)
         step = self.script[min(len(self.seen) - 1, len(self.script) - 1)]
         return [(ctx.encode(Action.parse(a)), float(-i)) for i, a in enumerate(step)]
 
@@ -137,6 +139,7 @@ def test_a_program_records_each_step_its_alternatives_and_every_state(scenario):
     assert len(program.states) == 3 and program.initial is scenario.initial
     assert program.final.held == CUP and program.states[1].held is None
     assert not program.goal_reached and program.safe and not program.success
+    assert policy.states == program.states  # the policy ranks each step from the world as it is then
 
 
 def test_the_loop_stops_at_the_step_cap(scenario):
@@ -166,6 +169,7 @@ def test_a_policy_that_abstains_ends_the_program_infeasible(scenario):
 
     program = run_loop(abstain, scenario.initial, scenario.task)
     assert (program.status, program.steps, program.error) == (INFEASIBLE, [], "no plan within 4 steps")
+    assert program.task == scenario.task and program.states == [scenario.initial]
 
 
 def test_an_unsafe_step_is_recorded_and_fails_the_program():
@@ -248,3 +252,84 @@ def test_noise_draws_depend_on_the_scenario_not_on_the_fold_layout(two_scenarios
     for ids, bits in seen[0]:
         draws.setdefault(ids, []).append(bits)
     assert all(len(set(b)) == 2 for b in draws.values())  # the two noise draws of a scenario differ
+
+
+class Wanderer(ScriptedPlanner):
+    """Never stops: offers a detour to the mug or back to the cup, in turn; the demonstration's step fourth."""
+
+    def top_k(self, ctx, k: int):
+        t, self.calls = self.calls, self.calls + 1
+        ranked = [f"move_close({MUG if t % 2 == 0 else CUP})", "done", f"move_close({TRASH})"]
+        ranked += [str(DEMO[t])] if t < len(DEMO) else []
+        return [(ctx.encode(Action.parse(a)), float(-i)) for i, a in enumerate(ranked)][:k]
+
+
+def test_plan_caps_at_twenty_steps_by_default_or_as_told(scenario):
+    from pipeline.plan.planner import STEP_CAP, run_loop
+
+    assert len(plan(Wanderer(), scenario.initial, scenario.task).actions) == 20
+    wanderer = Wanderer()
+    assert len(run_loop(lambda ctx, state: wanderer.top_k(ctx, 3), scenario.initial, scenario.task).actions) == 20
+    capped = plan(Wanderer(), scenario.initial, scenario.task, max_steps=2)
+    assert capped.status == STEP_CAP and len(capped.actions) == 2
+
+
+def test_by_default_the_observer_is_offered_the_top_three(scenario):
+    # the demonstration's step comes fourth: out of reach by default, within reach with top_k=4
+    choose = observer(scenario.demonstrations, 20)
+    assert plan(Wanderer(), scenario.initial, scenario.task, max_steps=3, choose=choose).actions[0] != DEMO[0]
+    assert plan(Wanderer(), scenario.initial, scenario.task, max_steps=3, choose=choose, top_k=4).actions[0] == DEMO[0]
+
+
+def test_plan_passes_perception_on(scenario):
+    seen = []
+
+    class Looking(ScriptedPlanner):
+        def top_k(self, ctx, k):
+            seen.append(ctx.objects.copy())
+            return super().top_k(ctx, k)
+
+    plan(Looking(), scenario.initial, scenario.task, perceive=lambda ctx: replace(ctx, objects=ctx.objects + 1.0))
+    clean = step_context(scenario.initial, scenario.task, [])
+    np.testing.assert_array_equal(seen[0], clean.objects + 1.0)
+
+
+FITS: list[tuple] = []
+OFFERED: list[int] = []
+
+
+class FittingMethod(SeeingMethod):
+    def fit(self, contexts, meta, scenarios=None):
+        FITS.append((list(contexts), list(meta), scenarios))
+        return self
+
+    @property
+    def planner_(self) -> ScriptedPlanner:
+        class Counting(ScriptedPlanner):
+            def top_k(self, ctx, k):
+                OFFERED.append(k)
+                return super().top_k(ctx, k)
+
+        return Counting()
+
+
+def test_each_fold_trains_on_the_other_scenarios_steps_and_replays_under_the_cap(two_scenarios):
+    from types import SimpleNamespace
+
+    ids = sorted(two_scenarios)
+    meta = [SimpleNamespace(scenario_id=ids[i % 2]) for i in range(5)]
+    contexts = [f"step {i}" for i in range(5)]
+    FITS.clear()
+    OFFERED.clear()
+    out = evaluate_conditions({"full": FittingMethod}, contexts, meta, two_scenarios,
+                              [Condition("noise", 0.0, 0), Condition("feedback", 2, 20)], Folds(folds=2),
+                              max_steps=2, seed=0, n_jobs=1)
+    assert len(FITS) == 2
+    for fit_contexts, fit_meta, scenarios in FITS:
+        trained = {m.scenario_id for m in fit_meta}
+        assert len(trained) == 1 and scenarios is two_scenarios
+        assert fit_contexts == [c for c, m in zip(contexts, meta, strict=True) if m.scenario_id in trained]
+    assert {FITS[0][1][0].scenario_id, FITS[1][1][0].scenario_id} == set(ids)  # each fold leaves its test out
+    statuses = {(c.kind, o.status) for c, o in out["full"]}
+    assert statuses == {("noise", "done"), ("feedback", "step_cap")}  # feedback follows the demo into the cap
+    assert set(OFFERED) == {2, 3}  # the observer's k under feedback, the usual top 3 otherwise
