@@ -53,6 +53,7 @@ def _write_world(d: Path, w: dict) -> None:
                                  f"full,0.3,{w['noisy']},{w['noisy']},{w['noisy']}\n")
     (d / "feedback.csv").write_text("method,k,n,sequence_arg,sequence_prim,success\n"
                                     f"full,2,0,{w['arg']},{w['prim']},{w['success']}\n"
+                                    f"full,2,1,{w['fb'] - 10},{w['fb'] - 10},{w['fb'] - 10}\n"
                                     f"full,2,all,{w['fb']},{w['fb']},{w['fb']}\n")
     (d / "crossval_sequences.csv").write_text(",".join(SEQUENCE_COLUMNS) + "\n")
     (d / "dataset.json").write_text(json.dumps({"environments": 2}))
@@ -85,9 +86,21 @@ def tracker() -> RecordingTracker:
     return RecordingTracker()
 
 
+PLOTS: dict[str, dict] = {}
+
+
 @pytest.fixture
-def aggregated(tmp_path, tracker) -> Path:
-    """The stage run on three different worlds (function-scoped, so every test sees the stage run under it)."""
+def aggregated(tmp_path, tracker, monkeypatch) -> Path:
+    """The stage run on three different worlds (function-scoped, so every test sees the stage run under it);
+    what each figure draws is kept in PLOTS, by file name."""
+    draw = aggregate.line_plot_png
+
+    def recording(series, path, title, xlabel, ylabel, **options):
+        PLOTS[Path(path).name] = {"series": series, "title": title, "xlabel": xlabel, "ylabel": ylabel, **options}
+        draw(series, path, title, xlabel, ylabel, **options)
+
+    monkeypatch.setattr(aggregate, "line_plot_png", recording)
+    PLOTS.clear()
     for seed, w in WORLD.items():
         _write_world(tmp_path / "worlds" / str(seed), w)
     out = tmp_path / "out"
@@ -142,7 +155,9 @@ def test_noise_and_feedback_curves_over_worlds(aggregated):
     assert (float(fb["all"]["success"]), float(fb["all"]["success_sd"])) == (90.0, 10.0)
     metrics = json.loads((aggregated / "metrics.json").read_text())
     assert metrics["noise"]["full"] == {"rate_0": 75.0, "rate_0.3": 30.0}
-    assert metrics["feedback"]["full"] == {"top2_nall": 90.0}
+    assert metrics["feedback"]["full"] == {"top2_n1": 80.0, "top2_nall": 90.0}  # one step and every step
+    assert metrics["recipes"] == {"full": {"no_feedback": 3.0, "feedback_first_step": 6.0}}
+    assert set(metrics) == {"crossval", "noise", "feedback", "recipes"}
     assert metrics["crossval"]["full"] == pytest.approx({"sequence_arg": 75.0, "sequence_arg_sd": SD_ARG,
                                                          "success": 80.0})
 
@@ -180,7 +195,7 @@ def test_every_table_names_its_columns_and_the_world_seeds(aggregated):
     assert head[1] == "0,multiclass,95,,,,,"
     assert (aggregated / "noise_seeds.csv").read_text().splitlines()[:2] == [
         "world_seed,method,rate,sequence_arg,sequence_prim,success", "0,full,0.0,60.00,90.00,80.00"]
-    assert (aggregated / "feedback_seeds.csv").read_text().splitlines()[2] == "0,full,2,all,80.00,80.00,80.00"
+    assert (aggregated / "feedback_seeds.csv").read_text().splitlines()[3] == "0,full,2,all,80.00,80.00,80.00"
     assert (aggregated / "noise.csv").read_text().splitlines()[0] == (
         "method,rate,sequence_arg,sequence_arg_sd,sequence_prim,sequence_prim_sd,success,success_sd")
     assert (aggregated / "feedback.csv").read_text().splitlines()[0].startswith("method,k,n,sequence_arg,")
@@ -190,7 +205,7 @@ def test_every_table_names_its_columns_and_the_world_seeds(aggregated):
     assert (aggregated / "plots" / "noise.csv").read_text().splitlines() == [
         "rate,ours - full", "0.0,75.00", "0.3,30.00"]
     assert (aggregated / "plots" / "feedback.csv").read_text().splitlines() == [
-        "n,ours - full top 2", "0,75.00", "all,90.00"]
+        "n,ours - full top 2", "0,75.00", "1,80.00", "all,90.00"]
     assert (aggregated / "noise.png").stat().st_size > 0 and (aggregated / "feedback.png").stat().st_size > 0
 
 
@@ -231,3 +246,19 @@ def test_failure_shares_of_a_world_with_one_program_and_of_an_unknown_method():
     assert failure_shares(rows, "m")["exact"] == (100.0, 0.0)
     assert failure_shares(rows, "m", "pour")["exact"] == (0.0, 0.0)
     assert failure_shares(rows, "nobody") == dict.fromkeys(KINDS, (0.0, 0.0))
+
+
+def test_the_figures_draw_the_means_and_spreads_over_worlds(aggregated):
+    noise = PLOTS["noise.png"]
+    (label, (xs, ys, sds)), = noise["series"].items()
+    assert label == "ours - full (mean, sd over 3 world seeds)" and xs == [0.0, 0.3] and ys == [75.0, 30.0]
+    assert sds == pytest.approx([SD_ARG, 10.0])
+    assert noise["title"] == "Sequence accuracy (arg) with binary attributes flipped"
+    assert noise["xlabel"] == "probability of flipping each binary attribute"
+    assert noise["ylabel"] == "% sequences correct"
+    assert list(noise["reference"]) == ["paper"] and noise["reference"]["paper"][0][0] == 0.0
+    fb = PLOTS["feedback.png"]
+    assert fb["series"] == {"ours - full, top 2": ([0, 1, 2], [75.0, 80.0, 90.0], pytest.approx([SD_ARG, 10.0, 10.0]))}
+    assert fb["title"] == "Sequence accuracy (arg) with an observer's feedback"
+    assert (fb["xlabel"], fb["ylabel"]) == ("steps with feedback", "% sequences correct")
+    assert fb["xticks"] == [0, 1, 2] and fb["xticklabels"] == ["0", "1", "all"]
