@@ -23,6 +23,7 @@ import re
 import shutil
 import subprocess
 import sys
+import time
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -89,7 +90,7 @@ def _equivalent() -> dict[str, str]:
     return tomllib.loads(EQUIVALENT.read_text()) if EQUIVALENT.exists() else {}
 
 
-def report(name: str, group: Group, scratch: Path, command: str) -> tuple[str, dict[str, int]]:
+def report(name: str, group: Group, scratch: Path, command: str, minutes: float) -> tuple[str, dict[str, int]]:
     """The Markdown report of the last run: counts, score and every surviving mutant's diff."""
     status = dict(re.findall(r"^\s*(\S+): (.+)$", _mutmut(scratch, "results", "--all", "true"), re.M))
     equivalent = {m: why for m, why in _equivalent().items() if m in status}
@@ -100,7 +101,8 @@ def report(name: str, group: Group, scratch: Path, command: str) -> tuple[str, d
     counts = {"mutants": len(status), "killed": killed, "survived": len(survivors), "equivalent": len(equivalent)}
     score = 100.0 * killed / max(len(counted), 1)
     lines = [f"# Mutation testing: {name}", "",
-             f"{datetime.date.today().isoformat()}, `{command}` (mutmut {_mutmut(scratch, '--version').split()[-1]})",
+             f"{datetime.date.today().isoformat()}, `{command}` (mutmut {_mutmut(scratch, '--version').split()[-1]}), "
+             f"{minutes:.0f} min on this machine",
              "", f"Modules: {', '.join(f'`{m}`' for m in group.modules)}.  ",
              f"Tests: {', '.join(f'`{t}`' for t in group.tests if (ROOT / t).exists())}.", "",
              "| mutants | killed | survived | equivalent | score |", "|---:|---:|---:|---:|---:|",
@@ -114,10 +116,10 @@ def report(name: str, group: Group, scratch: Path, command: str) -> tuple[str, d
         lines.append(f"| `{module}` | {len(mine) + n_eq} | {k} | {len(mine) - k} | {n_eq} | "
                      f"{100.0 * k / max(len(mine), 1):.1f}% |")
     diffs = _diffs(scratch, [*survivors, *equivalent])
-    lines += ["", "## Survivors", ""] + (["None."] if not survivors else [])
+    lines += ["", "## Survivors", ""] + (["None.", ""] if not survivors else [])
     for m in survivors:
         lines += [f"### `{m}` ({counted[m]})", "", "```diff", diffs[m], "```", ""]
-    lines += ["## Equivalent mutants", ""] + (["None."] if not equivalent else [])
+    lines += ["## Equivalent mutants", ""] + (["None.", ""] if not equivalent else [])
     for m in sorted(equivalent, key=_natural):
         lines += [f"### `{m}`", "", equivalent[m], "", "```diff", diffs[m], "```", ""]
     return "\n".join(lines).rstrip() + "\n", {**counts, "score": round(score, 1)}
@@ -162,13 +164,14 @@ def main(argv: list[str] | None = None) -> int:
     group = GROUPS[args.group]
     scratch = _scratch(args.group, group)
     exe = Path(sys.executable).with_name("mutmut")
+    start = time.monotonic()
     run = subprocess.run([str(exe), "run", "--max-children", str(args.max_children)], cwd=scratch,
                          stdout=subprocess.DEVNULL)
     if run.returncode != 0:
         print(f"mutmut run failed with exit code {run.returncode} (in {scratch})", file=sys.stderr)
         return run.returncode
     command = f"nice -n 10 python scripts/mutation.py {args.group}"
-    text, counts = report(args.group, group, scratch, command)
+    text, counts = report(args.group, group, scratch, command, (time.monotonic() - start) / 60)
     output = args.output or ROOT / "reports" / "mutation" / f"{args.group}.md"
     write_text_atomic(output, text)
     print(f"{args.group}: {counts}; survivors in {output}")
