@@ -290,3 +290,25 @@ def test_a_container_with_a_large_flat_top_takes_things_on_top(kitchen):
 
     flags = kitchen.specs[TRASH].flags | {"large_surface"}
     assert not receives_inside(_resized(kitchen.copy(), TRASH, flags=flags), TRASH)
+
+
+def test_every_object_on_the_level_blocks_its_footprint(room):
+    from pipeline.sim.primitives import free_spot
+
+    # a second bowl at x = 0.15 also blocks 0.05 to 0.25 of the front row: the nearest free spot is 0.55
+    two = world({2: 0.0, 8: 2.2, 10: -1.2}, [(16, 2, 0, 0.4), (18, 2, 0, -0.2), (14, 2, 0, -0.6)])
+    two = _resized(two, "obj18", size=two.specs["obj16"].size)  # the pot, resized to a second bowl
+    two.poses["obj18"] = (0.15, 0.16, 0.75)
+    two.robot = (0.4, -0.35)
+    assert free_spot(two, CUP, TABLE)[0] == (0.55, 0.05, 0.75)
+
+
+@pytest.mark.parametrize("robot_x, spot_x", [(0.28, 0.3), (0.52, 0.5), (0.36, 0.3)])
+def test_touching_an_object_is_not_overlapping_it(room, robot_x, spot_x):
+    from pipeline.sim.primitives import free_spot
+
+    # a 4 x 10 cm cup beside the 16 cm bowl at x = 0.4 (both reach into y 0.08 to 0.1): at 0.3 and 0.5 their
+    # edges meet exactly, at 0.35 they overlap
+    small = _resized(room, CUP, size=(0.04, 0.1, 0.09))
+    small.robot = (robot_x, -0.35)
+    assert free_spot(small, CUP, TABLE)[0] == (spot_x, 0.05, 0.75)
