@@ -312,3 +312,23 @@ def test_touching_an_object_is_not_overlapping_it(room, robot_x, spot_x):
     small = _resized(room, CUP, size=(0.04, 0.1, 0.09))
     small.robot = (robot_x, -0.35)
     assert free_spot(small, CUP, TABLE)[0] == (spot_x, 0.05, 0.75)
+
+
+def test_objects_on_other_levels_do_not_block_a_shelf_level():
+    from pipeline.sim.primitives import free_spot
+
+    shelf = world({8: 2.2}, [(13, 8, 1, 0.0), (14, 8, 0, -0.4)])  # a mug on the second level, right above x = 2.2
+    shelf.robot = (2.2, -0.35)
+    assert free_spot(shelf, CUP, "obj08") == ((2.2, 0.05, 0.5), "on")
+
+
+def test_an_object_as_large_as_the_surface_fits_at_its_centre_and_a_too_tall_one_goes_up(room):
+    from pipeline.sim.primitives import free_spot
+
+    table_w, table_l, _ = room.specs[TABLE].size
+    board = _resized(room.copy(), CUP, size=(table_w, table_l, 0.02))
+    board.poses["obj16"] = board.poses["obj12"] = (5.0, 5.0, 0.0)  # clear the table (off it, in the room)
+    board.support = {k: v for k, v in board.support.items() if v[0] != TABLE or k == CUP}
+    assert free_spot(board, CUP, TABLE) == ((0.0, 0.45, 0.75), "on")
+    tall = _resized(room.copy(), CUP, size=(0.075, 0.075, 0.30))  # 30 cm: fits under no level (28 cm each)
+    assert free_spot(tall, CUP, "obj08")[0][2] == 1.4  # but on the top one
