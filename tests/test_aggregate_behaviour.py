@@ -185,19 +185,26 @@ def test_failure_shares_over_worlds(aggregated):
 
 def test_every_table_names_its_columns_and_the_world_seeds(aggregated):
     assert (aggregated / "table1_seeds.csv").read_text().splitlines()[1] == "0,ours - full,move_close,95.00,85.00"
-    assert (aggregated / "table1.csv").read_text().startswith("method,column,prim,prim_sd,arg,arg_sd\n")
+    table = (aggregated / "table1.csv").read_text().splitlines()
+    assert table[0] == "method,column,prim,prim_sd,arg,arg_sd"
+    assert [line for line in table if ",sequence," in line] == ["ours - full,sequence,90.00,10.00,75.00,18.03",
+                                                               "multiclass,sequence,95.00,0.00,,"]  # two decimals
     assert "| ours - full |" in (aggregated / "table1.md").read_text()
     tex = (aggregated / "table1.tex").read_text()
     assert "over 3 world seeds (0, 3, 7), each a 6-fold cross-validation: percentage of primitives (prim)" in tex
-    assert "teacher-forced, and of closed-loop sequences equal to a demonstration." in tex
+    assert "(arg) right, teacher-forced, and of closed-loop sequences equal to a demonstration.}" in tex
     head = (aggregated / "crossval_seeds.csv").read_text().splitlines()
     assert head[0] == "world_seed,method,average_prim,average_arg,sequence_prim,sequence_arg,success,goal_reached"
     assert head[1] == "0,multiclass,95,,,,,"
     assert (aggregated / "noise_seeds.csv").read_text().splitlines()[:2] == [
         "world_seed,method,rate,sequence_arg,sequence_prim,success", "0,full,0.0,60.00,90.00,80.00"]
     assert (aggregated / "feedback_seeds.csv").read_text().splitlines()[3] == "0,full,2,all,80.00,80.00,80.00"
-    assert (aggregated / "noise.csv").read_text().splitlines()[0] == (
-        "method,rate,sequence_arg,sequence_arg_sd,sequence_prim,sequence_prim_sd,success,success_sd")
+    assert (aggregated / "noise.csv").read_text().splitlines() == [
+        "method,rate,sequence_arg,sequence_arg_sd,sequence_prim,sequence_prim_sd,success,success_sd",
+        "full,0.0,75.00,18.03,90.00,10.00,80.00,10.00", "full,0.3,30.00,10.00,30.00,10.00,30.00,10.00"]
+    assert (aggregated / "feedback.csv").read_text().splitlines()[1:] == [
+        "full,2,0,75.00,18.03,90.00,10.00,80.00,10.00", "full,2,1,80.00,10.00,80.00,10.00,80.00,10.00",
+        "full,2,all,90.00,10.00,90.00,10.00,90.00,10.00"]
     assert (aggregated / "feedback.csv").read_text().splitlines()[0].startswith("method,k,n,sequence_arg,")
     assert (aggregated / "failures.csv").read_text().splitlines()[1] == "0,full,all,exact,6"
     assert (aggregated / "crossval_sequences.csv").read_text() == "world_seed," + ",".join(SEQUENCE_COLUMNS) + "\n"
@@ -215,7 +222,7 @@ def test_the_run_records_per_world_children_means_and_artifacts(aggregated, trac
                      "full seed=7"]
     full7 = tracker.children[-1]
     assert full7.params == {"method": "full", "world_seed": 7}
-    assert full7.recorded["sequence_arg"] == 95.0 and "method" not in full7.recorded
+    assert full7.recorded["sequence_arg"] == 95.0 and not {"method", "world_seed"} & set(full7.recorded)
     assert tracker.recorded["full.sequence_arg"] == 75.0 and tracker.recorded["full.sequence_arg_min"] == 60.0
     assert sorted(tracker.artifacts) == sorted(["table1.md", "table1.tex", "metrics.json", "crossval_means.json",
                                                 "failures.md", "noise.png", "feedback.png", "recipes.json"])
