@@ -158,6 +158,7 @@ def test_an_infeasible_step_ends_the_program_with_the_reason(scenario):
     program = run_loop(ListPolicy([[f"grasp({CUP})"]]), scenario.initial, scenario.task)
     assert program.status == INFEASIBLE and program.actions == [Action.parse(f"grasp({CUP})")]
     assert len(program.states) == 1 and program.final is scenario.initial  # the step changed nothing
+    assert program.task == scenario.task and not program.goal_reached
     assert program.error == f"grasp({CUP}): precondition 'within reach' failed: {CUP} is 1.62 m from the robot"
 
 
@@ -333,3 +334,10 @@ def test_each_fold_trains_on_the_other_scenarios_steps_and_replays_under_the_cap
     statuses = {(c.kind, o.status) for c, o in out["full"]}
     assert statuses == {("noise", "done"), ("feedback", "step_cap")}  # feedback follows the demo into the cap
     assert set(OFFERED) == {2, 3}  # the observer's k under feedback, the usual top 3 otherwise
+
+
+def test_the_candidates_the_observer_passed_over_stay_in_order_as_alternatives(scenario):
+    program = plan(ScriptedPlanner(), scenario.initial, scenario.task, top_k=3,
+                   choose=observer(scenario.demonstrations, 1))
+    assert program.steps[0].action == DEMO[0]
+    assert program.steps[0].alternatives == [(Action("done"), 0.0), (Action.parse(f"move_close({MUG})"), -2.0)]
