@@ -38,4 +38,11 @@ def test_summary_sets_our_numbers_beside_the_papers(tmp_path):
 
 
 def test_summary_skips_what_was_not_run(tmp_path):
-    assert build_summary(tmp_path, method_labels()).startswith("# Results")
+    text = build_summary(tmp_path, method_labels())
+    assert text.startswith("# Results\n\nEvery number below comes from `dvc repro`")
+    assert "## " not in text  # no section for a stage whose results are missing
+    (tmp_path / "recipes.json").write_text(json.dumps({"methods": {"full": {"recipes": 12, "per_seed": {
+        "0": {"no_feedback": 1, "feedback_first_step": 2}}}}}))
+    text = build_summary(tmp_path, method_labels())
+    assert [line for line in text.splitlines() if line.startswith("## ")] == [
+        "## Recipes (environments held out from training; successes per world seed)"]

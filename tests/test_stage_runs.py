@@ -10,9 +10,8 @@ from pathlib import Path
 import pytest
 
 from pipeline.cli import main
-from pipeline.settings import Folds, Learner, Select, World
+from pipeline.evaluate.selection import best_candidate
 from pipeline.stages import select as select_stage
-from pipeline.stages.paths import SelectPaths
 
 FOLDS = ["--set", "crossval.folds=2", "--set", "crossval.group_by=scenario", "--set", "crossval.seed=0"]
 LEARN = ["--set", "train.tol=0.01", "--set", "train.max_iter=300", "--set", "train.n_slacks=2"]
@@ -162,8 +161,9 @@ def test_aggregate_and_report_over_worlds(evaluated, tiny):
         assert heading in text
 
 
-def test_select_sees_only_the_development_world(tiny, monkeypatch, tmp_path):
-    """The expert world used to choose C is drawn from dev_seed alone; no reported world reaches it."""
+def test_select_sees_only_the_development_world(tiny, monkeypatch, tmp_path, capsys):
+    """Through the command line: the expert world used to choose C is drawn from dev_seed alone, no reported world
+    reaches it, and the file holds the candidate the documented rule prefers."""
     drawn = []
 
     def spy_generate(seed, output):
@@ -172,15 +172,20 @@ def test_select_sees_only_the_development_world(tiny, monkeypatch, tmp_path):
         return {}
 
     monkeypatch.setattr(select_stage, "generate", spy_generate)
-    settings = select_stage.Settings(World(seeds=(0, 3), dev_seed=100), Select(C=(0.5, 2.0)),
-                                     Learner(tol=0.01, max_iter=300, n_slacks=2), Folds(folds=2), max_steps=20)
-    result = select_stage.run(settings, SelectPaths(data=tmp_path / "dev", output=tmp_path / "selection.json"))
+    out = tmp_path / "selection.json"
+    assert main(["--no-mlflow", "select", "--set", "world.seeds=[0, 3]", "--set", "world.dev_seed=100",
+                 "--set", "select.C=0.5 2", *FOLDS[:2], *LEARN, "--n-jobs", "1",
+                 "--data", str(tmp_path / "dev"), "--output", str(out)]) == 0
     assert drawn == [100]
-    assert result["C"] in (0.5, 2.0) and len(result["candidates"]) == 2
-    assert json.loads((tmp_path / "selection.json").read_text())["dev_seed"] == 100
-    with pytest.raises(ValueError, match="also a reported seed"):
-        select_stage.run(select_stage.Settings(World(seeds=(0, 100), dev_seed=100), Select(), Learner(), Folds(), 20),
-                         SelectPaths(data=tmp_path / "d", output=tmp_path / "s.json"))
+    result = json.loads(out.read_text())
+    assert result["dev_seed"] == 100 and [c["C"] for c in result["candidates"]] == [0.5, 2.0]
+    assert result["C"] == best_candidate(result["candidates"])["C"]
+    assert f"chose C={result['C']:g}; written to {out}" in capsys.readouterr().out
+    assert {p.name for p in (tmp_path / "dev").iterdir()} == {"raw", "processed", "features"}
+    code = main(["--no-mlflow", "select", "--set", "world.seeds=[0, 100]", "--set", "world.dev_seed=100",
+                 "--data", str(tmp_path / "d"), "--output", str(tmp_path / "s.json")])
+    assert code == 2 and "also a reported seed" in capsys.readouterr().err
+    assert not (tmp_path / "d").exists() and not (tmp_path / "s.json").exists()
 
 
 def test_a_bad_selection_file_is_named(tiny, tmp_path, capsys):

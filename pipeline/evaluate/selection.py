@@ -37,9 +37,18 @@ def select_C(grid: tuple[float, ...], learner: Learner, folds: Folds, contexts: 
     summary = summarize(results, contexts, dict.fromkeys(names, True))
     candidates = [{"C": c, "sequence_arg": summary[name]["sequence/arg"], "success": summary[name]["success"],
                    "average_arg": summary[name]["steps"]["average/arg"]} for name, c in names.items()]
-    best = max(candidates, key=lambda r: (round(r["sequence_arg"], 9), round(r["success"], 9), -r["C"]))
-    return {"C": best["C"], "criterion": "sequence_arg, then success, then the smaller C",
-            "candidates": candidates}
+    return {"C": best_candidate(candidates)["C"], "criterion": CRITERION, "candidates": candidates}
+
+
+CRITERION = "sequence_arg, then success, then the smaller C"
+
+
+def best_candidate(candidates: list[dict[str, Any]]) -> dict[str, Any]:
+    """The candidate `CRITERION` prefers; figures equal to 9 decimals count as a tie (sums over folds may differ
+    in the last bit), so the choice does not hang on rounding noise."""
+    if not candidates:
+        raise ValueError("select: no candidates to choose from")
+    return max(candidates, key=lambda r: (round(r["sequence_arg"], 9), round(r["success"], 9), -r["C"]))
 
 
 def read_selection(path: Path | str) -> float:

@@ -1,0 +1,182 @@
+"""Mutation testing of one group of core modules with mutmut; writes the survivors to reports/mutation/<group>.md.
+
+    nice -n 10 python scripts/mutation.py GROUP      # GROUP: one of GROUPS below, or `list`
+
+mutmut copies the sources into a `mutants/` folder and rewrites every function into a trampoline that runs one
+mutant at a time, so the run happens in a scratch copy of the project (`.mutation/<group>/`, git-ignored) whose
+pyproject.toml names the group's modules and the tests that judge them. Every run starts afresh: mutmut would
+reuse a mutant's verdict when only the tests changed. Functions with a decorator (the Numba
+`@njit` kernels among them) are never mutated by mutmut; the kernels are checked bit for bit against scipy by
+tests/test_ssvm.py and tests/test_mrf.py.
+
+Score: killed (a test failed, or the mutant ran past mutmut's timeout) over all mutants, where a mutant no selected
+test reaches counts as a survivor; mutants listed in scripts/mutation_equivalent.toml (each with the reason it
+changes nothing observable) are left out of the denominator and listed apart in the report.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import re
+import shutil
+import subprocess
+import sys
+import time
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+from pipeline.io import write_text_atomic
+
+ROOT = Path(__file__).resolve().parents[1]
+EQUIVALENT = ROOT / "scripts" / "mutation_equivalent.toml"
+
+
+@dataclass(frozen=True)
+class Group:
+    """Modules mutated together and the test files that judge them (fast ones: every survivor runs them all)."""
+
+    modules: tuple[str, ...]
+    tests: tuple[str, ...]
+
+
+GROUPS = {
+    "evaluate": Group(("pipeline/evaluate/failures.py", "pipeline/evaluate/metrics.py",
+                       "pipeline/evaluate/selection.py"),
+                      ("tests/test_metrics_behaviour.py", "tests/test_failures.py", "tests/test_evaluate.py",
+                       "tests/test_selection_behaviour.py")),
+    "seeds": Group(("pipeline/report/seeds.py", "pipeline/stages/aggregate.py"),
+                   ("tests/test_aggregate_behaviour.py", "tests/test_seeds.py")),
+    "primitives": Group(("pipeline/sim/primitives.py", "pipeline/sim/tasks.py"),
+                        ("tests/test_preconditions_behaviour.py", "tests/test_primitives.py",
+                         "tests/test_tasks_behaviour.py")),
+    "planner": Group(("pipeline/plan/planner.py", "pipeline/evaluate/robustness.py"),
+                     ("tests/test_feedback_behaviour.py", "tests/test_robustness_behaviour.py")),
+    "features": Group(("pipeline/features/context.py", "pipeline/learn/mrf.py"),
+                      ("tests/test_mrf.py", "tests/test_dataset.py")),
+    "learner": Group(("pipeline/learn/ssvm.py", "pipeline/learn/working_set.py", "pipeline/learn/estimator.py"),
+                     ("tests/test_ssvm.py",)),
+    "recipes": Group(("pipeline/evaluate/recipes.py",), ("tests/test_recipes.py",)),
+}
+
+
+def _scratch(name: str, group: Group) -> Path:
+    """The scratch copy of the working tree's sources and tests, with the group's mutmut settings."""
+    scratch = ROOT / ".mutation" / name
+    # mutmut re-tests a mutant only when its function changed, not when the tests did: start each run afresh
+    shutil.rmtree(scratch / "mutants", ignore_errors=True)
+    for folder in ("pipeline", "tests"):
+        shutil.copytree(ROOT / folder, scratch / folder, dirs_exist_ok=True,
+                        ignore=shutil.ignore_patterns("__pycache__"))
+    tests = [t for t in group.tests if (ROOT / t).exists()]
+    settings = "\n".join([
+        "", "[tool.mutmut]", 'source_paths = ["pipeline"]',
+        f"only_mutate = {list(group.modules)!r}",
+        f"pytest_add_cli_args_test_selection = {tests!r}",
+        'pytest_add_cli_args = ["-p", "no:cacheprovider"]', "",
+    ]).replace("'", '"')
+    (scratch / "pyproject.toml").write_text((ROOT / "pyproject.toml").read_text() + settings)
+    return scratch
+
+
+def _mutmut(scratch: Path, *args: str) -> str:
+    exe = Path(sys.executable).with_name("mutmut")
+    return subprocess.run([str(exe), *args], cwd=scratch, check=True, capture_output=True, text=True).stdout
+
+
+def _equivalent() -> dict[str, str]:
+    return tomllib.loads(EQUIVALENT.read_text()) if EQUIVALENT.exists() else {}
+
+
+def report(name: str, group: Group, scratch: Path, command: str, minutes: float) -> tuple[str, dict[str, int]]:
+    """The Markdown report of the last run: counts, score and every surviving mutant's diff."""
+    status = dict(re.findall(r"^\s*(\S+): (.+)$", _mutmut(scratch, "results", "--all", "true"), re.M))
+    equivalent = {m: why for m, why in _equivalent().items() if m in status}
+    counted = {m: s for m, s in status.items() if m not in equivalent}
+    killed = sum(s in ("killed", "timeout") for s in counted.values())
+    survivors = sorted((m for m, s in counted.items() if s in ("survived", "no tests")),
+                       key=_natural)
+    counts = {"mutants": len(status), "killed": killed, "survived": len(survivors), "equivalent": len(equivalent)}
+    score = 100.0 * killed / max(len(counted), 1)
+    lines = [f"# Mutation testing: {name}", "",
+             f"{datetime.date.today().isoformat()}, `{command}` (mutmut {_mutmut(scratch, '--version').split()[-1]}), "
+             f"{minutes:.0f} min on this machine",
+             "", f"Modules: {', '.join(f'`{m}`' for m in group.modules)}.  ",
+             f"Tests: {', '.join(f'`{t}`' for t in group.tests if (ROOT / t).exists())}.", "",
+             "| mutants | killed | survived | equivalent | score |", "|---:|---:|---:|---:|---:|",
+             f"| {len(status)} | {killed} | {len(survivors)} | {len(equivalent)} | {score:.1f}% |", "",
+             "Score: killed / (mutants - equivalent); a mutant no selected test reaches counts as a survivor.", ""]
+    lines += ["| module | mutants | killed | survived | equivalent | score |", "|---|---:|---:|---:|---:|---:|"]
+    for module in sorted({_module(m) for m in status}):
+        mine = {m: s for m, s in counted.items() if _module(m) == module}
+        k = sum(s in ("killed", "timeout") for s in mine.values())
+        n_eq = sum(_module(m) == module for m in equivalent)
+        lines.append(f"| `{module}` | {len(mine) + n_eq} | {k} | {len(mine) - k} | {n_eq} | "
+                     f"{100.0 * k / max(len(mine), 1):.1f}% |")
+    diffs = _diffs(scratch, [*survivors, *equivalent])
+    lines += ["", "## Survivors", ""] + (["None.", ""] if not survivors else [])
+    for m in survivors:
+        lines += [f"### `{m}` ({counted[m]})", "", "```diff", diffs[m], "```", ""]
+    lines += ["## Equivalent mutants", ""] + (["None.", ""] if not equivalent else [])
+    for m in sorted(equivalent, key=_natural):
+        lines += [f"### `{m}`", "", equivalent[m], "", "```diff", diffs[m], "```", ""]
+    return "\n".join(lines).rstrip() + "\n", {**counts, "score": round(score, 1)}
+
+
+# every diff in one process: `mutmut show` per mutant starts Python (and reads mutmut's state) once each
+_DIFFS = """
+import json, sys
+from mutmut.mutation.diff_apply import find_mutant, get_diff_for_mutant
+names = json.load(sys.stdin)
+json.dump({n: get_diff_for_mutant(n, path=find_mutant(n).path) for n in names}, sys.stdout)
+"""
+
+
+def _diffs(scratch: Path, mutants: list[str]) -> dict[str, str]:
+    """The diff of each mutant against the original source (what `mutmut show` prints)."""
+    out = subprocess.run([sys.executable, "-c", _DIFFS], cwd=scratch, input=json.dumps(mutants), check=True,
+                         capture_output=True, text=True).stdout
+    return {name: diff.strip() for name, diff in json.loads(out).items()}
+
+
+def _module(mutant: str) -> str:
+    """`pipeline.report.seeds` of `pipeline.report.seeds.x_mean_sd__mutmut_3` (methods: `.xǁClassǁname`)."""
+    return re.match(r"(.+?)\.x[_ǁ]", mutant).group(1)
+
+
+def _natural(name: str) -> tuple:
+    return tuple(int(p) if p.isdigit() else p for p in re.split(r"(\d+)", name))
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("group", choices=[*GROUPS, "list"], help="modules to mutate (`list` prints the groups)")
+    parser.add_argument("--max-children", type=int, default=2, help="mutants tested at once (default 2)")
+    parser.add_argument("--output", type=Path, default=None,
+                        help="report file (default reports/mutation/GROUP.md)")
+    args = parser.parse_args(argv)
+    if args.group == "list":
+        for name, g in GROUPS.items():
+            print(f"{name}: {' '.join(g.modules)}")
+        return 0
+    group = GROUPS[args.group]
+    scratch = _scratch(args.group, group)
+    exe = Path(sys.executable).with_name("mutmut")
+    start = time.monotonic()
+    run = subprocess.run([str(exe), "run", "--max-children", str(args.max_children)], cwd=scratch,
+                         stdout=subprocess.DEVNULL)
+    if run.returncode != 0:
+        print(f"mutmut run failed with exit code {run.returncode} (in {scratch})", file=sys.stderr)
+        return run.returncode
+    command = f"nice -n 10 python scripts/mutation.py {args.group}"
+    text, counts = report(args.group, group, scratch, command, (time.monotonic() - start) / 60)
+    output = args.output or ROOT / "reports" / "mutation" / f"{args.group}.md"
+    write_text_atomic(output, text)
+    print(f"{args.group}: {counts}; survivors in {output}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
