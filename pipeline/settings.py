@@ -122,6 +122,21 @@ class Recipes:
     observer_k: int = 3  # candidates the observer picks among at the start of each program (feedback runs)
 
 
+@dataclass(frozen=True)
+class Stats:
+    """The bootstrap behind Table I's confidence intervals and the paired comparisons (`stats` stage)."""
+
+    seed: int = 0  # seed of the resamples
+    resamples: int = 2000  # bootstrap resamples (worlds, then scenarios within each)
+    confidence: float = 0.95  # coverage of the intervals
+
+    def __post_init__(self) -> None:
+        if self.resamples < 1:
+            raise ValueError(f"stats.resamples must be at least 1, got {self.resamples}")
+        if not 0.0 < self.confidence < 1.0:
+            raise ValueError(f"stats.confidence must lie strictly between 0 and 1, got {self.confidence}")
+
+
 # What a key may hold beyond its type, checked when the file is read.
 CHOICES: dict[tuple[str, str], tuple[str, ...]] = {
     ("train", "feature_set"): ("full", "edge", "clique"),
@@ -144,6 +159,7 @@ class Params:
     noise: Noise = Noise()
     feedback: Feedback = Feedback()
     recipes: Recipes = Recipes()
+    stats: Stats = Stats()
 
     @classmethod
     def load(cls, path: Path | str | None = Path("params.yaml"), overrides: Iterable[str] = ()) -> Params:

@@ -68,6 +68,12 @@ def build_summary(reports: Path, labels: dict[str, str]) -> str:
                        f"{_pm(e, 'success')} |")
         out += ["", "Per primitive: `reports/table1.md` and `reports/table1.tex`; per seed: "
                 "`reports/table1_seeds.csv`, `reports/crossval_seeds.csv`.", ""]
+    ci, comparisons = reports / "table1_ci.md", reports / "comparisons.md"
+    if ci.exists() and comparisons.exists():  # the stats stage's tables, one heading level down
+        out += ["## Confidence intervals and paired comparisons", ""]
+        for path in (ci, comparisons):
+            out += [("##" + line if line.startswith("# ") else line) for line in path.read_text().splitlines()]
+            out.append("")
     failures = _failure_rows(reports)
     if failures and any(r["method"] == "full" for r in failures):
         shares = failure_shares(failures, "full")

@@ -110,6 +110,13 @@ class AggregatePaths:
 
 
 @dataclass(frozen=True, kw_only=True)
+class StatsPaths:
+    worlds: Path = option("folder of the per-world results, one subfolder per seed (their crossval_sequences.csv "
+                          "and crossval_steps.csv)", Path("reports/worlds"), input=True)
+    output: Path = option("folder for the intervals and comparisons")
+
+
+@dataclass(frozen=True, kw_only=True)
 class ReportPaths:
     reports: Path = option("folder of the stages' results", Path("reports"), input=True)
     output: Path = option("Markdown file to write")
