@@ -53,7 +53,9 @@ def _plan_options(p: argparse.ArgumentParser) -> None:
 def _plan(args: argparse.Namespace) -> int:
     from .tools import plan_task, print_program, program_json
 
-    program, names = plan_task(args.model, args.env, args.record, args.task, args.max_steps, args.top_k)
+    program, names, model = plan_task(args.model, args.env, args.record, args.task, args.max_steps, args.top_k)
+    # which planner runs: on stdout before the program, on stderr when stdout carries JSON
+    print(f"planner {args.model}: {model}", file=sys.stderr if args.json else sys.stdout)
     if args.json:
         print(program_json(program))
     else:
@@ -74,10 +76,10 @@ def _bench_options(p: argparse.ArgumentParser) -> None:
 
 
 def _bench(args: argparse.Namespace) -> int:
-    from .timing import format_bench, run_bench
     from .io import write_json_atomic
     from .logs.benchmark import load_benchmark
     from .stages.command import load_params
+    from .timing import format_bench, run_bench
 
     learner = load_params(args).train
     result = run_bench(load_benchmark(args.processed).records, **learner.ssvm, repeats=args.repeats)

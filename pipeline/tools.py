@@ -10,6 +10,7 @@ from typing import Any
 from jsonschema import Draft202012Validator
 
 from .learn.estimator import MRFPlanner
+from .learn.persist import describe
 from .logs.records import load_schema, spec_from_dict, state_from_dict
 from .logs.validate import LogError, check_record, check_references, check_schema, log_files, read_records
 from .logs.validate import _field as field_name  # the log checks' way of writing a field's path
@@ -83,8 +84,9 @@ LIQUID_TASKS = ("pour", "pour_to", "stir")  # tasks whose first argument is a li
 
 
 def plan_task(model_path: Path, env: Path, record: int, task_text: str, max_steps: int,
-              top_k: int) -> tuple[Program, dict[str, str]]:
-    """The program the model plans for the task in that environment, and the objects' names."""
+              top_k: int) -> tuple[Program, dict[str, str], str]:
+    """The program the model plans for the task in that environment, the objects' names, and what the model is
+    (its method and settings, `persist.describe`)."""
     planner = MRFPlanner.load(model_path)
     objects, state_dict = load_environment(env, record)
     specs = {o["id"]: spec_from_dict(o) for o in objects}
@@ -94,7 +96,8 @@ def plan_task(model_path: Path, env: Path, record: int, task_text: str, max_step
     if task.name in LIQUID_TASKS and not state.specs[task.args[0]].has("liquid"):
         raise ValueError(f"task {task}: {task.args[0]} ({state.specs[task.args[0]].name}) is not a liquid; "
                          f"{task.name} takes the liquid, e.g. the water, not its bottle")
-    return plan(planner, state, task, max_steps=max_steps, top_k=top_k), {o: s.name for o, s in specs.items()}
+    return (plan(planner, state, task, max_steps=max_steps, top_k=top_k), {o: s.name for o, s in specs.items()},
+            describe(planner.meta_))
 
 
 def program_json(program: Program) -> str:

@@ -10,6 +10,9 @@ from pathlib import Path
 import pytest
 
 from pipeline.cli import main
+from pipeline.evaluate.selection import rank_methods
+from pipeline.learn.estimator import MRFPlanner
+from pipeline.logs.ingest import load_logs
 from pipeline.settings import Folds, Learner, Select, World
 from pipeline.stages import select as select_stage
 from pipeline.stages.paths import SelectPaths
@@ -49,14 +52,42 @@ def test_ingest_and_features_write_their_outputs(tiny):
 
 def test_train_and_pddl(tiny):
     out = tiny / "train"
-    assert main(["train", "--features", str(tiny / "features"), *LEARN, "--model", str(out / "mrf.npz"),
-                 "--metrics", str(out / "train.json"), "--curve", str(out / "curve.csv")]) == 0
+    assert main(["train", "--features", str(tiny / "features"), *LEARN, "--set", "train.method=full", "--model",
+                 str(out / "mrf.npz"), "--metrics", str(out / "train.json"), "--curve", str(out / "curve.csv")]) == 0
     metrics = json.loads((out / "train.json").read_text())
     assert metrics["train_average_arg"] > 50 and (out / "mrf.npz").exists()
     assert (out / "curve.csv").read_text().startswith("iteration,primal,best_primal,dual,gap,n_constraints\n")
     assert main(["pddl", "--processed", str(tiny / "processed"), "--output", str(tiny / "pddl")]) == 0
     n_problems = len(list((tiny / "pddl" / "problems").glob("*.pddl")))
     assert n_problems == len(list((tiny / "pddl" / "plans").glob("*.plan"))) > 0
+
+
+def test_train_ships_the_method_the_development_world_ranked_first(tiny, tmp_path, capsys):
+    ranked = {"C": 2.0, "method": "relations", "methods": [{"method": "relations", "sequence_arg": 70.0},
+                                                           {"method": "full", "sequence_arg": 60.0}]}
+    (tmp_path / "selection.json").write_text(json.dumps(ranked))
+    train = ["train", "--features", str(tiny / "features"), *LEARN, "--selection", str(tmp_path / "selection.json")]
+    assert main([*train, "--model", str(tmp_path / "best.npz"), "--metrics", str(tmp_path / "train.json")]) == 0
+    meta = MRFPlanner.load(tmp_path / "best.npz").meta_
+    assert (meta["method"], meta["features"], meta["C"], meta["dagger_rounds"]) == ("relations", "relations", 2.0, 0)
+    assert "development world" in meta["chosen_by"] and json.loads((tmp_path / "train.json").read_text())[
+        "method"] == "relations"
+    # the paper's model stays available by name
+    assert main([*train, "--set", "train.method=full", "--model", str(tmp_path / "full.npz")]) == 0
+    assert MRFPlanner.load(tmp_path / "full.npz").meta_["method"] == "full"
+    # DAgger rolls out on the training scenarios: without them it says so, with them it trains
+    capsys.readouterr()
+    assert main([*train, "--set", "train.method=dagger", "--model", str(tmp_path / "d.npz")]) == 2
+    assert "needs the training scenarios" in capsys.readouterr().err and not (tmp_path / "d.npz").exists()
+    assert main([*train, "--set", "train.method=dagger", "--processed", str(tiny / "processed"),
+                 "--model", str(tmp_path / "d.npz")]) == 0
+    assert MRFPlanner.load(tmp_path / "d.npz").meta_["dagger_rounds"] == 1
+    # a selection file from before methods were ranked, or an unknown method, is named
+    (tmp_path / "old.json").write_text(json.dumps({"C": 2.0}))
+    assert main([*train[:-1], str(tmp_path / "old.json"), "--model", str(tmp_path / "o.npz")]) == 2
+    assert f"{tmp_path / 'old.json'}: no field 'method'" in capsys.readouterr().err
+    assert main([*train, "--set", "train.method=fancy", "--model", str(tmp_path / "o.npz")]) == 2
+    assert "unknown MRF methods ['fancy']" in capsys.readouterr().err
 
 
 @pytest.fixture(scope="module")
@@ -152,13 +183,24 @@ def test_aggregate_and_report_over_worlds(evaluated, tiny):
     assert recipes.keys() == {"full", "chained"} and recipes["full"]["per_seed"].keys() == {"0", "5"}
     (out / "selection.json").write_text(json.dumps({"C": 2.0, "dev_seed": 100, "criterion": "sequence_arg",
                                                     "candidates": [{"C": 2.0, "sequence_arg": 50.0}]}))
+    assert main(["stats", "--set", "world.seeds=[0, 5]", "--set", "stats.resamples=200",
+                 "--worlds", str(tiny / "worlds"), "--output", str(out)]) == 0
+    intervals = list(csv.DictReader((out / "table1_ci.csv").open()))
+    seq = next(r for r in intervals if (r["method"], r["figure"]) == ("full", "sequence_arg"))
+    assert float(seq["value"]) == pytest.approx(single["sequence/arg"], abs=0.01)
+    avg = next(r for r in intervals if (r["method"], r["figure"]) == ("full", "average_arg"))
+    assert float(avg["value"]) == pytest.approx(single["steps"]["average/arg"], abs=0.01)  # as Table I pools steps
+    assert float(seq["low"]) <= float(seq["value"]) <= float(seq["high"])
+    assert {r["method"] for r in csv.DictReader((out / "comparisons.csv").open())} == {"relations", "chained",
+                                                                                      "dagger"}
     assert main(["report", "--reports", str(out), "--output", str(out / "summary.md"),
                  "--plots-template", str(out / "page.html")]) == 0
     page = (out / "page.html").read_text()
     assert "{plot_divs}" in page and "window.vegaEmbed" in page and "cdn.jsdelivr" not in page  # works offline
     text = (out / "summary.md").read_text()
     for heading in ("## Dataset", "## Settings", "## Table I", "## Why programs fail", "## Attribute noise",
-                    "## Human feedback", "## Recipes"):
+                    "## Human feedback", "## Recipes", "## Confidence intervals and paired comparisons",
+                    "### Paired comparisons"):
         assert heading in text
 
 
@@ -171,12 +213,24 @@ def test_select_sees_only_the_development_world(tiny, monkeypatch, tmp_path):
         shutil.copytree(tiny / "raw", output)
         return {}
 
+    read = []
+
+    def spy_load_logs(folder):
+        read.append(Path(folder))
+        return load_logs(folder)
+
     monkeypatch.setattr(select_stage, "generate", spy_generate)
-    settings = select_stage.Settings(World(seeds=(0, 3), dev_seed=100), Select(C=(0.5, 2.0)),
-                                     Learner(tol=0.01, max_iter=300, n_slacks=2), Folds(folds=2), max_steps=20)
+    monkeypatch.setattr(select_stage, "load_logs", spy_load_logs)
+    settings = select_stage.Settings(World(seeds=(0, 3), dev_seed=100), Select(C=(0.5, 2.0), methods=(
+        "full", "relations")), Learner(tol=0.01, max_iter=300, n_slacks=2), Folds(folds=2), max_steps=20)
     result = select_stage.run(settings, SelectPaths(data=tmp_path / "dev", output=tmp_path / "selection.json"))
-    assert drawn == [100]
+    assert drawn == [100] and read == [tmp_path / "dev" / "raw"]  # C and the shipped method: the dev world only
     assert result["C"] in (0.5, 2.0) and len(result["candidates"]) == 2
+    assert [r["method"] for r in result["methods"]] in (["full", "relations"], ["relations", "full"])
+    assert result["method"] == result["methods"][0]["method"]
+    full = next(r for r in result["methods"] if r["method"] == "full")
+    chosen = next(c for c in result["candidates"] if c["C"] == result["C"])
+    assert full["sequence_arg"] == chosen["sequence_arg"]  # the full model at the chosen C, not cross-validated twice
     assert json.loads((tmp_path / "selection.json").read_text())["dev_seed"] == 100
     with pytest.raises(ValueError, match="also a reported seed"):
         select_stage.run(select_stage.Settings(World(seeds=(0, 100), dev_seed=100), Select(), Learner(), Folds(), 20),
@@ -190,3 +244,12 @@ def test_a_bad_selection_file_is_named(tiny, tmp_path, capsys):
                  "--output", str(tmp_path)])
     assert code == 2 and f"{bad}: field 'C' must be a positive number" in capsys.readouterr().err
     assert not (tmp_path / "recipes.json").exists()
+
+
+def test_methods_are_ranked_by_sequence_arg_then_success_then_the_order_listed():
+    figures = {"full": (60.0, 80.0), "relations": (60.0, 85.0), "dagger": (70.0, 70.0), "chained": (60.0, 80.0)}
+    known = {m: {"sequence_arg": a, "success": s, "average_arg": 90.0} for m, (a, s) in figures.items()}
+    ranked = rank_methods(("full", "chained", "relations", "dagger"), Learner(), Folds(), [], [], None, 20, known)
+    assert [r["method"] for r in ranked] == ["dagger", "relations", "full", "chained"]
+    with pytest.raises(ValueError, match="unknown MRF methods"):
+        rank_methods(("full", "chance"), Learner(), Folds(), [], [], None, 20, known)

@@ -1,14 +1,25 @@
-"""Stage `train`: the MRF weights on every step of the benchmark (the model `taskseq plan` uses)."""
+"""Stage `train`: the shipped planner (the model `taskseq plan` uses), fitted on every step of the benchmark.
+
+Its method is `train.method`: by default the MRF method the development
+world ranked first (`best`, read from the `select` stage's file), or any MRF
+method of Table I by name (`full` is the paper's model). A method that adds
+training data beyond the logs (chained starts, DAgger) needs the training
+scenarios, from the Parquet tables. The model file records the method and
+its settings.
+"""
 
 from __future__ import annotations
 
 from typing import Any
 
+from ..evaluate.methods import mrf_methods
 from ..evaluate.metrics import step_accuracy
+from ..evaluate.registry import method_labels
+from ..evaluate.selection import read_selected_method
 from ..features.dataset import read_features
 from ..io import write_json_atomic, write_text_atomic
-from ..learn.estimator import MRFPlanner
 from ..learn.ssvm import learning_curve
+from ..logs.benchmark import load_benchmark
 from ..report.csvs import csv_text
 from ..settings import Params, Train
 from ..track.mlflow_runs import NO_RUN, Tracker
@@ -17,14 +28,35 @@ from .paths import TrainPaths
 
 def settings(params: Params, world_seed: int | None = None) -> Train:
     t = params.train
-    return Train(C=t.C, tol=t.tol, max_iter=t.max_iter, n_slacks=t.n_slacks, feature_set=t.feature_set)
+    return Train(C=t.C, tol=t.tol, max_iter=t.max_iter, n_slacks=t.n_slacks, dagger_rounds=t.dagger_rounds,
+                 method=t.method)
+
+
+def shipped_method(settings: Train, paths: TrainPaths) -> tuple[str, str]:
+    """The method to train and why: named in the settings, or the one the development world ranked first."""
+    if settings.method != "best":
+        return settings.method, "train.method"
+    if paths.selection is None:
+        raise ValueError("train.method is 'best', the method the development world ranks first: give the file "
+                         "`taskseq select` wrote with --selection, or name a method with --set train.method=NAME")
+    return read_selected_method(paths.selection), f"ranked first on the development world ({paths.selection})"
 
 
 def run(settings: Train, paths: TrainPaths, tracker: Tracker = NO_RUN) -> dict[str, Any]:
     features, model, metrics, curve = paths.features, paths.model, paths.metrics, paths.curve
-    contexts, _ = read_features(features)
-    planner = MRFPlanner(settings.feature_set, **settings.ssvm).fit(contexts, progress=True)
-    planner.save(model, n_steps=len(contexts))
+    name, chosen_by = shipped_method(settings, paths)
+    method = mrf_methods(settings.learner, names=[name])[name]()
+    contexts, meta = read_features(features)
+    scenarios = None
+    if method.chained_starts or method.dagger_rounds:
+        if paths.processed is None:
+            raise ValueError(f"method {name} adds chained starts or DAgger rounds to the logs: it needs the "
+                             "training scenarios, from the Parquet tables (--processed)")
+        scenarios = load_benchmark(paths.processed).scenarios
+    planner = method.fit(contexts, meta, scenarios).planner_
+    label = method_labels().get(name, name)
+    planner.save(model, n_steps=len(contexts), method=name, label=label, chosen_by=chosen_by,
+                 chained_starts=method.chained_starts, dagger_rounds=method.dagger_rounds)
     ssvm = planner.ssvm_
     acc = step_accuracy(contexts, planner.predict(contexts))
     last = ssvm.history_[-1]
@@ -39,19 +71,20 @@ def run(settings: Train, paths: TrainPaths, tracker: Tracker = NO_RUN) -> dict[s
         "relative_gap": last.gap / max(1.0, abs(last.best_primal)),
     }
     if metrics:
-        write_json_atomic(metrics, out)
+        write_json_atomic(metrics, {**out, "method": name})
     if curve:
         write_text_atomic(curve, csv_text(
             ["iteration", "primal", "best_primal", "dual", "gap", "n_constraints"],
             ({"iteration": it.iteration, "primal": it.primal, "best_primal": it.best_primal, "dual": it.dual,
               "gap": it.gap, "n_constraints": it.n_constraints} for it in ssvm.history_)))
+    tracker.params({"method": name, "method.chosen_by": chosen_by})
     tracker.metrics({**{k: float(v) for k, v in out.items()}, "seconds": planner.fit_seconds_})
     tracker.curve(learning_curve(ssvm.history_))  # MLflow charts them against the iteration
     for path in (curve, model):
         if path:
             tracker.artifact(path)
     state = "converged" if ssvm.converged_ else "stopped at max_iter"
-    print(f"trained {settings.feature_set} model on {len(contexts)} steps: {ssvm.n_iter_} iterations ({state}), "
-          f"{planner.fit_seconds_:.1f} s; teacher-forced training accuracy prim {acc['average/prim']:.1f}% "
-          f"arg {acc['average/arg']:.1f}%; saved {model}")
+    print(f"trained {label} (method {name}, {chosen_by}) on {len(contexts)} logged steps: last fit {ssvm.n_iter_} "
+          f"iterations ({state}), {planner.fit_seconds_:.1f} s in all; teacher-forced training accuracy prim "
+          f"{acc['average/prim']:.1f}% arg {acc['average/arg']:.1f}%; saved {model}")
     return out
