@@ -232,6 +232,10 @@ def test_select_sees_only_the_development_world(tiny, monkeypatch, tmp_path):
     chosen = next(c for c in result["candidates"] if c["C"] == result["C"])
     assert full["sequence_arg"] == chosen["sequence_arg"]  # the full model at the chosen C, not cross-validated twice
     assert json.loads((tmp_path / "selection.json").read_text())["dev_seed"] == 100
+    with pytest.raises(ValueError, match=r"unknown MRF methods \['chance'\]"):
+        select_stage.run(select_stage.Settings(World(), Select(methods=("full", "chance")), Learner(), Folds(), 20),
+                         SelectPaths(data=tmp_path / "d", output=tmp_path / "s.json"))
+    assert not (tmp_path / "d").exists()
     with pytest.raises(ValueError, match="also a reported seed"):
         select_stage.run(select_stage.Settings(World(seeds=(0, 100), dev_seed=100), Select(), Learner(), Folds(), 20),
                          SelectPaths(data=tmp_path / "d", output=tmp_path / "s.json"))

@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Any
 
+from ..evaluate.methods import mrf_methods
 from ..evaluate.selection import rank_methods, select_C
 from ..features.dataset import build_steps, write_features
 from ..io import write_json_atomic
@@ -43,6 +44,7 @@ def run(settings: Settings, paths: SelectPaths, tracker: Tracker = NO_RUN, n_job
     if world.dev_seed in world.seeds:
         raise ValueError(f"params.yaml: world.dev_seed {world.dev_seed} is also a reported seed; settings must "
                          "be chosen on a world that is never reported")
+    mrf_methods(settings.learner, names=select.methods)  # an unknown name stops here, before minutes of work
     data, output = paths.data, paths.output
     generate(world.dev_seed, data / "raw")
     tables, records = load_logs(data / "raw")
