@@ -54,7 +54,9 @@ def _plan_options(p: argparse.ArgumentParser) -> None:
 def _plan(args: argparse.Namespace) -> int:
     from .tools import plan_task, print_program, program_json
 
-    program, names = plan_task(args.model, args.env, args.record, args.task, args.max_steps, args.top_k)
+    program, names, model = plan_task(args.model, args.env, args.record, args.task, args.max_steps, args.top_k)
+    # which planner runs: on stdout before the program, on stderr when stdout carries JSON
+    print(f"planner {args.model}: {model}", file=sys.stderr if args.json else sys.stdout)
     if args.json:
         print(program_json(program))
     else:

@@ -40,6 +40,7 @@ class Select:
     """Settings chosen on the development world by cross-validation, never on a reported world."""
 
     C: tuple[float, ...] = (0.3, 1.0, 3.0, 10.0)  # slack weights tried for the MRF models
+    methods: tuple[str, ...] = ("full", "relations", "chained", "dagger")  # MRF methods ranked at the chosen C
 
 
 @dataclass(frozen=True)
@@ -60,9 +61,9 @@ class Learner:
 
 @dataclass(frozen=True)
 class Train(Learner):
-    """The learner, and the feature set of the model `taskseq plan` uses."""
+    """The learner, and the method of the model `taskseq plan` uses."""
 
-    feature_set: str = "full"  # full | edge | clique
+    method: str = "best"  # an MRF method of Table I by name, or best: the one `select` ranked first
 
     @property
     def learner(self) -> Learner:
@@ -139,9 +140,23 @@ class Teach:
     seed: int = 0  # order in which tasks are demonstrated
 
 
+@dataclass(frozen=True)
+class Stats:
+    """The bootstrap behind Table I's confidence intervals and the paired comparisons (`stats` stage)."""
+
+    seed: int = 0  # seed of the resamples
+    resamples: int = 2000  # bootstrap resamples (worlds, then scenarios within each)
+    confidence: float = 0.95  # coverage of the intervals
+
+    def __post_init__(self) -> None:
+        if self.resamples < 1:
+            raise ValueError(f"stats.resamples must be at least 1, got {self.resamples}")
+        if not 0.0 < self.confidence < 1.0:
+            raise ValueError(f"stats.confidence must lie strictly between 0 and 1, got {self.confidence}")
+
+
 # What a key may hold beyond its type, checked when the file is read.
 CHOICES: dict[tuple[str, str], tuple[str, ...]] = {
-    ("train", "feature_set"): ("full", "edge", "clique"),
     ("crossval", "group_by"): ("scenario", "environment"),
 }
 
@@ -163,6 +178,7 @@ class Params:
     recipes: Recipes = Recipes()
     people: People = People()
     teach: Teach = Teach()
+    stats: Stats = Stats()
 
     @classmethod
     def load(cls, path: Path | str | None = Path("params.yaml"), overrides: Iterable[str] = ()) -> Params:

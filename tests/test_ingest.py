@@ -162,7 +162,7 @@ def test_ingest_and_train_run_by_hand_write_only_where_they_are_told(benchmark_l
     monkeypatch.chdir(checkout)
     before = {p: p.read_bytes() for p in checkout.rglob("*") if p.is_file()}
     assert main(["ingest", "--input", str(benchmark_logs), "--output", str(mine / "processed")]) == 0
-    assert main(["train", "--features", str(mine / "features"), "--set", "train.feature_set=edge",
+    assert main(["train", "--features", str(mine / "features"), "--set", "train.method=only_edge",
                  "--model", str(mine / "model.npz")]) == 0
     after = {p: p.read_bytes() for p in checkout.rglob("*") if p.is_file()}
     assert after == before

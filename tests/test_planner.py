@@ -152,6 +152,21 @@ def test_plan_command_accepts_an_environment_file(model_file, benchmark_logs, tm
     assert f"program for pour({liquid})" in capsys.readouterr().out
 
 
+def test_plan_command_says_which_method_and_settings_it_runs(small_fit, benchmark_logs, tmp_path, capsys):
+    fit, _ = small_fit
+    fit.save(tmp_path / "old.npz")  # a file without its method, as written before methods were recorded
+    fit.save(tmp_path / "new.npz", method="relations", label="ours + relations", chosen_by="train.method",
+             chained_starts=False, dagger_rounds=0)
+    env = ["--env", str(benchmark_logs / "env01.jsonl"), "--task", "pour(obj27)"]
+    main(["plan", "--model", str(tmp_path / "old.npz"), *env])
+    first = capsys.readouterr().out.splitlines()[0]
+    assert first.startswith(f"planner {tmp_path / 'old.npz'}: method not recorded") and f"C {fit.C:g}" in first
+    main(["plan", "--model", str(tmp_path / "new.npz"), *env, "--json"])
+    captured = capsys.readouterr()
+    assert json.loads(captured.out)["task"] == "pour(obj27)"  # stdout stays JSON; the planner line goes to stderr
+    assert "ours + relations (method relations: " in captured.err and "DAgger rounds 0" in captured.err
+
+
 @pytest.mark.parametrize("task, message", [
     ("pour(obj99)", "object obj99 is not in this environment"),
     ("fly(obj27)", "unknown task 'fly'"),

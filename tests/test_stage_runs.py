@@ -10,7 +10,10 @@ from pathlib import Path
 import pytest
 
 from pipeline.cli import main
-from pipeline.evaluate.selection import best_candidate
+from pipeline.evaluate.selection import best_candidate, rank_methods
+from pipeline.learn.estimator import StepScorer
+from pipeline.logs.ingest import load_logs
+from pipeline.settings import Folds, Learner
 from pipeline.stages import select as select_stage
 
 FOLDS = ["--set", "crossval.folds=2", "--set", "crossval.group_by=scenario", "--set", "crossval.seed=0"]
@@ -48,14 +51,42 @@ def test_ingest_and_features_write_their_outputs(tiny):
 
 def test_train_and_pddl(tiny):
     out = tiny / "train"
-    assert main(["train", "--features", str(tiny / "features"), *LEARN, "--model", str(out / "mrf.npz"),
-                 "--metrics", str(out / "train.json"), "--curve", str(out / "curve.csv")]) == 0
+    assert main(["train", "--features", str(tiny / "features"), *LEARN, "--set", "train.method=full", "--model",
+                 str(out / "mrf.npz"), "--metrics", str(out / "train.json"), "--curve", str(out / "curve.csv")]) == 0
     metrics = json.loads((out / "train.json").read_text())
     assert metrics["train_average_arg"] > 50 and (out / "mrf.npz").exists()
     assert (out / "curve.csv").read_text().startswith("iteration,primal,best_primal,dual,gap,n_constraints\n")
     assert main(["pddl", "--processed", str(tiny / "processed"), "--output", str(tiny / "pddl")]) == 0
     n_problems = len(list((tiny / "pddl" / "problems").glob("*.pddl")))
     assert n_problems == len(list((tiny / "pddl" / "plans").glob("*.plan"))) > 0
+
+
+def test_train_ships_the_method_the_development_world_ranked_first(tiny, tmp_path, capsys):
+    ranked = {"C": 2.0, "method": "relations", "methods": [{"method": "relations", "sequence_arg": 70.0},
+                                                           {"method": "full", "sequence_arg": 60.0}]}
+    (tmp_path / "selection.json").write_text(json.dumps(ranked))
+    train = ["train", "--features", str(tiny / "features"), *LEARN, "--selection", str(tmp_path / "selection.json")]
+    assert main([*train, "--model", str(tmp_path / "best.npz"), "--metrics", str(tmp_path / "train.json")]) == 0
+    meta = StepScorer.load(tmp_path / "best.npz").meta_
+    assert (meta["method"], meta["features"], meta["C"], meta["dagger_rounds"]) == ("relations", "relations", 2.0, 0)
+    assert "development world" in meta["chosen_by"] and json.loads((tmp_path / "train.json").read_text())[
+        "method"] == "relations"
+    # the paper's model stays available by name
+    assert main([*train, "--set", "train.method=full", "--model", str(tmp_path / "full.npz")]) == 0
+    assert StepScorer.load(tmp_path / "full.npz").meta_["method"] == "full"
+    # DAgger rolls out on the training scenarios: without them it says so, with them it trains
+    capsys.readouterr()
+    assert main([*train, "--set", "train.method=dagger", "--model", str(tmp_path / "d.npz")]) == 2
+    assert "needs the training scenarios" in capsys.readouterr().err and not (tmp_path / "d.npz").exists()
+    assert main([*train, "--set", "train.method=dagger", "--processed", str(tiny / "processed"),
+                 "--model", str(tmp_path / "d.npz")]) == 0
+    assert StepScorer.load(tmp_path / "d.npz").meta_["dagger_rounds"] == 1
+    # a selection file from before methods were ranked, or an unknown method, is named
+    (tmp_path / "old.json").write_text(json.dumps({"C": 2.0}))
+    assert main([*train[:-1], str(tmp_path / "old.json"), "--model", str(tmp_path / "o.npz")]) == 2
+    assert f"{tmp_path / 'old.json'}: no field 'method'" in capsys.readouterr().err
+    assert main([*train, "--set", "train.method=fancy", "--model", str(tmp_path / "o.npz")]) == 2
+    assert "unknown MRF methods ['fancy']" in capsys.readouterr().err
 
 
 @pytest.fixture(scope="module")
@@ -151,13 +182,24 @@ def test_aggregate_and_report_over_worlds(evaluated, tiny):
     assert recipes.keys() == {"full", "chained"} and recipes["full"]["per_seed"].keys() == {"0", "5"}
     (out / "selection.json").write_text(json.dumps({"C": 2.0, "dev_seed": 100, "criterion": "sequence_arg",
                                                     "candidates": [{"C": 2.0, "sequence_arg": 50.0}]}))
+    assert main(["stats", "--set", "world.seeds=[0, 5]", "--set", "stats.resamples=200",
+                 "--worlds", str(tiny / "worlds"), "--output", str(out)]) == 0
+    intervals = list(csv.DictReader((out / "table1_ci.csv").open()))
+    seq = next(r for r in intervals if (r["method"], r["figure"]) == ("full", "sequence_arg"))
+    assert float(seq["value"]) == pytest.approx(single["sequence/arg"], abs=0.01)
+    avg = next(r for r in intervals if (r["method"], r["figure"]) == ("full", "average_arg"))
+    assert float(avg["value"]) == pytest.approx(single["steps"]["average/arg"], abs=0.01)  # as Table I pools steps
+    assert float(seq["low"]) <= float(seq["value"]) <= float(seq["high"])
+    assert {r["method"] for r in csv.DictReader((out / "comparisons.csv").open())} == {"relations", "chained",
+                                                                                      "dagger"}
     assert main(["report", "--reports", str(out), "--output", str(out / "summary.md"),
                  "--plots-template", str(out / "page.html")]) == 0
     page = (out / "page.html").read_text()
     assert "{plot_divs}" in page and "window.vegaEmbed" in page and "cdn.jsdelivr" not in page  # works offline
     text = (out / "summary.md").read_text()
     for heading in ("## Dataset", "## Settings", "## Table I", "## Why programs fail", "## Attribute noise",
-                    "## Human feedback", "## Recipes"):
+                    "## Human feedback", "## Recipes", "## Confidence intervals and paired comparisons",
+                    "### Paired comparisons"):
         assert heading in text
 
 
@@ -171,17 +213,33 @@ def test_select_sees_only_the_development_world(tiny, monkeypatch, tmp_path, cap
         shutil.copytree(tiny / "raw", output)
         return {}
 
+    read = []
+
+    def spy_load_logs(folder):
+        read.append(Path(folder))
+        return load_logs(folder)
+
     monkeypatch.setattr(select_stage, "generate", spy_generate)
+    monkeypatch.setattr(select_stage, "load_logs", spy_load_logs)
     out = tmp_path / "selection.json"
     assert main(["--no-mlflow", "select", "--set", "world.seeds=[0, 3]", "--set", "world.dev_seed=100",
-                 "--set", "select.C=0.5 2", *FOLDS[:2], *LEARN, "--n-jobs", "1",
-                 "--data", str(tmp_path / "dev"), "--output", str(out)]) == 0
-    assert drawn == [100]
+                 "--set", "select.C=0.5 2", "--set", "select.methods=full relations", *FOLDS[:2], *LEARN,
+                 "--n-jobs", "1", "--data", str(tmp_path / "dev"), "--output", str(out)]) == 0
+    assert drawn == [100] and read == [tmp_path / "dev" / "raw"]  # C and the shipped method: the dev world only
     result = json.loads(out.read_text())
     assert result["dev_seed"] == 100 and [c["C"] for c in result["candidates"]] == [0.5, 2.0]
     assert result["C"] == best_candidate(result["candidates"])["C"]
     assert f"chose C={result['C']:g}; written to {out}" in capsys.readouterr().out
     assert {p.name for p in (tmp_path / "dev").iterdir()} == {"raw", "processed", "features"}
+    assert [r["method"] for r in result["methods"]] in (["full", "relations"], ["relations", "full"])
+    assert result["method"] == result["methods"][0]["method"]
+    full = next(r for r in result["methods"] if r["method"] == "full")
+    chosen = next(c for c in result["candidates"] if c["C"] == result["C"])
+    assert full["sequence_arg"] == chosen["sequence_arg"]  # the full model at the chosen C, not cross-validated twice
+    code = main(["--no-mlflow", "select", "--set", "select.methods=full chance", "--data", str(tmp_path / "d"),
+                 "--output", str(tmp_path / "s.json")])
+    assert code == 2 and "unknown MRF methods ['chance']" in capsys.readouterr().err
+    assert not (tmp_path / "d").exists()
     code = main(["--no-mlflow", "select", "--set", "world.seeds=[0, 100]", "--set", "world.dev_seed=100",
                  "--data", str(tmp_path / "d"), "--output", str(tmp_path / "s.json")])
     assert code == 2 and "also a reported seed" in capsys.readouterr().err
@@ -195,3 +253,12 @@ def test_a_bad_selection_file_is_named(tiny, tmp_path, capsys):
                  "--output", str(tmp_path)])
     assert code == 2 and f"{bad}: field 'C' must be a positive number" in capsys.readouterr().err
     assert not (tmp_path / "recipes.json").exists()
+
+
+def test_methods_are_ranked_by_sequence_arg_then_success_then_the_order_listed():
+    figures = {"full": (60.0, 80.0), "relations": (60.0, 85.0), "dagger": (70.0, 70.0), "chained": (60.0, 80.0)}
+    known = {m: {"sequence_arg": a, "success": s, "average_arg": 90.0} for m, (a, s) in figures.items()}
+    ranked = rank_methods(("full", "chained", "relations", "dagger"), Learner(), Folds(), [], [], None, 20, known)
+    assert [r["method"] for r in ranked] == ["dagger", "relations", "full", "chained"]
+    with pytest.raises(ValueError, match="unknown MRF methods"):
+        rank_methods(("full", "chance"), Learner(), Folds(), [], [], None, 20, known)

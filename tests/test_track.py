@@ -105,7 +105,7 @@ def test_child_runs_carry_what_tells_them_apart_and_their_programs(store, benchm
 
 def test_train_logs_the_objective_and_gap_of_every_iteration(store, benchmark_steps, tmp_path):
     write_features(*benchmark_steps, tmp_path / "features")
-    assert main(["train", "--features", str(tmp_path / "features"), "--set", "train.feature_set=edge",
+    assert main(["train", "--features", str(tmp_path / "features"), "--set", "train.method=only_edge",
                  "--model", str(tmp_path / "m.npz")]) == 0
     (run,) = runs(store, "train")
     gaps = store.get_metric_history(run.info.run_id, "gap")

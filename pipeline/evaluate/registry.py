@@ -31,6 +31,11 @@ BUILT_IN_LABELS = {
     "dagger": "ours + relations + dagger",
 }
 
+# the paper's rows of Table I; every other method is an addition beside them. Its baselines come first.
+PAPER_METHODS = ("chance", "multiclass", "symb_plan_svm", "symb_plan_manual", "only_edge", "only_clique", "full")
+BASELINES = PAPER_METHODS[:4]
+PAPER_MODEL = "full"  # the paper's own model, as published
+
 
 @dataclass(frozen=True)
 class MethodSettings:

@@ -1,9 +1,12 @@
-"""Choosing the MRF's slack weight C by cross-validation on a development world.
+"""Choosing the MRF's slack weight C, and the shipped method, by cross-validation on a development world.
 
 The development world is a benchmark drawn with its own seed and never
 reported, so no figure is computed on folds its settings were chosen on. The
 criterion is the headline figure, closed-loop sequence accuracy (arg); ties go
-to the higher success rate, then to the smaller C (the simpler model).
+to the higher success rate, then to the smaller C (the simpler model). At the
+chosen C, the MRF methods named in the settings are ranked the same way, on
+the same folds (ties to the one listed first); the `train` stage ships the
+first of them.
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ from ..features.dataset import StepMeta
 from ..logs.benchmark import Benchmark
 from ..settings import Folds, Learner
 from .crossval import cross_validate
-from .methods import MRFMethod
+from .methods import MRFMethod, mrf_methods
 from .metrics import summarize
 
 
@@ -51,15 +54,54 @@ def best_candidate(candidates: list[dict[str, Any]]) -> dict[str, Any]:
     return max(candidates, key=lambda r: (round(r["sequence_arg"], 9), round(r["success"], 9), -r["C"]))
 
 
-def read_selection(path: Path | str) -> float:
-    """The C a `select` stage chose, from its JSON file, with an error that names the file and field."""
+def _figures(summary: dict[str, Any], name: str) -> dict[str, float]:
+    return {"sequence_arg": summary[name]["sequence/arg"], "success": summary[name]["success"],
+            "average_arg": summary[name]["steps"]["average/arg"]}
+
+
+def rank_methods(names: tuple[str, ...], learner: Learner, folds: Folds, contexts: list[StepContext],
+                 meta: list[StepMeta], bench: Benchmark, max_steps: int, known: dict[str, dict[str, float]],
+                 n_jobs: int = 1, verbose: int = 0) -> list[dict[str, Any]]:
+    """The MRF methods `names` at the learner's C, best first: each one's figures, cross-validated on the same
+    folds as the choice of C unless `known` already holds them (the full model at the chosen C)."""
+    if not names:
+        raise ValueError("select: no MRF methods to rank (select.methods is empty)")
+    todo = {n: make for n, make in mrf_methods(learner, names=names).items() if n not in known}
+    figures = dict(known)
+    if todo:
+        results = cross_validate(todo, contexts, meta, bench, n_folds=folds.folds, seed=folds.seed,
+                                 group_by=folds.group_by, max_steps=max_steps, n_jobs=n_jobs, verbose=verbose)
+        summary = summarize(results, contexts, dict.fromkeys(todo, True))
+        figures.update({n: _figures(summary, n) for n in todo})
+    rows = [{"method": n, **{k: figures[n][k] for k in ("sequence_arg", "success", "average_arg")}} for n in names]
+    order = sorted(range(len(rows)), key=lambda i: (-round(rows[i]["sequence_arg"], 9),
+                                                   -round(rows[i]["success"], 9), i))
+    return [rows[i] for i in order]
+
+
+def _read(path: Path | str) -> tuple[Path, Any]:
     path = Path(path)
     try:
-        data = json.loads(path.read_text())
+        return path, json.loads(path.read_text())
     except FileNotFoundError:
         raise FileNotFoundError(f"{path}: no selection file; run `taskseq select` (or `dvc repro select`)") from None
     except ValueError as err:
         raise ValueError(f"{path}: not valid JSON: {err}") from None
+
+
+def read_selected_method(path: Path | str) -> str:
+    """The MRF method a `select` stage ranked first on the development world, from its JSON file."""
+    path, data = _read(path)
+    value = data.get("method") if isinstance(data, dict) else None
+    if not isinstance(value, str) or not value:
+        raise ValueError(f"{path}: no field 'method' (the method ranked first); the file predates the ranking of "
+                         "methods: run `taskseq select` again, or name the method with --set train.method=NAME")
+    return value
+
+
+def read_selection(path: Path | str) -> float:
+    """The C a `select` stage chose, from its JSON file, with an error that names the file and field."""
+    path, data = _read(path)
     value = data.get("C") if isinstance(data, dict) else None
     if not isinstance(value, (int, float)) or isinstance(value, bool) or value <= 0:
         raise ValueError(f"{path}: field 'C' must be a positive number, got {value!r}")

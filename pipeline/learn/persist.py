@@ -2,7 +2,9 @@
 
 A model file from someone else cannot run code when it is loaded. The zip
 entries carry a fixed date, so the same weights give the same bytes (and the
-same hash in `dvc.lock`) on every run.
+same hash in `dvc.lock`) on every run. Its metadata names the method of
+Table I it was trained as and that method's settings; files written before
+the method was recorded load as they did, and say so (`describe`).
 """
 
 from __future__ import annotations
@@ -49,3 +51,17 @@ def load_model(path: Path | str) -> tuple[MRFModel, np.ndarray, dict[str, Any]]:
     if names != model.feature_names():
         raise ValueError(f"{path}: its feature names do not match this version's {meta['features']!r} model")
     return model, w, meta
+
+
+def describe(meta: dict[str, Any]) -> str:
+    """One line on what a model file holds: its method and the settings it was trained with."""
+    learner = ", ".join(f"{k} {meta[k]:g}" if isinstance(meta[k], float) else f"{k} {meta[k]}"
+                        for k in ("C", "tol", "max_iter", "n_slacks") if k in meta)
+    if "method" not in meta:
+        return (f"method not recorded (a model file from before methods were recorded): {meta['features']} feature "
+                f"set, {learner}")
+    extra = (f"chained starts {'yes' if meta.get('chained_starts') else 'no'}, "
+             f"DAgger rounds {meta.get('dagger_rounds', 0)}")
+    why = f"; {meta['chosen_by']}" if meta.get("chosen_by") else ""
+    return (f"{meta.get('label', meta['method'])} (method {meta['method']}: {meta['features']} feature set, {learner}, "
+            f"{extra}{why})")

@@ -8,6 +8,8 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
+from ..sim.primitives import ALL_PRIMITIVES
+
 
 def _cell(v: Any) -> str:
     if v is None:
@@ -46,6 +48,22 @@ def outcome_row(s) -> dict[str, Any]:
 def sequence_rows(results: list) -> list[dict[str, Any]]:
     """Every closed-loop program of a cross-validation, one row each (crossval `FoldResult`s)."""
     return [{"method": r.method, "fold": r.fold, **outcome_row(s)} for r in results for s in r.sequences or []]
+
+
+STEP_COLUMNS = ("method", "fold", "scenario", "sequence", "step", "primitive", "prim_correct", "arg_correct")
+
+
+def step_rows(results: list, contexts: list, meta: list, predicts_args: dict[str, bool]) -> list[dict[str, Any]]:
+    """Every teacher-forced step of a cross-validation, one row each: the demonstrated primitive and whether the
+    method got the primitive, and the primitive with its arguments, right (empty for a method without arguments)."""
+    rows = []
+    for r in results:
+        for i, y in zip(r.step_index, r.step_predictions, strict=True):
+            x, m = contexts[i], meta[i]
+            rows.append({"method": r.method, "fold": r.fold, "scenario": m.scenario_id, "sequence": m.sequence_id,
+                         "step": m.step, "primitive": ALL_PRIMITIVES[x.gold[0]], "prim_correct": y[0] == x.gold[0],
+                         "arg_correct": tuple(y) == tuple(x.gold) if predicts_args[r.method] else None})
+    return rows
 
 
 def read_csv_rows(path: Path) -> list[dict[str, str]]:

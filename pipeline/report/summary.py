@@ -52,7 +52,14 @@ def build_summary(reports: Path, labels: dict[str, str]) -> str:
         tried = ", ".join(f"{c['C']:g}: {c['sequence_arg']:.1f}" for c in sel["candidates"])
         out += ["## Settings", "", f"C = {sel['C']:g}, chosen by 6-fold cross-validation of the full model on the "
                 f"development world (seed {sel['dev_seed']}, never reported), by {sel['criterion']} "
-                f"(sequence arg per C: {tried}).", ""]
+                f"(sequence arg per C: {tried})."]
+        if "methods" in sel:
+            ranked = ", ".join(f"{labels.get(r['method'], r['method'])} {r['sequence_arg']:.1f}"
+                               for r in sel["methods"])
+            out.append(f"At that C, the same folds rank the MRF methods by sequence arg ({ranked}); the shipped "
+                       f"planner (`models/mrf.npz`, what `taskseq plan` runs) is the first, "
+                       f"{labels.get(sel['method'], sel['method'])}.")
+        out.append("")
     metrics = _load(reports / "crossval_means.json")
     if metrics:
         out += ["## Table I (6-fold cross-validation, mean ± sd over world seeds)", "",
@@ -68,6 +75,12 @@ def build_summary(reports: Path, labels: dict[str, str]) -> str:
                        f"{_pm(e, 'success')} |")
         out += ["", "Per primitive: `reports/table1.md` and `reports/table1.tex`; per seed: "
                 "`reports/table1_seeds.csv`, `reports/crossval_seeds.csv`.", ""]
+    ci, comparisons = reports / "table1_ci.md", reports / "comparisons.md"
+    if ci.exists() and comparisons.exists():  # the stats stage's tables, one heading level down
+        out += ["## Confidence intervals and paired comparisons", ""]
+        for path in (ci, comparisons):
+            out += [("##" + line if line.startswith("# ") else line) for line in path.read_text().splitlines()]
+            out.append("")
     failures = _failure_rows(reports)
     if failures and any(r["method"] == "full" for r in failures):
         shares = failure_shares(failures, "full")
@@ -111,7 +124,9 @@ def build_summary(reports: Path, labels: dict[str, str]) -> str:
     if train or bench:
         out += ["## Training and speed", ""]
         if train:
-            out.append(f"Full model on all steps: {train['iterations']} cutting-plane iterations, relative gap "
+            shipped = labels.get(train.get("method", "full"), train.get("method", "full"))
+            out.append(f"Shipped planner ({shipped}) on all steps: {train['iterations']} cutting-plane iterations "
+                       f"(last fit), relative gap "
                        f"{train['relative_gap']:.2g}, teacher-forced training accuracy "
                        f"{train['train_average_prim']:.1f}% (prim), {train['train_average_arg']:.1f}% (arg).")
         if bench:

@@ -57,5 +57,7 @@ STAGES: dict[str, Stage] = {
                    P.TeachPaths),
     "aggregate": Stage("every figure over the world seeds: mean ± sd tables, failures, noise, feedback, recipes",
                        P.AggregatePaths),
+    "stats": Stage("confidence intervals of Table I by a bootstrap over worlds and scenarios; paired tests of methods",
+                   P.StatsPaths),
     "report": Stage("write reports/summary.md: every result next to the paper's figures", P.ReportPaths),
 }

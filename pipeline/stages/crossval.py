@@ -1,7 +1,7 @@
 """Stage `crossval`: every method of Table I over grouped folds, teacher-forced and closed-loop.
 
 Writes Table I (long CSV, Markdown, LaTeX), the per-method summary, the metrics
-DVC tracks, every closed-loop program (also each method's own in its MLflow
+DVC tracks, every teacher-forced step's outcome, every closed-loop program (also each method's own in its MLflow
 child run, as a table), a confusion matrix of the full model and, when asked,
 Rerun recordings of some of its programs.
 """
@@ -20,7 +20,7 @@ from ..features.dataset import read_features
 from ..io import write_json_atomic, write_text_atomic
 from ..logs.benchmark import load_benchmark
 from ..plan.symbolic.files import file_stem
-from ..report.csvs import SEQUENCE_COLUMNS, csv_text, sequence_rows
+from ..report.csvs import SEQUENCE_COLUMNS, STEP_COLUMNS, csv_text, sequence_rows, step_rows
 from ..report.figures import confusion_png
 from ..report.tables import table_rows, to_csv, to_latex, to_markdown
 from ..settings import Crossval, Learner, Params
@@ -56,7 +56,8 @@ def run(settings: Settings, paths: CrossvalPaths, tracker: Tracker = NO_RUN, n_j
     results = cross_validate(factories, contexts, meta, bench, n_folds=crossval.folds, seed=crossval.seed,
                              group_by=crossval.group_by, max_steps=crossval.max_steps, n_jobs=n_jobs, verbose=5,
                              keep_programs={"full": recorded})
-    summary = summarize(results, contexts, {k: v().predicts_args for k, v in factories.items()})
+    predicts_args = {k: v().predicts_args for k, v in factories.items()}
+    summary = summarize(results, contexts, predicts_args)
     rows = table_rows(summary, method_labels())
     out = Path(output)
     write_text_atomic(out / "table1.csv", to_csv(rows))
@@ -69,6 +70,8 @@ def run(settings: Settings, paths: CrossvalPaths, tracker: Tracker = NO_RUN, n_j
     write_json_atomic(out / "metrics.json", headline_metrics(summary))
     sequences = sequence_rows(results)
     write_text_atomic(out / "crossval_sequences.csv", csv_text(SEQUENCE_COLUMNS, sequences))
+    write_text_atomic(out / "crossval_steps.csv", csv_text(STEP_COLUMNS, step_rows(results, contexts, meta,
+                                                                                   predicts_args)))
     for name, entry in summary.items():
         with tracker.child(name, method_params(name, factories[name]())) as child:
             child.metrics({k.replace("/", "_"): v for k, v in entry["steps"].items()})

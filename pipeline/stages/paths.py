@@ -60,7 +60,10 @@ class FeaturesPaths:
 @dataclass(frozen=True, kw_only=True)
 class TrainPaths:
     features: Path = option("feature folder", WORLD / "features", input=True)
-    selection: Path | None = _selection()
+    processed: Path | None = option("folder of Parquet tables: the training scenarios, which methods with chained "
+                                    "starts or DAgger need (default: not read)", None, input=True)
+    selection: Path | None = option("the file `taskseq select` wrote: C, and the method when train.method is best "
+                                    "(default: train.C of the settings)", None)
     model: Path = option("model file to write (.npz)")
     metrics: Path | None = option("training metrics (JSON; default: not written)", None)
     curve: Path | None = option("objective per iteration (CSV; default: not written)", None)
@@ -123,6 +126,13 @@ class AggregatePaths:
     worlds: Path = option("folder of the per-world results, one subfolder per seed", Path("reports/worlds"),
                           input=True)
     output: Path = option("folder for the tables over seeds")
+
+
+@dataclass(frozen=True, kw_only=True)
+class StatsPaths:
+    worlds: Path = option("folder of the per-world results, one subfolder per seed (their crossval_sequences.csv "
+                          "and crossval_steps.csv)", Path("reports/worlds"), input=True)
+    output: Path = option("folder for the intervals and comparisons")
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -1,4 +1,12 @@
-"""Stage `train`: the MRF weights on every step of the benchmark (the model `taskseq plan` uses)."""
+"""Stage `train`: the shipped planner (the model `taskseq plan` uses), fitted on every step of the benchmark.
+
+Its method is `train.method`: by default the MRF method the development
+world ranked first (`best`, read from the `select` stage's file), or any MRF
+method of Table I by name (`full` is the paper's model). A method that adds
+training data beyond the logs (chained starts, DAgger) needs the training
+scenarios, from the Parquet tables. The model file records the method and
+its settings.
+"""
 
 from __future__ import annotations
 
@@ -6,11 +14,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ..evaluate.methods import mrf_methods
 from ..evaluate.metrics import step_accuracy
+from ..evaluate.registry import method_labels
+from ..evaluate.selection import read_selected_method
 from ..features.dataset import build_steps, read_features
 from ..io import write_json_atomic, write_text_atomic
-from ..learn.estimator import StepScorer
 from ..learn.ssvm import learning_curve
+from ..logs.benchmark import Benchmark, load_benchmark
 from ..logs.people import people_records
 from ..report.csvs import csv_text
 from ..settings import Params, Train
@@ -27,21 +38,41 @@ class Settings:
 def settings(params: Params, world_seed: int | None = None) -> Settings:
     t, people = params.train, params.people
     logs, use = Path(people.logs), people.train  # both read, so the keys read never depend on the values
-    return Settings(Train(C=t.C, tol=t.tol, max_iter=t.max_iter, n_slacks=t.n_slacks, feature_set=t.feature_set),
-                    logs if use else None)
+    return Settings(Train(C=t.C, tol=t.tol, max_iter=t.max_iter, n_slacks=t.n_slacks, dagger_rounds=t.dagger_rounds,
+                          method=t.method), logs if use else None)
+
+
+def shipped_method(settings: Train, paths: TrainPaths) -> tuple[str, str]:
+    """The method to train and why: named in the settings, or the one the development world ranked first."""
+    if settings.method != "best":
+        return settings.method, "train.method"
+    if paths.selection is None:
+        raise ValueError("train.method is 'best', the method the development world ranks first: give the file "
+                         "`taskseq select` wrote with --selection, or name a method with --set train.method=NAME")
+    return read_selected_method(paths.selection), f"ranked first on the development world ({paths.selection})"
 
 
 def run(settings: Settings, paths: TrainPaths, tracker: Tracker = NO_RUN) -> dict[str, Any]:
     """With `people.train`, people's demonstrations (`taskseq serve`) are added to the training steps."""
-    model, metrics, curve = paths.model, paths.metrics, paths.curve
-    contexts, _ = read_features(paths.features)
-    n_people = 0
-    if settings.people_logs is not None:
-        records, _ = people_records(settings.people_logs)
-        extra, _ = build_steps(records)
-        contexts, n_people = contexts + extra, len(records)
-    planner = StepScorer(settings.train.feature_set, **settings.train.ssvm).fit(contexts, progress=True)
-    planner.save(model, n_steps=len(contexts))
+    train = settings.train
+    features, model, metrics, curve = paths.features, paths.model, paths.metrics, paths.curve
+    name, chosen_by = shipped_method(train, paths)
+    method = mrf_methods(train.learner, names=[name])[name]()
+    contexts, meta = read_features(features)
+    people = people_records(settings.people_logs)[0] if settings.people_logs is not None else []
+    if people:
+        extra, extra_meta = build_steps(people)
+        contexts, meta = contexts + extra, meta + extra_meta
+    scenarios = None
+    if method.chained_starts or method.dagger_rounds:
+        if paths.processed is None:
+            raise ValueError(f"method {name} adds chained starts or DAgger rounds to the logs: it needs the "
+                             "training scenarios, from the Parquet tables (--processed)")
+        scenarios = {**load_benchmark(paths.processed).scenarios, **Benchmark.from_records(people).scenarios}
+    planner = method.fit(contexts, meta, scenarios).planner_
+    label = method_labels().get(name, name)
+    planner.save(model, n_steps=len(contexts), method=name, label=label, chosen_by=chosen_by,
+                 chained_starts=method.chained_starts, dagger_rounds=method.dagger_rounds)
     ssvm = planner.ssvm_
     acc = step_accuracy(contexts, planner.predict(contexts))
     last = ssvm.history_[-1]
@@ -56,21 +87,22 @@ def run(settings: Settings, paths: TrainPaths, tracker: Tracker = NO_RUN) -> dic
         "relative_gap": last.gap / max(1.0, abs(last.best_primal)),
     }
     if settings.people_logs is not None:  # without them, the file is the same as before
-        out["people_sequences"] = n_people
+        out["people_sequences"] = len(people)
     if metrics:
-        write_json_atomic(metrics, out)
+        write_json_atomic(metrics, {**out, "method": name})
     if curve:
         write_text_atomic(curve, csv_text(
             ["iteration", "primal", "best_primal", "dual", "gap", "n_constraints"],
             ({"iteration": it.iteration, "primal": it.primal, "best_primal": it.best_primal, "dual": it.dual,
               "gap": it.gap, "n_constraints": it.n_constraints} for it in ssvm.history_)))
+    tracker.params({"method": name, "method.chosen_by": chosen_by})
     tracker.metrics({**{k: float(v) for k, v in out.items()}, "seconds": planner.fit_seconds_})
     tracker.curve(learning_curve(ssvm.history_))  # MLflow charts them against the iteration
     for path in (curve, model):
         if path:
             tracker.artifact(path)
     state = "converged" if ssvm.converged_ else "stopped at max_iter"
-    print(f"trained {settings.train.feature_set} model on {len(contexts)} steps: {ssvm.n_iter_} iterations ({state}), "
-          f"{planner.fit_seconds_:.1f} s; teacher-forced training accuracy prim {acc['average/prim']:.1f}% "
-          f"arg {acc['average/arg']:.1f}%; saved {model}")
+    print(f"trained {label} (method {name}, {chosen_by}) on {len(contexts)} steps: last fit {ssvm.n_iter_} "
+          f"iterations ({state}), {planner.fit_seconds_:.1f} s in all; teacher-forced training accuracy prim "
+          f"{acc['average/prim']:.1f}% arg {acc['average/arg']:.1f}%; saved {model}")
     return out
