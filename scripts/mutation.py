@@ -32,6 +32,7 @@ from pipeline.io import write_text_atomic
 
 ROOT = Path(__file__).resolve().parents[1]
 EQUIVALENT = ROOT / "scripts" / "mutation_equivalent.toml"
+MUTMUT = Path(sys.executable).with_name("mutmut")  # the one installed beside this Python
 
 
 @dataclass(frozen=True)
@@ -82,8 +83,7 @@ def _scratch(name: str, group: Group) -> Path:
 
 
 def _mutmut(scratch: Path, *args: str) -> str:
-    exe = Path(sys.executable).with_name("mutmut")
-    return subprocess.run([str(exe), *args], cwd=scratch, check=True, capture_output=True, text=True).stdout
+    return subprocess.run([str(MUTMUT), *args], cwd=scratch, check=True, capture_output=True, text=True).stdout
 
 
 def _equivalent() -> dict[str, str]:
@@ -163,9 +163,8 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     group = GROUPS[args.group]
     scratch = _scratch(args.group, group)
-    exe = Path(sys.executable).with_name("mutmut")
     start = time.monotonic()
-    run = subprocess.run([str(exe), "run", "--max-children", str(args.max_children)], cwd=scratch,
+    run = subprocess.run([str(MUTMUT), "run", "--max-children", str(args.max_children)], cwd=scratch,
                          stdout=subprocess.DEVNULL)
     if run.returncode != 0:
         print(f"mutmut run failed with exit code {run.returncode} (in {scratch})", file=sys.stderr)

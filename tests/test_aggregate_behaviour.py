@@ -271,3 +271,37 @@ def test_the_figures_draw_the_means_and_spreads_over_worlds(aggregated):
     assert fb["title"] == "Sequence accuracy (arg) with an observer's feedback"
     assert (fb["xlabel"], fb["ylabel"]) == ("steps with feedback", "% sequences correct")
     assert fb["xticks"] == [0, 1, 2] and fb["xticklabels"] == ["0", "1", "all"]
+
+
+def test_bad_or_missing_inputs_are_named(tmp_path):
+    from pipeline.report.seeds import crossval_over_seeds, table1_over_seeds
+
+    for seed, w in WORLD.items():
+        _write_world(tmp_path / str(seed), w)
+    dirs = {s: tmp_path / str(s) for s in SEEDS}
+    text = (dirs[3] / "table1.csv").read_text().splitlines()
+    text[2] = text[2].rsplit(",", 1)[0] + ",lots"  # record 3 (the header is record 1), field arg
+    (dirs[3] / "table1.csv").write_text("\n".join(text) + "\n")
+    with pytest.raises(ValueError, match=rf"^{dirs[3] / 'table1.csv'}: record 3, field 'arg': not a number: 'lots'$"):
+        table1_over_seeds(dirs)
+    text[2] = text[2].replace(",95.00,", ",much,", 1)
+    (dirs[3] / "table1.csv").write_text("\n".join(text) + "\n")
+    with pytest.raises(ValueError, match=r"record 3, field 'prim': not a number: 'much'$"):
+        table1_over_seeds(dirs)
+    (dirs[7] / "crossval.json").unlink()
+    with pytest.raises(FileNotFoundError, match=rf"^{dirs[7] / 'crossval.json'}: missing; run the stage that writes "
+                                                 "it for world seed 7$"):
+        crossval_over_seeds(dirs)
+    with pytest.raises(ValueError, match="^mean_sd: no values$"):
+        mean_sd([])
+
+
+def test_methods_without_a_label_keep_their_name_and_a_summary_without_tasks_is_read():
+    from pipeline.report.seeds import failures_markdown, failures_over_seeds, plot_columns
+
+    programs = dict.fromkeys(KINDS, 0) | {"exact": 2}
+    rows = failures_over_seeds({0: {"mine": {"programs": programs}}})  # no per-task figures
+    assert {r["task"] for r in rows} == {"all"}
+    assert "| mine | 100.0 ± 0.0 |" in failures_markdown(rows, ["mine"], 1)
+    columns, wide = plot_columns([{"n": "1", "method": "mine", "k": 2, "v": 5.0}], "n", ["method", "k"], "v", {})
+    assert columns == ["n", "method mine k 2"] and wide == [{"n": "1", "method mine k 2": 5.0}]
