@@ -80,7 +80,7 @@ def test_the_people_stage_judges_the_tasks_people_did_not_demonstrate(taught, tm
 
 
 def test_the_train_switch_adds_people_steps_and_off_leaves_the_metrics_as_they_were(taught, tmp_path, features):
-    train = Train(C=3.0, tol=1e-2, max_iter=300)
+    train = Train(C=3.0, tol=1e-2, max_iter=300, method="full")
     without = train_stage.run(train_stage.Settings(train, None),
                               TrainPaths(features=features, model=tmp_path / "a.npz"))
     with_people = train_stage.run(train_stage.Settings(train, taught),

@@ -229,7 +229,7 @@ def test_select_sees_only_the_development_world(tiny, monkeypatch, tmp_path, cap
     result = json.loads(out.read_text())
     assert result["dev_seed"] == 100 and [c["C"] for c in result["candidates"]] == [0.5, 2.0]
     assert result["C"] == best_candidate(result["candidates"])["C"]
-    assert f"chose C={result['C']:g}; written to {out}" in capsys.readouterr().out
+    assert f"chose C={result['C']:g} and method {result['method']}; written to {out}" in capsys.readouterr().out
     assert {p.name for p in (tmp_path / "dev").iterdir()} == {"raw", "processed", "features"}
     assert [r["method"] for r in result["methods"]] in (["full", "relations"], ["relations", "full"])
     assert result["method"] == result["methods"][0]["method"]
