@@ -155,6 +155,20 @@ class Stats:
             raise ValueError(f"stats.confidence must lie strictly between 0 and 1, got {self.confidence}")
 
 
+@dataclass(frozen=True)
+class Replay:
+    """How the noise and feedback stages re-run the test scenarios: crossval's folds, so each scenario is run
+    by a model that did not train on it, and step cap, and the learner of those models."""
+
+    folds: Folds
+    max_steps: int
+    learner: Learner
+
+    @classmethod
+    def of(cls, params: Params) -> Replay:
+        return cls(params.crossval.fold_settings, params.crossval.max_steps, params.train.learner)
+
+
 # What a key may hold beyond its type, checked when the file is read.
 CHOICES: dict[tuple[str, str], tuple[str, ...]] = {
     ("crossval", "group_by"): ("scenario", "environment"),

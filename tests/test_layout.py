@@ -9,9 +9,9 @@ import pytest
 import yaml
 
 from pipeline.cli import main
-from pipeline.evaluate.teaching import doable_tasks
 from pipeline.serve.environments import file_environment
 from pipeline.serve.layout import environment_from_layout
+from pipeline.sim.scenarios import doable_tasks
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "docs" / "examples" / "workshop.yaml"
 

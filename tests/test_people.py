@@ -8,7 +8,6 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.evaluate.teaching import doable_tasks
 from pipeline.features.dataset import build_steps, write_features
 from pipeline.logs.ingest import write_tables
 from pipeline.logs.people import people_records
@@ -16,6 +15,7 @@ from pipeline.serve.environments import world_environment
 from pipeline.serve.writer import RecordWriter, person_record
 from pipeline.settings import Learner, People, Teach, Train, World
 from pipeline.sim.demonstrator import demonstrate
+from pipeline.sim.scenarios import doable_tasks
 from pipeline.sim.tasks import Task
 from pipeline.stages import people as people_stage
 from pipeline.stages import teach as teach_stage

@@ -29,9 +29,7 @@ from ..logs.ingest import load_logs
 from ..plan.planner import plan
 from ..serve.writer import RecordWriter
 from ..settings import Learner
-from ..sim.demonstrator import NoDemonstration, demonstrate
-from ..sim.primitives import Action, PreconditionError
-from ..sim.scenarios import task_candidates
+from ..sim.primitives import Action
 from ..sim.state import WorldState
 from ..sim.tasks import Task
 
@@ -48,17 +46,6 @@ class Outcome:
     @property
     def success(self) -> float:
         return 100.0 * self.n_success / self.n_tasks if self.n_tasks else float("nan")
-
-
-def doable_tasks(state: WorldState) -> list[tuple[Task, list[Action]]]:
-    """Every task that reads sensibly here and that the scripted demonstrator can do, with its first sequence."""
-    out = []
-    for task in task_candidates(state):
-        try:
-            out.append((task, demonstrate(state, task)[0]))
-        except (NoDemonstration, PreconditionError):
-            continue
-    return out
 
 
 def fit(contexts: list[StepContext], learner: Learner) -> StepScorer:

@@ -21,9 +21,8 @@ import time
 import urllib.parse
 from dataclasses import dataclass, field
 
-from ..sim.demonstrator import NoDemonstration, demonstrate
-from ..sim.primitives import Action, PreconditionError
-from ..sim.scenarios import task_candidates
+from ..sim.primitives import Action
+from ..sim.scenarios import doable_tasks
 from ..sim.tasks import Task
 from .environments import world_environment
 
@@ -50,16 +49,7 @@ class LoadResult:
 
 def scripted_tasks(seed: int, env_id: str, n: int) -> list[tuple[Task, list[Action]]]:
     """The first `n` tasks of the environment the scripted demonstrator can do, with its first sequence."""
-    state = world_environment(seed, env_id).state
-    out = []
-    for task in task_candidates(state):
-        try:
-            out.append((task, demonstrate(state, task)[0]))
-        except (NoDemonstration, PreconditionError):
-            continue
-        if len(out) == n:
-            break
-    return out
+    return doable_tasks(world_environment(seed, env_id).state, limit=n)
 
 
 class Client:

@@ -131,3 +131,17 @@ def _spread(items: list[Scenario], k: int, rng: np.random.Generator) -> list[Sce
             if queues[env] and len(out) < k:
                 out.append(queues[env].pop())
     return out
+
+
+def doable_tasks(state: WorldState, limit: int | None = None) -> list[tuple[Task, list[Action]]]:
+    """Every task that reads sensibly here (`task_candidates`) and that the demonstrator can do, with its first
+    sequence, in the candidates' order; the first `limit` of them when a limit is given."""
+    out = []
+    for task in task_candidates(state):
+        if limit is not None and len(out) >= limit:
+            break
+        try:
+            out.append((task, demonstrate(state, task)[0]))
+        except (NoDemonstration, PreconditionError):
+            continue
+    return out

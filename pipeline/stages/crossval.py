@@ -44,8 +44,7 @@ def run(settings: Settings, paths: CrossvalPaths, tracker: Tracker = NO_RUN, n_j
     crossval, methods, output = settings.crossval, paths.methods, paths.output
     contexts, meta = read_features(paths.features)
     bench = load_benchmark(paths.processed)
-    store = None if paths.model_store is None else str(paths.model_store)
-    factories = table1_methods(crossval, settings.learner, settings.horizon, store)
+    factories = table1_methods(crossval, settings.learner, settings.horizon, paths.store)
     unknown = set(methods or []) - set(factories)
     if unknown:
         raise ValueError(f"unknown methods {sorted(unknown)}; known: {', '.join(factories)}")

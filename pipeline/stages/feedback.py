@@ -19,7 +19,7 @@ from ..io import write_text_atomic
 from ..logs.benchmark import load_benchmark
 from ..report.csvs import OUTCOME_COLUMNS, csv_text, outcome_row
 from ..report.figures import line_plot_png
-from ..settings import Feedback, Folds, Learner, Params
+from ..settings import Feedback, Params, Replay
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .paths import EvaluationPaths
 
@@ -29,30 +29,27 @@ DECIMALS = {"sequence_arg": 2, "sequence_prim": 2, "success": 2}
 @dataclass(frozen=True)
 class Settings:
     feedback: Feedback
-    folds: Folds  # the folds of crossval, so each scenario is run by the model that did not train on it
-    max_steps: int  # step cap of closed-loop runs
-    learner: Learner
+    replay: Replay
 
 
 def settings(params: Params, world_seed: int | None = None) -> Settings:
-    c = params.crossval
-    return Settings(params.feedback, Folds(c.folds, c.group_by, c.seed), c.max_steps, params.train.learner)
+    return Settings(params.feedback, Replay.of(params))
 
 
 def run(settings: Settings, paths: EvaluationPaths, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> list[dict[str, Any]]:
     feedback = settings.feedback
     contexts, meta = read_features(paths.features)
     bench = load_benchmark(paths.processed)
-    store = None if paths.model_store is None else str(paths.model_store)
-    methods = mrf_methods(settings.learner, store, feedback.methods)
-    ns = feedback_steps(feedback, settings.max_steps)
+    replay = settings.replay
+    methods = mrf_methods(replay.learner, paths.store, feedback.methods)
+    ns = feedback_steps(feedback, replay.max_steps)
     conditions = [FeedbackCondition(k, n) for k in feedback.k for n in ns]
     label = dict(zip(ns, feedback.n, strict=True))  # steps -> as the settings write them ("all")
     rows, sequences = [], []
-    outcomes = evaluate_conditions(methods, contexts, meta, bench.scenarios, conditions, settings.folds,
-                                   settings.max_steps, n_jobs=n_jobs)
+    outcomes = evaluate_conditions(methods, contexts, meta, bench.scenarios, conditions, replay.folds,
+                                   replay.max_steps, n_jobs=n_jobs)
     for name, results in outcomes.items():
-        rows += [{"method": name, **r} for r in feedback_rows(feedback, settings.max_steps, results)]
+        rows += [{"method": name, **r} for r in feedback_rows(feedback, replay.max_steps, results)]
         sequences += [{"method": name, "k": c.k, "n": label[c.n], **outcome_row(o)} for c, o in results]
     out = paths.output
     text = csv_text(["method", "k", "n", "sequence_arg", "sequence_prim", "success"], rows, DECIMALS)

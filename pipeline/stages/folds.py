@@ -30,7 +30,7 @@ class Settings:
 
 def settings(params: Params, world_seed: int | None = None) -> Settings:
     c = params.crossval
-    return Settings(Folds(c.folds, c.group_by, c.seed), params.train.learner, params.recipes.methods)
+    return Settings(c.fold_settings, params.train.learner, params.recipes.methods)
 
 
 def run(settings: Settings, paths: FoldsPaths, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> dict[str, Any]:

@@ -20,7 +20,7 @@ from ..logs.benchmark import load_benchmark
 from ..report import paper
 from ..report.csvs import OUTCOME_COLUMNS, csv_text, outcome_row
 from ..report.figures import line_plot_png
-from ..settings import Folds, Learner, Noise, Params
+from ..settings import Noise, Params, Replay
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .paths import EvaluationPaths
 
@@ -30,26 +30,23 @@ RATE = {"rate": 1, "sequence_arg": 2, "sequence_arg_std": 2, "sequence_prim": 2,
 @dataclass(frozen=True)
 class Settings:
     noise: Noise
-    folds: Folds  # the folds of crossval, so each scenario is run by the model that did not train on it
-    max_steps: int  # step cap of closed-loop runs
-    learner: Learner
+    replay: Replay
 
 
 def settings(params: Params, world_seed: int | None = None) -> Settings:
-    c = params.crossval
-    return Settings(params.noise, Folds(c.folds, c.group_by, c.seed), c.max_steps, params.train.learner)
+    return Settings(params.noise, Replay.of(params))
 
 
 def run(settings: Settings, paths: EvaluationPaths, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> list[dict[str, Any]]:
     noise = settings.noise
     contexts, meta = read_features(paths.features)
     bench = load_benchmark(paths.processed)
-    store = None if paths.model_store is None else str(paths.model_store)
-    methods = mrf_methods(settings.learner, store, noise.methods)
+    replay = settings.replay
+    methods = mrf_methods(replay.learner, paths.store, noise.methods)
     conditions = [NoiseCondition(r, s) for r in noise.rates for s in range(noise.draws)]
     runs, curve, sequences = [], [], []
-    outcomes = evaluate_conditions(methods, contexts, meta, bench.scenarios, conditions, settings.folds,
-                                   settings.max_steps, noise.seed, n_jobs)
+    outcomes = evaluate_conditions(methods, contexts, meta, bench.scenarios, conditions, replay.folds,
+                                   replay.max_steps, noise.seed, n_jobs)
     for name, results in outcomes.items():
         mine = noise_runs(noise, results)
         runs += [{"method": name, **r} for r in mine]

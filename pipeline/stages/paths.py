@@ -95,6 +95,11 @@ class EvaluationPaths(WorldPaths):
     model_store: Path | None = _store()
     output: Path = option("folder for the results")
 
+    @property
+    def store(self) -> str | None:
+        """The model store as the methods take it (`MRFMethod.store`), or None to train."""
+        return None if self.model_store is None else str(self.model_store)
+
 
 @dataclass(frozen=True, kw_only=True)
 class CrossvalPaths(EvaluationPaths):

@@ -38,8 +38,7 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
 def run(settings: Settings, paths: EvaluationPaths, tracker: Tracker = NO_RUN) -> dict[str, Any]:
     contexts, meta = read_features(paths.features)
     scenarios = load_benchmark(paths.processed).scenarios
-    store = None if paths.model_store is None else str(paths.model_store)
-    methods = mrf_methods(settings.learner, store, settings.recipes.methods)
+    methods = mrf_methods(settings.learner, paths.store, settings.recipes.methods)
     reports, programs = {}, []
     for method in methods:
         outcomes = evaluate_recipes(methods[method], contexts, meta, scenarios, max_steps=settings.max_steps,

@@ -36,7 +36,7 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
     t, c = params.train, params.crossval
     return Settings(params.world, params.select,
                     Learner(tol=t.tol, max_iter=t.max_iter, n_slacks=t.n_slacks, dagger_rounds=t.dagger_rounds),
-                    Folds(c.folds, c.group_by, c.seed), c.max_steps)
+                    c.fold_settings, c.max_steps)
 
 
 def run(settings: Settings, paths: SelectPaths, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> dict[str, Any]:

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from ..evaluate.teaching import doable_tasks, fit, pooled, success_on, teaching_order, written_and_read_back
+from ..evaluate.teaching import fit, pooled, success_on, teaching_order, written_and_read_back
 from ..features.dataset import build_steps
 from ..io import write_text_atomic
 from ..logs.benchmark import load_benchmark
@@ -27,6 +27,7 @@ from ..report.figures import line_plot_png
 from ..serve.environments import world_environment
 from ..serve.writer import person_record
 from ..settings import Learner, Params, Teach, World
+from ..sim.scenarios import doable_tasks
 from ..sim.tasks import TASKS
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .paths import TeachPaths
