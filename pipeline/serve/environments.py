@@ -35,7 +35,7 @@ class Environment:
 
 
 def world_environment(seed: int, env_id: str) -> Environment:
-    """Catalog environment `env_id` as world `seed` draws it (the same jitter as `taskseq generate --seed`)."""
+    """Catalog environment `env_id` as world `seed` draws it (the same jitter as `taskseq generate --world-seed`)."""
     if not 0 <= seed <= MAX_SEED:
         raise ValueError(f"world seed must be a whole number from 0 to {MAX_SEED}, got {seed}")
     if env_id not in ENVIRONMENTS_BY_ID:
