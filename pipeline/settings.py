@@ -21,18 +21,57 @@ import yaml
 
 
 @dataclass(frozen=True)
-class Generate:
-    """One draw of the simulated benchmark (a world)."""
-
-    seed: int = 0  # scenario draws and item position jitter
-
-
-@dataclass(frozen=True)
 class World:
     """Which worlds the pipeline draws: results are means over `seeds`; settings are chosen on `dev_seed`."""
 
+    family: str = "paper"  # paper: the 13 rooms of the reproduction; procedural: rooms drawn by the world seed
     seeds: tuple[int, ...] = (0, 3, 7)  # reported world seeds
     dev_seed: int = 100  # the development world: settings are chosen here and it is never reported
+
+
+@dataclass(frozen=True)
+class Procedural:
+    """The distribution rooms are drawn from in the procedural family; docs/world.md gives each value's reason.
+
+    Counts are inclusive ranges (low high), drawn uniformly per room.
+    """
+
+    environments: int = 13  # rooms per world
+    size_spread: float = 0.15  # a catalog object's width, length and height each vary by up to this share
+    new_objects: float = 0.4  # probability that a movable object or bin is of a kind the catalog never had
+    tables: tuple[int, ...] = (1, 2)
+    shelves: tuple[int, ...] = (0, 2)
+    bins: tuple[int, ...] = (1, 2)
+    pourers: tuple[int, ...] = (1, 3)  # each with a liquid inside
+    vessels: tuple[int, ...] = (3, 6)
+    filled_vessels: tuple[int, ...] = (1, 3)  # of the vessels, how many hold a liquid (something to stir)
+    stirrers: tuple[int, ...] = (1, 3)
+    items: tuple[int, ...] = (1, 3)
+    stacks: float = 0.5  # probability that a small object rests on a book, magazine, tray or board
+
+    def __post_init__(self) -> None:
+        if self.environments < 1:
+            raise ValueError(f"procedural.environments must be at least 1, got {self.environments}")
+        for name in ("size_spread", "new_objects", "stacks"):
+            if not 0.0 <= getattr(self, name) < 1.0:
+                raise ValueError(f"procedural.{name} must lie in [0, 1), got {getattr(self, name)}")
+        for name in ("tables", "shelves", "bins", "pourers", "vessels", "filled_vessels", "stirrers", "items"):
+            bounds = getattr(self, name)
+            if len(bounds) != 2 or not 0 <= bounds[0] <= bounds[1]:
+                got = " ".join(map(str, bounds))
+                raise ValueError(f"procedural.{name} must be two counts, low then high, got {got}")
+        if self.tables[0] < 1 or self.bins[0] < 1:
+            raise ValueError("procedural.tables and procedural.bins must start at 1: every task needs a table "
+                             "and throwing away needs a bin")
+
+
+@dataclass(frozen=True)
+class Generate:
+    """One draw of the simulated benchmark (a world): its family, seed and, when drawn, the rooms' distribution."""
+
+    seed: int = 0  # scenario draws (and item position jitter, or the rooms themselves)
+    family: str = "paper"
+    procedural: Procedural = Procedural()
 
 
 @dataclass(frozen=True)
@@ -171,6 +210,7 @@ class Replay:
 
 # What a key may hold beyond its type, checked when the file is read.
 CHOICES: dict[tuple[str, str], tuple[str, ...]] = {
+    ("world", "family"): ("paper", "procedural"),
     ("crossval", "group_by"): ("scenario", "environment"),
 }
 
@@ -183,6 +223,7 @@ class Params:
     """The whole of `params.yaml`, a typed section per field."""
 
     world: World = World()
+    procedural: Procedural = Procedural()
     select: Select = Select()
     train: Train = Train()
     pddl: Pddl = Pddl()

@@ -8,6 +8,7 @@ import pytest
 
 from pipeline.logs.generate import generate
 from pipeline.logs.ingest import load_logs
+from pipeline.settings import Generate
 from pipeline.sim.catalog import EnvironmentSpec, Placement, build_environment
 from pipeline.sim.state import WorldState
 
@@ -39,7 +40,7 @@ def mlflow_store(tmp_path_factory: pytest.TempPathFactory):
 @pytest.fixture(scope="session")
 def benchmark_logs(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("bench") / "raw"
-    generate(0, out)
+    generate(Generate(seed=0), out)
     return out
 
 

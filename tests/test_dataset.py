@@ -6,6 +6,7 @@ from pipeline.cli import main
 from pipeline.logs.generate import generate
 from pipeline.logs.ingest import dataset_summary, load_logs, write_tables
 from pipeline.logs.records import parse_record, state_from_dict
+from pipeline.settings import Generate
 from pipeline.sim.objects import ATTRIBUTE_NAMES
 from pipeline.sim.primitives import PRIMITIVES, execute
 from pipeline.sim.safety import violations
@@ -49,7 +50,7 @@ def test_no_object_name_or_category_in_the_attributes(benchmark_tables):
 
 def test_same_seed_gives_byte_identical_logs_and_tables(benchmark_logs, benchmark_tables, tmp_path):
     again = tmp_path / "raw"
-    generate(0, again)
+    generate(Generate(seed=0), again)
     names = sorted(p.name for p in benchmark_logs.iterdir())
     assert names == sorted(p.name for p in again.iterdir())
     match, mismatch, errors = filecmp.cmpfiles(benchmark_logs, again, names, shallow=False)
@@ -62,7 +63,7 @@ def test_same_seed_gives_byte_identical_logs_and_tables(benchmark_logs, benchmar
 
 
 def test_other_seed_gives_another_draw_of_the_same_shape(tmp_path):
-    generate(1, tmp_path / "raw")
+    generate(Generate(seed=1), tmp_path / "raw")
     d = dataset_summary(load_logs(tmp_path / "raw")[0])
     assert (d["scenarios"], d["sequences"], d["environments"]) == (113, 127, 13)
 

@@ -208,10 +208,10 @@ def test_select_sees_only_the_development_world(tiny, monkeypatch, tmp_path, cap
     reaches it, and the file holds the candidate the documented rule prefers."""
     drawn = []
 
-    def spy_generate(seed, output):
-        drawn.append(seed)
+    def spy_generate(world, output):
+        drawn.append(world.seed)
         shutil.copytree(tiny / "raw", output)
-        return {}
+        return {}, None
 
     read = []
 

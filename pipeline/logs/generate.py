@@ -5,7 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..io import atomic_directory
-from ..sim.scenarios import Scenario, benchmark_scenarios
+from ..settings import Generate
+from ..sim.procedural import DrawReport
+from ..sim.scenarios import Scenario, world_scenarios
 from .records import demonstration_record, dumps
 
 
@@ -21,5 +23,7 @@ def write_demonstrations(scenarios: list[Scenario], output: Path | str) -> dict[
     return {env_id: len(lines) for env_id, lines in by_env.items()}
 
 
-def generate(seed: int, output: Path | str) -> dict[str, int]:
-    return write_demonstrations(benchmark_scenarios(seed), output)
+def generate(world: Generate, output: Path | str) -> tuple[dict[str, int], DrawReport]:
+    """Write the logs of `world`; returns lines per file and what drawing its rooms cost."""
+    scenarios, report = world_scenarios(world)
+    return write_demonstrations(scenarios, output), report

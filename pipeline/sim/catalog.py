@@ -209,25 +209,32 @@ def build_environment(env: EnvironmentSpec, rng: np.random.Generator | None = No
             raise ValueError(f"{env.id}: {pl.obj} placed twice")
         if pl.on not in specs:
             raise ValueError(f"{env.id}: {pl.obj} placed on {pl.on}, which is not placed before it")
-        base, bspec = poses[pl.on], specs[pl.on]
-        jitter = float(rng.uniform(-0.01, 0.01)) if rng is not None and bspec.category in ("table", "shelf") else 0.0
-        if bspec.category in ("table", "shelf"):
-            y_front = base[1] - bspec.l / 2 + FRONT_GAP + spec.l / 2
-            y = y_front + (0.3 if pl.back else 0.0)
-            pose = (base[0] + pl.dx + jitter, y, base[2] + bspec.surface_heights()[pl.level])
-            relation = ON
-        elif bspec.has("container") and not bspec.has("large_surface"):
-            pose = (base[0], base[1], base[2] + 0.005)
-            relation = INSIDE
-        else:
-            pose = (base[0] + pl.dx, base[1], base[2] + bspec.h)
-            relation = ON
+        jitter = float(rng.uniform(-0.01, 0.01)) if rng is not None and on_furniture(specs[pl.on]) else 0.0
+        pose, relation = item_pose(poses[pl.on], specs[pl.on], spec, pl, jitter)
         specs[pl.obj] = spec
-        poses[pl.obj] = tuple(round(v, 6) for v in pose)
+        poses[pl.obj] = pose
         support[pl.obj] = (pl.on, relation)
     state = WorldState(specs=specs, poses=poses, support=support, robot=(env.robot_x, ROBOT_START_Y))
     _check_layout(env.id, state)
     return state
+
+
+def on_furniture(spec: ObjectSpec) -> bool:
+    """Items on tables and shelves stand in rows at a level; anything else holds its load centred on itself."""
+    return spec.category in ("table", "shelf")
+
+
+def item_pose(base: tuple[float, float, float], bspec: ObjectSpec, spec: ObjectSpec, pl: Placement,
+              jitter: float = 0.0) -> tuple[tuple[float, float, float], str]:
+    """Where the placed item `spec` stands on or in `bspec` (whose pose is `base`), and how it is held there."""
+    if on_furniture(bspec):
+        y = base[1] - bspec.l / 2 + FRONT_GAP + spec.l / 2 + (0.3 if pl.back else 0.0)
+        pose, relation = (base[0] + pl.dx + jitter, y, base[2] + bspec.surface_heights()[pl.level]), ON
+    elif bspec.has("container") and not bspec.has("large_surface"):
+        pose, relation = (base[0], base[1], base[2] + 0.005), INSIDE
+    else:
+        pose, relation = (base[0] + pl.dx, base[1], base[2] + bspec.h), ON
+    return tuple(round(v, 6) for v in pose), relation
 
 
 def _check_layout(env_id: str, state: WorldState) -> None:

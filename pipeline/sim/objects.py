@@ -33,8 +33,8 @@ ATTRIBUTE_NAMES = CONTINUOUS_ATTRIBUTES + BINARY_ATTRIBUTES
 
 # Categories the simulator gives meaning to. Anything else is a plain item.
 FURNITURE = frozenset({"floor", "table", "shelf"})
-VESSELS = frozenset({"cup", "mug", "glass", "bowl", "teacup", "pot"})
-POURERS = frozenset({"bottle", "pitcher", "carton", "can", "kettle", "jar"})
+VESSELS = frozenset({"cup", "mug", "glass", "bowl", "teacup", "pot", "tumbler", "beaker", "ramekin"})
+POURERS = frozenset({"bottle", "pitcher", "carton", "can", "kettle", "jar", "jug", "flask", "thermos"})
 CATEGORIES = FURNITURE | VESSELS | POURERS | frozenset({"bin", "liquid", "stirrer", "item"})
 
 

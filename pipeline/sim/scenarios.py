@@ -11,10 +11,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..settings import Generate, Procedural
 from .catalog import ENVIRONMENTS, build_environment
 from .demonstrator import NoDemonstration, demonstrate
 from .objects import POURERS, VESSELS
 from .primitives import Action, PreconditionError
+from .procedural import MAX_REDRAWS, DrawReport, Redraw, draw_room
 from .state import WorldState
 from .tasks import Task
 
@@ -75,47 +77,90 @@ def task_candidates(state: WorldState) -> list[Task]:
     return tasks
 
 
-def candidate_scenarios(seed: int) -> list[Scenario]:
-    """All candidates with a valid demonstration, in a fixed order."""
-    rng = np.random.default_rng(seed)
+def room_scenarios(env_id: str, state: WorldState) -> list[Scenario]:
+    """Every task candidate of one room that the demonstrator can do in 4 to 10 steps, in a fixed order."""
     out = []
-    for env in ENVIRONMENTS:
-        state = build_environment(env, rng)
-        for task in task_candidates(state):
-            try:
-                seqs = demonstrate(state, task)
-            except (NoDemonstration, PreconditionError):
-                continue
-            if all(MIN_STEPS <= len(s) <= MAX_STEPS for s in seqs):
-                out.append(Scenario(env.id, task, state, tuple(tuple(s) for s in seqs)))
+    for task in task_candidates(state):
+        try:
+            seqs = demonstrate(state, task)
+        except (NoDemonstration, PreconditionError):
+            continue
+        if all(MIN_STEPS <= len(s) <= MAX_STEPS for s in seqs):
+            out.append(Scenario(env_id, task, state, tuple(tuple(s) for s in seqs)))
     return out
 
 
+def candidate_scenarios(seed: int) -> list[Scenario]:
+    """All candidates of the paper-shaped rooms with a valid demonstration, in a fixed order."""
+    rng = np.random.default_rng(seed)
+    return [s for env in ENVIRONMENTS for s in room_scenarios(env.id, build_environment(env, rng))]
+
+
+def drawn_scenarios(seed: int, environments: int, dist: Procedural) -> tuple[list[Scenario], DrawReport]:
+    """All candidates of `environments` rooms drawn with the seed, each room one where every task can be
+    demonstrated (others are drawn again and counted in the report)."""
+    rng = np.random.default_rng([seed, environments])
+    report, pool = DrawReport(), []
+    for i in range(environments):
+        env_id = f"proc{i + 1:03d}"
+        for _ in range(MAX_REDRAWS):
+            try:
+                env, objects = draw_room(env_id, dist, rng)
+            except Redraw as why:
+                report.redraws[why.reason] += 1
+                continue
+            scenarios = room_scenarios(env_id, build_environment(env, objects=objects))
+            missing = sorted(set(QUOTAS) - {s.task.name for s in scenarios})
+            if missing:
+                report.redraws[f"no demonstration of {missing[0]}"] += 1
+                continue
+            pool += scenarios
+            break
+        else:
+            raise RuntimeError(f"{env_id}: no room drawn in {MAX_REDRAWS} attempts could be demonstrated "
+                               f"({dict(report.redraws)})")
+    report.environments = environments
+    return pool, report
+
+
 def benchmark_scenarios(seed: int) -> list[Scenario]:
-    """The benchmark: QUOTAS scenarios per task, N_WITH_ALTERNATIVES of them with two sequences.
+    """The paper-shaped benchmark of world `seed`: the 13 rooms, 113 scenarios."""
+    return _select(candidate_scenarios(seed), np.random.default_rng(seed), 1.0)
+
+
+def world_scenarios(world: Generate) -> tuple[list[Scenario], DrawReport]:
+    """The benchmark of one world of either family, and what drawing its rooms cost."""
+    if world.family == "paper":
+        return benchmark_scenarios(world.seed), DrawReport(environments=len(ENVIRONMENTS))
+    rooms = world.procedural.environments
+    pool, report = drawn_scenarios(world.seed, rooms, world.procedural)
+    # the paper's quotas scaled by the number of rooms over the paper's 13
+    return _select(pool, np.random.default_rng([world.seed, rooms, 1]), rooms / len(ENVIRONMENTS)), report
+
+
+def _select(pool: list[Scenario], rng: np.random.Generator, scale: float) -> list[Scenario]:
+    """QUOTAS scenarios per task, N_WITH_ALTERNATIVES of them with two sequences, each times `scale` (or all
+    there are, where a drawn world has fewer candidates; the paper-shaped world always has enough).
 
     Each draw is spread over environments (round robin over a shuffled order)
-    so that all 13 environments take part.
+    so that every environment takes part; of N_DRAWS draws, the one nearest TARGET_STEPS (scaled) is kept.
     """
-    rng = np.random.default_rng(seed)
-    pool = candidate_scenarios(seed)
+    n_alternatives, target = round(N_WITH_ALTERNATIVES * scale), round(TARGET_STEPS * scale)
+    quotas = {task: round(quota * scale) for task, quota in QUOTAS.items()}
     multi = [s for s in pool if len(s.demonstrations) == 2]
-    if len(multi) < N_WITH_ALTERNATIVES:
-        raise RuntimeError(f"only {len(multi)} candidate scenarios have two sequences")
+    n_alternatives = min(n_alternatives, len(multi))  # a drawn world may have fewer: it then holds what there is
     best: tuple[int, list[Scenario]] | None = None
     for _ in range(N_DRAWS):
-        chosen = _spread(multi, N_WITH_ALTERNATIVES, rng)
-        for task, quota in QUOTAS.items():
+        chosen = _spread(multi, n_alternatives, rng)
+        for task, quota in quotas.items():
             have = sum(1 for s in chosen if s.task.name == task)
             single = [s for s in pool if len(s.demonstrations) == 1 and s.task.name == task]
-            if len(single) < quota - have:
-                raise RuntimeError(f"only {len(single)} candidate {task} scenarios for a quota of {quota - have}")
-            chosen += _spread(single, quota - have, rng)
-        miss = abs(sum(len(q) for s in chosen for q in s.demonstrations) - TARGET_STEPS)
+            chosen += _spread(single, min(quota - have, len(single)), rng)
+        miss = abs(sum(len(q) for s in chosen for q in s.demonstrations) - target)
         if best is None or miss < best[0]:
             best = (miss, chosen)
     assert best is not None
-    env_order = {e.id: i for i, e in enumerate(ENVIRONMENTS)}
+    env_order = {env_id: i for i, env_id in enumerate(dict.fromkeys(s.env_id for s in pool))}
     return sorted(best[1], key=lambda s: (env_order[s.env_id], s.task.name, s.task.args))
 
 

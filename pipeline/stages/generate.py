@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from ..io import write_json_atomic
 from ..logs.generate import generate
 from ..settings import Generate, Params
 from ..track.mlflow_runs import NO_RUN, Tracker
@@ -12,12 +13,17 @@ def settings(params: Params, world_seed: int | None = None) -> Generate:
     """The world drawn is the one the command names (`--world-seed`); `params.yaml` lists which are reported."""
     if world_seed is None:
         raise ValueError("generate: name the world to draw with --world-seed N")
-    return Generate(seed=world_seed)
+    return Generate(world_seed, params.world.family, params.procedural)
 
 
 def run(settings: Generate, paths: GeneratePaths, tracker: Tracker = NO_RUN) -> dict[str, int]:
     output = paths.output
-    counts = generate(settings.seed, output)
-    tracker.metrics({"demonstrations": sum(counts.values()), "files": len(counts)})
-    print(f"wrote {sum(counts.values())} demonstrations in {len(counts)} files to {output}")
+    counts, report = generate(settings, output)
+    tracker.metrics({"demonstrations": sum(counts.values()), "files": len(counts),
+                     "redraws": sum(report.redraws.values())})
+    if paths.metrics is not None:
+        write_json_atomic(paths.metrics, {"family": settings.family, "seed": settings.seed, **report.as_dict(),
+                                          "demonstrations": sum(counts.values())})
+    redrawn = f" ({sum(report.redraws.values())} rooms redrawn)" if report.redraws else ""
+    print(f"wrote {sum(counts.values())} demonstrations in {len(counts)} files to {output}{redrawn}")
     return counts

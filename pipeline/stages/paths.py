@@ -42,6 +42,8 @@ class SelectPaths:
 @dataclass(frozen=True, kw_only=True)
 class GeneratePaths:
     output: Path = option("folder of *.jsonl logs (replaced)")
+    metrics: Path | None = option("what drawing the world cost: rooms, redraws by reason (JSON; default: not "
+                                  "written)", None)
 
 
 @dataclass(frozen=True, kw_only=True)

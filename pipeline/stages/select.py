@@ -18,7 +18,7 @@ from ..io import write_json_atomic
 from ..logs.benchmark import Benchmark
 from ..logs.generate import generate
 from ..logs.ingest import load_logs, write_tables
-from ..settings import Folds, Learner, Params, Select, World
+from ..settings import Folds, Generate, Learner, Params, Procedural, Select, World
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .paths import SelectPaths
 
@@ -26,6 +26,7 @@ from .paths import SelectPaths
 @dataclass(frozen=True)
 class Settings:
     world: World
+    procedural: Procedural  # the rooms' distribution, when world.family draws them
     select: Select
     learner: Learner  # C is the value tried; the rest (DAgger's rounds too) as `train` sets it
     folds: Folds
@@ -34,7 +35,7 @@ class Settings:
 
 def settings(params: Params, world_seed: int | None = None) -> Settings:
     t, c = params.train, params.crossval
-    return Settings(params.world, params.select,
+    return Settings(params.world, params.procedural, params.select,
                     Learner(tol=t.tol, max_iter=t.max_iter, n_slacks=t.n_slacks, dagger_rounds=t.dagger_rounds),
                     c.fold_settings, c.max_steps)
 
@@ -46,7 +47,7 @@ def run(settings: Settings, paths: SelectPaths, tracker: Tracker = NO_RUN, n_job
                          "be chosen on a world that is never reported")
     mrf_methods(settings.learner, names=select.methods)  # an unknown name stops here, before minutes of work
     data, output = paths.data, paths.output
-    generate(world.dev_seed, data / "raw")
+    generate(Generate(world.dev_seed, world.family, settings.procedural), data / "raw")
     tables, records = load_logs(data / "raw")
     write_tables(tables, data / "processed")
     contexts, meta = build_steps([r.record for r in records])
