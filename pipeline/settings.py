@@ -163,6 +163,13 @@ class Recipes:
 
 
 @dataclass(frozen=True)
+class Scenes:
+    """Rooms never seen in training (`scenes` stage): the drawn world of each reported seed, rooms held out whole."""
+
+    transfer: tuple[str, ...] = ("full", "relations", "dagger")  # MRF methods also trained on the paper-shaped world
+
+
+@dataclass(frozen=True)
 class People:
     """People's demonstrations (`taskseq serve`): where they are, and whether `train` learns from them."""
 
@@ -231,6 +238,7 @@ class Params:
     noise: Noise = Noise()
     feedback: Feedback = Feedback()
     recipes: Recipes = Recipes()
+    scenes: Scenes = Scenes()
     people: People = People()
     teach: Teach = Teach()
     stats: Stats = Stats()

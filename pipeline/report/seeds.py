@@ -188,7 +188,7 @@ def headline_groups(means: dict[str, Any], noise: list[dict[str, Any]], feedback
     """The figures a reader looks for first, mean over world seeds, grouped by experiment (`reports/metrics.json`).
 
     Closed-loop sequence accuracy (arg) of every method with its sd and success; the
-    noise curve; feedback with one step and at every step; recipes succeeded. The
+    noise curve; feedback with one step and at every step; recipes succeeded (where there are any). The
     other figures and their spreads stay in the files they come from.
     """
     return {
@@ -199,7 +199,7 @@ def headline_groups(means: dict[str, Any], noise: list[dict[str, Any]], feedback
         "feedback": {m: {f"top{r['k']}_n{r['n']}": r["sequence_arg"] for r in feedback
                          if r["method"] == m and r["n"] in ("1", "all")}
                      for m in dict.fromkeys(r["method"] for r in feedback)},
-        "recipes": {m: r["mean"] for m, r in recipes["methods"].items()},
+        **({"recipes": {m: r["mean"] for m, r in recipes["methods"].items()}} if recipes else {}),
     }
 
 

@@ -107,8 +107,10 @@ def run(settings: World, paths: AggregatePaths, tracker: Tracker = NO_RUN) -> di
     datasets = {str(s): d for s, d in json_over_seeds(dirs, "dataset.json").items()}
     write_json_atomic(out / "dataset.json", datasets)
 
-    recipes = recipes_over_seeds(dirs)
-    write_json_atomic(out / "recipes.json", recipes)
+    # recipes name the paper-shaped rooms' objects: worlds of drawn rooms have none
+    recipes = recipes_over_seeds(dirs) if all((d / "recipes.json").exists() for d in dirs.values()) else {}
+    if recipes:
+        write_json_atomic(out / "recipes.json", recipes)
     write_json_atomic(out / "metrics.json", headline_groups(means, noise, fb, recipes))
     # the curves again, one column per line, for `dvc plots show` (it draws one line per column)
     plot_labels = {**method_labels(), **{str(k): f"top {k}" for k in ks}}

@@ -40,7 +40,8 @@ def run(settings: Settings, paths: FoldsPaths, tracker: Tracker = NO_RUN, n_jobs
     methods = mrf_methods(settings.learner)
     jobs = training_jobs(methods, meta, bench.scenarios, folds.folds, folds.seed, folds.group_by,
                          settings.recipe_methods)
-    print(f"training {len(jobs)} fold models ({folds.folds} folds grouped by {folds.group_by}, recipes) "
+    recipes = ", recipes" if settings.recipe_methods else ""
+    print(f"training {len(jobs)} fold models ({folds.folds} folds grouped by {folds.group_by}{recipes}) "
           f"with {n_jobs} jobs")
     start = time.perf_counter()
     records = train_fold_models(methods, contexts, meta, bench.scenarios, jobs, output, n_jobs=n_jobs, verbose=5)

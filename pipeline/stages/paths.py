@@ -113,6 +113,15 @@ class CrossvalPaths(EvaluationPaths):
 
 
 @dataclass(frozen=True, kw_only=True)
+class ScenesPaths:
+    selection: Path | None = _selection()
+    paper: Path = option("folder of the paper-shaped worlds' data, one subfolder per seed with its features and "
+                         "processed tables (the transfer's training data)", Path("data/worlds"), input=True)
+    data: Path = option("folder for the drawn worlds: per seed its logs, tables, features, fold models and results")
+    output: Path = option("folder for the tables over seeds")
+
+
+@dataclass(frozen=True, kw_only=True)
 class PeoplePaths:
     features: Path = option("the steps the planner is trained on before people's demonstrations", WORLD / "features",
                             input=True)

@@ -1,0 +1,39 @@
+"""Models trained on one world and run on another's scenarios: the paper-shaped rooms against drawn ones.
+
+Both worlds' steps and scenarios go into one pool whose single fold tests
+every scenario of the second world, so training sees exactly the first
+world's steps and the same fold machinery (fit, teacher-forced steps,
+closed-loop programs, judging) runs as in cross-validation.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from ..features.context import StepContext
+from ..features.dataset import StepMeta
+from ..logs.benchmark import Benchmark
+from .crossval import FoldResult, run_fold
+from .dispatch import Shared, run_jobs
+from .methods import Method
+
+World = tuple[list[StepContext], list[StepMeta], Benchmark]
+
+
+def transfer(methods: dict[str, Callable[[], Method]], train: World, test: World, max_steps: int,
+             n_jobs: int = 1) -> tuple[list[FoldResult], list[StepContext]]:
+    """Each method fitted on every step of `train` and run on every scenario of `test`; the results and the pooled
+    steps their `step_index` points into (for `metrics.summarize`)."""
+    (train_contexts, train_meta, train_bench), (test_contexts, test_meta, test_bench) = train, test
+    shared_ids = set(train_bench.scenarios) & set(test_bench.scenarios)
+    if shared_ids:
+        raise ValueError(f"the two worlds share scenario ids, e.g. {sorted(shared_ids)[0]}: a transfer test needs "
+                         "scenarios the training world does not have")
+    contexts, meta = train_contexts + test_contexts, train_meta + test_meta
+    bench = Benchmark([], {**train_bench.scenarios, **test_bench.scenarios},
+                      {**train_bench.states, **test_bench.states}, {**train_bench.actions, **test_bench.actions})
+    tested = frozenset(test_bench.scenarios)
+    steps, shared_meta, scenarios, demos = Shared(contexts), Shared(meta), Shared(bench.scenarios), Shared(bench)
+    results = run_jobs([(run_fold, (make, 0, steps, shared_meta, scenarios, tested, max_steps, demos))
+                        for make in methods.values()], n_jobs)
+    return results, contexts

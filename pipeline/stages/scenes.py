@@ -1,0 +1,133 @@
+"""Stage `scenes`: generalisation to rooms never seen in training, beside the paper-shaped results.
+
+Each reported world seed also draws a procedural world (`procedural` in
+params.yaml: rooms, furniture and objects the catalog never had). On it the
+same stages run as on a paper-shaped world, with folds that hold out whole
+rooms, their new objects with them: generate, ingest, features, the fold
+models, Table I, attribute noise and feedback. The MRF methods of
+`scenes.transfer` are also trained on every step of the seed's paper-shaped
+world and run on every scenario of its drawn world. The tables over seeds
+(mean ± sd) are written as the `aggregate` stage writes the paper-shaped ones.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+from ..evaluate.methods import mrf_methods
+from ..evaluate.metrics import summarize
+from ..evaluate.registry import method_labels
+from ..evaluate.transfer import transfer
+from ..features.dataset import read_features
+from ..io import write_json_atomic, write_text_atomic
+from ..logs.benchmark import load_benchmark
+from ..report.csvs import csv_text
+from ..report.seeds import curve_over_seeds, json_over_seeds, world_dirs
+from ..settings import Crossval, Folds, Generate, Learner, Params, Replay, World
+from ..track.mlflow_runs import NO_RUN, Tracker
+from . import aggregate, crossval, features, feedback, folds, generate, ingest, noise
+from .paths import (
+    AggregatePaths,
+    CrossvalPaths,
+    EvaluationPaths,
+    FeaturesPaths,
+    FoldsPaths,
+    GeneratePaths,
+    IngestPaths,
+    ScenesPaths,
+)
+
+TRANSFER = ("sequence_arg", "sequence_prim", "success", "goal_reached")
+
+
+@dataclass(frozen=True)
+class Settings:
+    world: Generate  # family procedural; the seed is each of `seeds` in turn
+    seeds: tuple[int, ...]
+    folds: folds.Settings
+    crossval: crossval.Settings
+    noise: noise.Settings
+    feedback: feedback.Settings
+    transfer: tuple[str, ...]  # MRF methods trained on the paper-shaped world and run on the drawn one
+    learner: Learner
+
+
+def settings(params: Params, world_seed: int | None = None) -> Settings:
+    c, learner = params.crossval, params.train.learner
+    rooms = Folds(c.folds, "environment", c.seed)  # whole rooms held out, whatever crossval.group_by says
+    replay = Replay(rooms, c.max_steps, learner)
+    return Settings(
+        world=Generate(family="procedural", procedural=params.procedural),
+        seeds=params.world.seeds,
+        folds=folds.Settings(rooms, learner, ()),
+        crossval=crossval.Settings(Crossval(c.folds, "environment", c.seed, c.chance_seed, c.multiclass_C,
+                                            c.ranking_C, c.max_steps), learner, params.pddl.horizon),
+        noise=noise.Settings(params.noise, replay),
+        feedback=feedback.Settings(params.feedback, replay),
+        transfer=params.scenes.transfer,
+        learner=learner,
+    )
+
+
+def run(settings: Settings, paths: ScenesPaths, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> dict[str, Any]:
+    mrf_methods(settings.learner, names=settings.transfer)  # an unknown name stops here, before minutes of work
+    for seed in settings.seeds:
+        here = Path(paths.data) / str(seed)
+        print(f"world seed {seed}: {settings.world.procedural.environments} drawn rooms into {here}")
+        with tracker.child(f"world={seed}", {"world_seed": seed}) as child:
+            _one_world(settings, paths, seed, here, child, n_jobs)
+    dirs = world_dirs(Path(paths.data), settings.seeds)
+    aggregate.run(World(family="procedural", seeds=settings.seeds), AggregatePaths(worlds=paths.data,
+                                                                                    output=paths.output), tracker)
+    draws = json_over_seeds(dirs, "world.json")
+    write_json_atomic(paths.output / "worlds.json", {str(s): d for s, d in draws.items()})
+    per_seed, over_seeds = curve_over_seeds(dirs, "transfer.csv", ["method"], TRANSFER)
+    write_text_atomic(paths.output / "transfer_seeds.csv",
+                      csv_text(["world_seed", "method", *TRANSFER], per_seed, dict.fromkeys(TRANSFER, 2)))
+    columns = ["method"] + [c for v in TRANSFER for c in (v, f"{v}_sd")]
+    write_text_atomic(paths.output / "transfer.csv", csv_text(columns, over_seeds, dict.fromkeys(columns[1:], 2)))
+    write_text_atomic(paths.output / "transfer.md", transfer_markdown(over_seeds, len(settings.seeds)))
+    tracker.metrics({f"transfer.{r['method']}.{k}": r[k] for r in over_seeds for k in TRANSFER})
+    print(transfer_markdown(over_seeds, len(settings.seeds)))
+    return {"transfer": over_seeds}
+
+
+def _one_world(settings: Settings, paths: ScenesPaths, seed: int, here: Path, tracker: Tracker, n_jobs: int) -> None:
+    """The per-world stages on the drawn world `seed`, into `here`, then the transfer from the paper-shaped one."""
+    raw, processed, feats, store = here / "raw", here / "processed", here / "features", here / "folds"
+    generate.run(replace(settings.world, seed=seed), GeneratePaths(output=raw, metrics=here / "world.json"), tracker)
+    ingest.run(None, IngestPaths(input=raw, output=processed, metrics=here / "dataset.json"), tracker)
+    features.run(None, FeaturesPaths(input=processed, output=feats), tracker)
+    data = {"features": feats, "processed": processed, "selection": paths.selection}
+    folds.run(settings.folds, FoldsPaths(**data, output=store), tracker, n_jobs)
+    evaluation = {**data, "model_store": store, "output": here}
+    crossval.run(settings.crossval, CrossvalPaths(**evaluation, recordings=0), tracker, n_jobs)
+    noise.run(settings.noise, EvaluationPaths(**evaluation), tracker, n_jobs)
+    feedback.run(settings.feedback, EvaluationPaths(**evaluation), tracker, n_jobs)
+
+    paper = Path(paths.paper) / str(seed)
+    train = (*read_features(paper / "features"), load_benchmark(paper / "processed"))
+    test = (*read_features(feats), load_benchmark(processed))
+    methods = mrf_methods(settings.learner, names=settings.transfer)
+    print(f"training {', '.join(methods)} on the paper-shaped world {seed} ({len(train[0])} steps) and running them "
+          f"on the drawn one ({len(test[2].scenarios)} scenarios)")
+    results, contexts = transfer(methods, train, test, settings.crossval.crossval.max_steps, n_jobs)
+    summary = summarize(results, contexts, {name: True for name in methods})
+    rows = [{"method": name, **{k: summary[name][k.replace("sequence_", "sequence/")] for k in TRANSFER}}
+            for name in methods]
+    write_text_atomic(here / "transfer.csv", csv_text(["method", *TRANSFER], rows, dict.fromkeys(TRANSFER, 2)))
+    tracker.metrics({f"transfer.{r['method']}.{k}": r[k] for r in rows for k in TRANSFER})
+
+
+def transfer_markdown(rows: list[dict[str, Any]], n_seeds: int) -> str:
+    """The transfer table: each method trained on the paper-shaped rooms, run in drawn ones."""
+    labels = method_labels()
+    lines = [f"Trained on every step of the paper-shaped world, run on every scenario of the drawn world of the same "
+             f"seed: % of programs, mean ± sd over {n_seeds} world seeds.", "",
+             "| method | " + " | ".join(k.replace("_", " ") for k in TRANSFER) + " |",
+             "|---|" + "---:|" * len(TRANSFER)]
+    lines += [f"| {labels.get(r['method'], r['method'])} | "
+              + " | ".join(f"{r[k]:.1f} ± {r[f'{k}_sd']:.1f}" for k in TRANSFER) + " |" for r in rows]
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,102 @@
+"""Rooms never seen in training: the `scenes` stage end to end on tiny worlds, and the transfer's split."""
+
+from __future__ import annotations
+
+import csv
+import json
+import shutil
+from dataclasses import dataclass, field
+
+import pytest
+
+from pipeline.cli import main
+from pipeline.evaluate.transfer import transfer
+from pipeline.features.dataset import build_steps
+from pipeline.logs.benchmark import Benchmark
+from pipeline.logs.generate import generate
+from pipeline.logs.ingest import load_logs
+from pipeline.settings import Generate, Params, Procedural
+from pipeline.stages import scenes
+
+LEARN = ["--set", "train.tol=0.01", "--set", "train.max_iter=300", "--set", "train.n_slacks=2"]
+
+
+def _world(folder, world):
+    generate(world, folder)
+    records = [r.record for r in load_logs(folder)[1]]
+    return (*build_steps(records), Benchmark.from_records(records))
+
+
+@dataclass
+class _Spy:
+    """A method that notes what it trains on and what it is asked to run."""
+
+    seen: dict = field(default_factory=dict)
+    name: str = "spy"
+    predicts_args: bool = True
+
+    def fit(self, contexts, meta, scenarios=None):
+        self.seen["trained"] = {m.scenario_id for m in meta}
+        return self
+
+    def predict_steps(self, contexts, meta, demos):
+        self.seen["predicted"] = {m.scenario_id for m in meta}
+        return [(0, 0, 0) for _ in contexts]
+
+    def run(self, scenario, max_steps):
+        self.seen.setdefault("run", set()).add(scenario.id)
+        return None  # as a method that runs no programs
+
+
+def test_transfer_trains_on_the_first_world_only_and_tests_every_scenario_of_the_second(tmp_path):
+    paper = _world(tmp_path / "paper", Generate(seed=0))
+    drawn = _world(tmp_path / "drawn", Generate(seed=0, family="procedural", procedural=Procedural(environments=2)))
+    spy = _Spy()
+    results, contexts = transfer({"spy": lambda: spy}, paper, drawn, max_steps=5)
+    assert spy.seen["trained"] == set(paper[2].scenarios)
+    assert spy.seen["predicted"] == set(drawn[2].scenarios) >= spy.seen["run"]  # a method running no programs
+    assert results[0].sequences is None  # stops at the first
+    assert len(contexts) == len(paper[0]) + len(drawn[0])
+    assert [contexts[i] for i in results[0].step_index] == drawn[0]
+    with pytest.raises(ValueError, match="share scenario ids"):
+        transfer({"spy": lambda: spy}, paper, paper, max_steps=5)
+
+
+def test_scenes_hold_out_whole_rooms_whatever_crossval_group_by_says():
+    s = scenes.settings(Params.load(None, ["crossval.group_by=scenario", "crossval.folds=4"]))
+    assert s.world.family == "procedural"
+    assert (s.folds.folds.group_by, s.crossval.crossval.group_by, s.noise.replay.folds.group_by,
+            s.feedback.replay.folds.group_by) == ("environment",) * 4
+    assert s.crossval.crossval.folds == 4
+
+
+def test_the_scenes_stage_writes_every_table_over_seeds(benchmark_logs, tmp_path):
+    paper = tmp_path / "paper" / "0"
+    raw = tmp_path / "paper_raw"
+    raw.mkdir()
+    for env in ("env01", "env04"):
+        shutil.copy(benchmark_logs / f"{env}.jsonl", raw)
+    assert main(["--no-mlflow", "ingest", "--input", str(raw), "--output", str(paper / "processed")]) == 0
+    assert main(["--no-mlflow", "features", "--input", str(paper / "processed"), "--output",
+                 str(paper / "features")]) == 0
+    (tmp_path / "selection.json").write_text(json.dumps({"C": 2.0}))
+    out, data = tmp_path / "reports", tmp_path / "data"
+    settings = ["--set", "world.seeds=[0]", "--set", "procedural.environments=3", "--set", "crossval.folds=3",
+                "--set", "noise.methods=full", "--set", "noise.rates=0 0.4", "--set", "noise.draws=1",
+                "--set", "feedback.methods=full", "--set", "feedback.k=2", "--set", "feedback.n=0 all",
+                "--set", "scenes.transfer=full relations", *LEARN]
+    assert main(["--no-mlflow", "scenes", "--selection", str(tmp_path / "selection.json"), "--paper",
+                 str(tmp_path / "paper"), "--data", str(data), "--output", str(out), *settings, "--n-jobs", "1"]) == 0
+    for name in ("table1.md", "table1.csv", "failures.md", "noise.csv", "feedback.csv", "crossval_means.json",
+                 "transfer.md", "transfer_seeds.csv", "worlds.json", "metrics.json"):
+        assert (out / name).is_file(), name
+    assert not (out / "recipes.json").exists()  # recipes name the paper-shaped rooms' objects
+    draw = json.loads((out / "worlds.json").read_text())["0"]
+    assert draw["family"] == "procedural" and draw["environments"] == 3
+    rows = list(csv.DictReader((out / "transfer.csv").open()))
+    assert [r["method"] for r in rows] == ["full", "relations"]
+    assert all(0.0 <= float(r["sequence_arg"]) <= float(r["success"]) + 1e-9 <= 100.0 for r in rows)
+    means = json.loads((out / "crossval_means.json").read_text())
+    assert 0.0 <= means["full"]["sequence_arg"] <= 100.0
+    dataset = json.loads((data / "0" / "dataset.json").read_text())
+    assert dataset["environments"] == 3
