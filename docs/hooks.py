@@ -67,11 +67,14 @@ def results_page(files: list[Path]) -> str:
     parts.append("## Table I per primitive\n\n`reports/table1.md` (also `table1.csv` and `table1.tex`): "
                  "mean ± sd over world seeds, the best of each column in bold.\n\n" + _table("table1.md"))
     parts.append("## Why programs fail, per method and task\n\n`reports/failures.md`.\n\n" + _table("failures.md"))
-    parts.append("## Rooms never seen in training\n\nThe drawn worlds' Table I, folds holding out whole rooms "
-                 "(`reports/scenes/table1.md`; how they are drawn: [the benchmark world](../world.md#drawn-rooms)), "
-                 "then models of the paper-shaped rooms run in drawn ones (`reports/scenes/transfer.md`) and why "
-                 "programs fail there (`reports/scenes/failures.md`).\n\n" + _table("scenes/table1.md") + "\n"
-                 + _table("scenes/transfer.md") + "\n" + _table("scenes/failures.md"))
+    parts.append("## Rooms never seen in training\n\nTable I with whole rooms held out of training: the "
+                 "paper-shaped rooms (`reports/scenes/paper/table1.md`), then rooms drawn by the world seed "
+                 "(`reports/scenes/drawn/table1.md`; how they are drawn: "
+                 "[the benchmark world](../world.md#drawn-rooms)), models of the paper-shaped rooms run in drawn ones "
+                 "(`reports/scenes/transfer.md`) and why programs fail in drawn rooms "
+                 "(`reports/scenes/drawn/failures.md`).\n\n" + "\n".join(
+                     _table(name) for name in ("scenes/paper/table1.md", "scenes/drawn/table1.md",
+                                               "scenes/transfer.md", "scenes/drawn/failures.md")))
     for seed in _worlds():
         world = f"worlds/{seed}"
         section = [f"## World seed {seed}", f"Table I of this world alone (`reports/{world}/table1.md`)."]

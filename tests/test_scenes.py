@@ -81,22 +81,31 @@ def test_the_scenes_stage_writes_every_table_over_seeds(benchmark_logs, tmp_path
                  str(paper / "features")]) == 0
     (tmp_path / "selection.json").write_text(json.dumps({"C": 2.0}))
     out, data = tmp_path / "reports", tmp_path / "data"
-    settings = ["--set", "world.seeds=[0]", "--set", "procedural.environments=3", "--set", "crossval.folds=3",
+    settings = ["--set", "world.seeds=[0]", "--set", "procedural.environments=3", "--set", "crossval.folds=2",
                 "--set", "noise.methods=full", "--set", "noise.rates=0 0.4", "--set", "noise.draws=1",
                 "--set", "feedback.methods=full", "--set", "feedback.k=2", "--set", "feedback.n=0 all",
                 "--set", "scenes.transfer=full relations", *LEARN]
     assert main(["--no-mlflow", "scenes", "--selection", str(tmp_path / "selection.json"), "--paper",
                  str(tmp_path / "paper"), "--data", str(data), "--output", str(out), *settings, "--n-jobs", "1"]) == 0
-    for name in ("table1.md", "table1.csv", "failures.md", "noise.csv", "feedback.csv", "crossval_means.json",
-                 "transfer.md", "transfer_seeds.csv", "worlds.json", "metrics.json"):
-        assert (out / name).is_file(), name
-    assert not (out / "recipes.json").exists()  # recipes name the paper-shaped rooms' objects
-    draw = json.loads((out / "worlds.json").read_text())["0"]
+    for name in ("table1.md", "table1.csv", "failures.md", "crossval_means.json", "metrics.json"):
+        assert (out / "paper" / name).is_file() and (out / "drawn" / name).is_file(), name
+    for name in ("noise.csv", "feedback.csv", "worlds.json", "dataset.json"):
+        assert (out / "drawn" / name).is_file() and not (out / "paper" / name).exists(), name
+    assert (out / "transfer.md").is_file() and (out / "transfer_seeds.csv").is_file()
+    assert not (out / "drawn" / "recipes.json").exists()  # recipes name the paper-shaped rooms' objects
+    draw = json.loads((out / "drawn" / "worlds.json").read_text())["0"]
     assert draw["family"] == "procedural" and draw["environments"] == 3
     rows = list(csv.DictReader((out / "transfer.csv").open()))
     assert [r["method"] for r in rows] == ["full", "relations"]
     assert all(0.0 <= float(r["sequence_arg"]) <= float(r["success"]) + 1e-9 <= 100.0 for r in rows)
-    means = json.loads((out / "crossval_means.json").read_text())
-    assert 0.0 <= means["full"]["sequence_arg"] <= 100.0
-    dataset = json.loads((data / "0" / "dataset.json").read_text())
-    assert dataset["environments"] == 3
+    for part in ("paper", "drawn"):
+        means = json.loads((out / part / "crossval_means.json").read_text())
+        assert 0.0 <= means["full"]["sequence_arg"] <= 100.0
+    assert json.loads((data / "drawn" / "0" / "dataset.json").read_text())["environments"] == 3
+    # whole rooms held out: every room's programs come from one fold, in the paper-shaped and the drawn world
+    for part, rooms in (("paper", {"env01", "env04"}), ("drawn", {"proc001", "proc002", "proc003"})):
+        programs = list(csv.DictReader((data / part / "0" / "crossval_sequences.csv").open()))
+        folds_of = {}
+        for r in programs:
+            folds_of.setdefault(r["scenario"].split("/")[0], set()).add(r["fold"])
+        assert set(folds_of) == rooms and all(len(f) == 1 for f in folds_of.values()), folds_of

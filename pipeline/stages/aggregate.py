@@ -7,6 +7,7 @@ feedback curves and the recipes, each with its spread over world seeds.
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 from ..evaluate.registry import method_labels
@@ -71,6 +72,35 @@ def run(settings: World, paths: AggregatePaths, tracker: Tracker = NO_RUN) -> di
     methods = [m for m in method_labels() if m in present] + sorted(present - set(method_labels()))
     write_text_atomic(out / "failures.md", failures_markdown(failures, methods, len(world.seeds)))
 
+    noise, fb = [], []
+    if _everywhere(dirs, "noise.csv"):  # worlds evaluated without noise or feedback runs have neither curve
+        noise = _noise(dirs, out, world)
+    if _everywhere(dirs, "feedback.csv"):
+        fb = _feedback(dirs, out)
+
+    # every program of every world in one table, for whoever reads programs rather than rates (DVC-cached)
+    write_text_atomic(out / "crossval_sequences.csv", csv_text(["world_seed", *SEQUENCE_COLUMNS], [
+        {"world_seed": seed, **r} for seed, d in dirs.items() for r in read_csv_rows(d / "crossval_sequences.csv")]))
+
+    if _everywhere(dirs, "dataset.json"):  # the ingest stage's counts, where it ran into these folders
+        write_json_atomic(out / "dataset.json", {str(s): d for s, d in json_over_seeds(dirs, "dataset.json").items()})
+
+    # recipes name the paper-shaped rooms' objects: worlds of drawn rooms have none
+    recipes = recipes_over_seeds(dirs) if _everywhere(dirs, "recipes.json") else {}
+    if recipes:
+        write_json_atomic(out / "recipes.json", recipes)
+    write_json_atomic(out / "metrics.json", headline_groups(means, noise, fb, recipes))
+    _plot_columns(noise, fb, out)
+    for f in ("table1.md", "table1.tex", "metrics.json", "crossval_means.json", "failures.md", "noise.png",
+              "feedback.png", "recipes.json"):
+        tracker.artifact(out / f)
+    print(to_markdown(table))
+    print(f"over world seeds {seeds_text}; failure kinds in {out / 'failures.md'}")
+    return means
+
+
+def _noise(dirs: dict[int, Path], out: Path, world: World) -> list[dict[str, Any]]:
+    """The noise curve over seeds: its tables and figure."""
     noise_seeds, noise = curve_over_seeds(dirs, "noise.csv", ["method", "rate"], RATES)
     write_text_atomic(out / "noise_seeds.csv", csv_text(["world_seed", "method", "rate", *RATES], noise_seeds,
                                                         dict.fromkeys(RATES, 2)))
@@ -84,7 +114,11 @@ def run(settings: World, paths: AggregatePaths, tracker: Tracker = NO_RUN) -> di
                   str(out / "noise.png"), "Sequence accuracy (arg) with binary attributes flipped",
                   "probability of flipping each binary attribute", "% sequences correct",
                   reference={"paper": (list(paper.NOISE), list(paper.NOISE.values()))})
+    return noise
 
+
+def _feedback(dirs: dict[int, Path], out: Path) -> list[dict[str, Any]]:
+    """The feedback curves over seeds: their tables and figure."""
     fb_seeds, fb = curve_over_seeds(dirs, "feedback.csv", ["method", "k", "n"], RATES)
     write_text_atomic(out / "feedback_seeds.csv", csv_text(["world_seed", "method", "k", "n", *RATES], fb_seeds,
                                                            dict.fromkeys(RATES, 2)))
@@ -99,27 +133,20 @@ def run(settings: World, paths: AggregatePaths, tracker: Tracker = NO_RUN) -> di
                    for m in fb_methods for k in ks},
                   str(out / "feedback.png"), "Sequence accuracy (arg) with an observer's feedback",
                   "steps with feedback", "% sequences correct", xticks=list(range(len(ns))), xticklabels=ns)
+    return fb
 
-    # every program of every world in one table, for whoever reads programs rather than rates (DVC-cached)
-    write_text_atomic(out / "crossval_sequences.csv", csv_text(["world_seed", *SEQUENCE_COLUMNS], [
-        {"world_seed": seed, **r} for seed, d in dirs.items() for r in read_csv_rows(d / "crossval_sequences.csv")]))
 
-    datasets = {str(s): d for s, d in json_over_seeds(dirs, "dataset.json").items()}
-    write_json_atomic(out / "dataset.json", datasets)
-
-    # recipes name the paper-shaped rooms' objects: worlds of drawn rooms have none
-    recipes = recipes_over_seeds(dirs) if all((d / "recipes.json").exists() for d in dirs.values()) else {}
-    if recipes:
-        write_json_atomic(out / "recipes.json", recipes)
-    write_json_atomic(out / "metrics.json", headline_groups(means, noise, fb, recipes))
-    # the curves again, one column per line, for `dvc plots show` (it draws one line per column)
-    plot_labels = {**method_labels(), **{str(k): f"top {k}" for k in ks}}
+def _plot_columns(noise: list[dict[str, Any]], fb: list[dict[str, Any]], out: Path) -> None:
+    """The curves again, one column per line, for `dvc plots show` (it draws one line per column)."""
+    plot_labels = {**method_labels(), **{str(r["k"]): f"top {r['k']}" for r in fb}}
     for name, rows, x, series in (("noise", noise, "rate", ["method"]), ("feedback", fb, "n", ["method", "k"])):
+        if not rows:
+            continue
         columns, wide = plot_columns(rows, x, series, "sequence_arg", plot_labels)
         write_text_atomic(out / "plots" / f"{name}.csv", csv_text(columns, wide, dict.fromkeys(columns[1:], 2)))
-    for f in ("table1.md", "table1.tex", "metrics.json", "crossval_means.json", "failures.md", "noise.png",
-              "feedback.png", "recipes.json"):
-        tracker.artifact(out / f)
-    print(to_markdown(table))
-    print(f"over world seeds {seeds_text}; failure kinds in {out / 'failures.md'}")
-    return means
+
+
+def _everywhere(dirs: dict[int, Path], name: str) -> bool:
+    """Whether every world has `name`: recipes run in paper-shaped rooms only, and a world evaluated again with
+    other folds has Table I alone."""
+    return all((d / name).exists() for d in dirs.values())

@@ -73,37 +73,51 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
 
 def run(settings: Settings, paths: ScenesPaths, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> dict[str, Any]:
     mrf_methods(settings.learner, names=settings.transfer)  # an unknown name stops here, before minutes of work
+    data, out = Path(paths.data), Path(paths.output)
     for seed in settings.seeds:
-        here = Path(paths.data) / str(seed)
-        print(f"world seed {seed}: {settings.world.procedural.environments} drawn rooms into {here}")
         with tracker.child(f"world={seed}", {"world_seed": seed}) as child:
-            _one_world(settings, paths, seed, here, child, n_jobs)
-    dirs = world_dirs(Path(paths.data), settings.seeds)
-    aggregate.run(World(family="procedural", seeds=settings.seeds), AggregatePaths(worlds=paths.data,
-                                                                                    output=paths.output), tracker)
+            print(f"world seed {seed}: the paper-shaped rooms, each held out in turn")
+            _held_out_rooms(settings, paths, Path(paths.paper) / str(seed), data / "paper" / str(seed), child, n_jobs)
+            print(f"world seed {seed}: {settings.world.procedural.environments} drawn rooms")
+            _drawn_world(settings, paths, seed, data / "drawn" / str(seed), child, n_jobs)
+    world = World(seeds=settings.seeds)
+    aggregate.run(world, AggregatePaths(worlds=data / "paper", output=out / "paper"), tracker)
+    aggregate.run(replace(world, family="procedural"), AggregatePaths(worlds=data / "drawn", output=out / "drawn"),
+                  tracker)
+    dirs = world_dirs(data / "drawn", settings.seeds)
     draws = json_over_seeds(dirs, "world.json")
-    write_json_atomic(paths.output / "worlds.json", {str(s): d for s, d in draws.items()})
+    write_json_atomic(out / "drawn" / "worlds.json", {str(s): d for s, d in draws.items()})
     per_seed, over_seeds = curve_over_seeds(dirs, "transfer.csv", ["method"], TRANSFER)
-    write_text_atomic(paths.output / "transfer_seeds.csv",
+    write_text_atomic(out / "transfer_seeds.csv",
                       csv_text(["world_seed", "method", *TRANSFER], per_seed, dict.fromkeys(TRANSFER, 2)))
     columns = ["method"] + [c for v in TRANSFER for c in (v, f"{v}_sd")]
-    write_text_atomic(paths.output / "transfer.csv", csv_text(columns, over_seeds, dict.fromkeys(columns[1:], 2)))
-    write_text_atomic(paths.output / "transfer.md", transfer_markdown(over_seeds, len(settings.seeds)))
+    write_text_atomic(out / "transfer.csv", csv_text(columns, over_seeds, dict.fromkeys(columns[1:], 2)))
+    write_text_atomic(out / "transfer.md", transfer_markdown(over_seeds, len(settings.seeds)))
     tracker.metrics({f"transfer.{r['method']}.{k}": r[k] for r in over_seeds for k in TRANSFER})
     print(transfer_markdown(over_seeds, len(settings.seeds)))
     return {"transfer": over_seeds}
 
 
-def _one_world(settings: Settings, paths: ScenesPaths, seed: int, here: Path, tracker: Tracker, n_jobs: int) -> None:
+def _held_out_rooms(settings: Settings, paths: ScenesPaths, world: Path, here: Path, tracker: Tracker,
+                    n_jobs: int) -> None:
+    """Fold models and Table I of one world's data (`world`: its features and tables), whole rooms held out, into
+    `here`."""
+    data = {"features": world / "features", "processed": world / "processed", "selection": paths.selection}
+    folds.run(settings.folds, FoldsPaths(**data, output=here / "folds"), tracker, n_jobs)
+    evaluation = {**data, "model_store": here / "folds", "output": here}
+    crossval.run(settings.crossval, CrossvalPaths(**evaluation, recordings=0), tracker, n_jobs)
+
+
+def _drawn_world(settings: Settings, paths: ScenesPaths, seed: int, here: Path, tracker: Tracker,
+                 n_jobs: int) -> None:
     """The per-world stages on the drawn world `seed`, into `here`, then the transfer from the paper-shaped one."""
-    raw, processed, feats, store = here / "raw", here / "processed", here / "features", here / "folds"
+    raw, processed, feats = here / "raw", here / "processed", here / "features"
     generate.run(replace(settings.world, seed=seed), GeneratePaths(output=raw, metrics=here / "world.json"), tracker)
     ingest.run(None, IngestPaths(input=raw, output=processed, metrics=here / "dataset.json"), tracker)
     features.run(None, FeaturesPaths(input=processed, output=feats), tracker)
-    data = {"features": feats, "processed": processed, "selection": paths.selection}
-    folds.run(settings.folds, FoldsPaths(**data, output=store), tracker, n_jobs)
-    evaluation = {**data, "model_store": store, "output": here}
-    crossval.run(settings.crossval, CrossvalPaths(**evaluation, recordings=0), tracker, n_jobs)
+    _held_out_rooms(settings, paths, here, here, tracker, n_jobs)
+    evaluation = {"features": feats, "processed": processed, "selection": paths.selection,
+                  "model_store": here / "folds", "output": here}
     noise.run(settings.noise, EvaluationPaths(**evaluation), tracker, n_jobs)
     feedback.run(settings.feedback, EvaluationPaths(**evaluation), tracker, n_jobs)
 
