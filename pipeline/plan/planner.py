@@ -11,8 +11,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-from ..features.context import StepContext, step_context
-from ..sim.primitives import Action, PreconditionError, execute
+from ..features.context import StepContext, candidate_index, step_context
+from ..sim.primitives import Action, PreconditionError, execute, try_execute
 from ..sim.safety import violations
 from ..sim.state import WorldState
 from ..sim.tasks import Task, goal_reached
@@ -92,6 +92,27 @@ class Abstain(Exception):
 def greedy(planner: StepScorer, top_k: int = 3) -> Policy:
     """The learned planner as a policy: its `top_k` candidates of the step."""
     return lambda ctx, state: planner.top_k(ctx, top_k)
+
+
+def feasible(planner: StepScorer, top_k: int = 3) -> Policy:
+    """The learned planner's `top_k` best candidates among the steps that can run in the world as it is.
+
+    A robot's controllers report whether a primitive's preconditions hold
+    (the gripper is empty, the object is within reach) before it is sent;
+    this policy asks them down the ranking, so a step whose preconditions fail
+    is never proposed, and the model's scores decide among the rest.
+    """
+    def policy(ctx: StepContext, state: WorldState) -> Ranked:
+        out = []
+        for y, score in planner.top_k(ctx, len(candidate_index(ctx.n)[0])):
+            action = ctx.action(y)
+            if action.primitive == DONE or try_execute(state, action) is not None:
+                out.append((y, score))
+                if len(out) == top_k:
+                    break
+        return out
+
+    return policy
 
 
 def plan(planner: StepScorer, state: WorldState, task: Task, max_steps: int = 20,
