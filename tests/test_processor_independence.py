@@ -11,9 +11,10 @@ generic processor (`NUMBA_CPU_NAME`). The test builds the features of the
 first demonstrations and fits both feature sets on them in a fresh process
 under each setting, and compares the bytes of the features, the score tables
 at the learned weights, the objectives of every iteration and the weights.
-Before the fixes of docs/speed.md the relation features (`np.log10`) changed
-with NumPy's dispatch and the score tables and objectives (BLAS products)
-with OpenBLAS's core type, from five training steps on.
+Before the fixes (docs/pipeline.md, "Across processors") the relation
+features (`np.log10`) changed with NumPy's dispatch, and the score tables and
+objectives (BLAS products) with OpenBLAS's core type, from five training
+steps on.
 
 Run as a script (`python tests/test_processor_independence.py LOGS RECORDS`)
 it prints those hashes for the processor it finds: the fit the test runs.

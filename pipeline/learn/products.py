@@ -4,8 +4,9 @@ Why not `@`: NumPy hands float64 `@`, `dot` and `matmul` to OpenBLAS, which
 picks its kernels when it loads, from the processor it finds (Haswell,
 SkylakeX, Sandybridge, ...). The kernels block and order their sums
 differently, so one product differs in its last bits from one processor to the
-next: the score tables of a batch and `w . w` are four different sets of bits
-under `OPENBLAS_CORETYPE` Haswell, SkylakeX, Sandybridge and Prescott. Through
+next: the score tables of a batch came out as four different sets of bits
+under `OPENBLAS_CORETYPE` Haswell, SkylakeX, Sandybridge and Prescott, and
+`w . w` as three. Through
 the oracle's ties (equal objects score equal only if their sums run alike) and
 the learner's stopping test those bits reach the learned weights.
 
@@ -57,7 +58,8 @@ def _matmul(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
     A term whose factor from `a` is zero is skipped: feature rows are mostly
     zeros (77% of the relation rows), and adding 0 * b changes no sum but the
     sign of a zero. Which terms are skipped depends on the data only, so the
-    order is as fixed as before; skipping made the relation product four times faster.
+    order stays fixed. Row by row with the zero terms skipped, the relation
+    product ran four times faster than the dense loop.
     """
     for s in range(a.shape[0]):
         for i in range(a.shape[1]):
