@@ -6,9 +6,9 @@ SkylakeX, Sandybridge, ...). The kernels block and order their sums
 differently, so one product differs in its last bits from one processor to the
 next: the score tables of a batch came out as four different sets of bits
 under `OPENBLAS_CORETYPE` Haswell, SkylakeX, Sandybridge and Prescott, and
-`w . w` as three. Through
-the oracle's ties (equal objects score equal only if their sums run alike) and
-the learner's stopping test those bits reach the learned weights.
+`w . w` as three. Through the oracle's argmax (near ties) and the learner's
+objectives (its stopping test and the QP's tolerance) those bits can reach the
+learned weights.
 
 These kernels add the terms of every entry in the order k = 0, 1, 2, ...,
 each term one IEEE multiply then one add: Numba neither fuses them into an FMA
