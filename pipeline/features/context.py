@@ -46,12 +46,42 @@ RELATION_COLUMNS = tuple(f"{k}_{r}" for r in RELATION_REFERENCES for k in RELATI
 
 _LENGTHS = {"height", "max_wl", "min_wl"}
 
+_SQRT_HALF = math.sqrt(0.5)  # a square root is correctly rounded everywhere
+_LOG10_2 = 0.3010299956639812  # log10 2 and log10 e, correctly rounded
+_LOG10_E = 0.4342944819032518
+_ATANH_SERIES = tuple(1.0 / k for k in range(25, 0, -2))  # 1/25, 1/23, ..., 1/1: Horner's order
+
+
+def log10(x: np.ndarray | float) -> np.ndarray:
+    """log10 of positive finite `x`, from IEEE-754 multiplies, adds and divides only.
+
+    Why not `np.log10` or `math.log10`: neither gives the same bits on every
+    x86-64 processor. NumPy computes `np.log10` with SVML where it finds
+    AVX-512 and with the C library elsewhere, and glibc picks its `log` (which
+    `log10` calls) by whether the processor has FMA. The relation features
+    written with `np.log10` changed their last bits under
+    `NPY_DISABLE_CPU_FEATURES`, and the learned weights with them;
+    `math.log10` changes under `GLIBC_TUNABLES` that hide FMA. Basic
+    operations are correctly rounded everywhere. x = m 2^e with m in [sqrt(1/2), sqrt(2)),
+    ln m = 2 atanh(s) with s = (m - 1) / (m + 1), |s| < 0.172, whose series
+    to s^25 is within a few ulp of the exact logarithm (exact at powers of ten).
+    """
+    m, e = np.frexp(np.asarray(x, dtype=np.float64))
+    low = m < _SQRT_HALF
+    m, e = np.where(low, 2.0 * m, m), e - low
+    s = (m - 1.0) / (m + 1.0)
+    s2 = s * s
+    series = np.zeros_like(s)
+    for c in _ATANH_SERIES:
+        series = series * s2 + c
+    return e * _LOG10_2 + 2.0 * s * series * _LOG10_E
+
 
 def scale_attribute(name: str, value: float) -> float:
     if name in _LENGTHS:
-        return math.log10(max(value, 1e-3) / 0.01) / 3.0
+        return float(log10(max(value, 1e-3) / 0.01)) / 3.0
     if name == "volume":
-        return math.log10(max(value, 1e-9) / 1e-6) / 8.0
+        return float(log10(max(value, 1e-9) / 1e-6)) / 8.0
     return float(value)  # ratios and flags are already in [0, 1]
 
 
@@ -103,7 +133,7 @@ class StepContext:
 
 def _log_ratio(a: np.ndarray, b: float) -> np.ndarray:
     """log10(a / b) over two decades, clipped to [-1, 1]."""
-    return np.clip(np.log10(np.maximum(a, 1e-9) / max(b, 1e-9)) / 2.0, -1.0, 1.0)
+    return np.clip(log10(np.maximum(a, 1e-9) / max(b, 1e-9)) / 2.0, -1.0, 1.0)
 
 
 def relations(state: WorldState, task: Task, ids: list[str],

@@ -52,6 +52,7 @@ from ..features.context import (
 )
 from ..sim.primitives import ALL_PRIMITIVES
 from ..sim.tasks import TASKS
+from .products import matmul
 
 EDGE_FAMILIES = ("ae", "pt")
 CLIQUE_FAMILIES = ("aet", "pae", "ppt", "paae")
@@ -203,7 +204,11 @@ class _Batched:
         self._batch_cache = None
 
     def batch_tables(self: MRFModel, b: StepBatch, w: np.ndarray) -> Tables:  # type: ignore[misc]
-        """The score's factor tables for every step of the batch: the one place a score is computed."""
+        """The score's factor tables for every step of the batch: the one place a score is computed.
+
+        Its products are `products.matmul`, not `@`: BLAS sums in an order that depends on the processor, and
+        equal candidates must score equal bits everywhere for the oracle's ties to fall alike.
+        """
         S, N = b.valid.shape
         P = np.zeros((S, N_PRIM))
         if (wt := self._w(w, "pt")) is not None:
@@ -219,19 +224,19 @@ class _Batched:
         for s in (1, 2):
             unary = np.zeros((S, N))  # terms that do not depend on the primitive
             if (wt := self._w(w, f"ae{s}")) is not None:
-                unary += b.objects[:, :, list(_AE_COLS)] @ wt
+                unary += matmul(b.objects[:, :, list(_AE_COLS)], wt)
             if (wt := self._w(w, f"aet_rel{s}")) is not None:
-                unary += np.matmul(b.task_rel, wt[b.task][:, :, None])[:, :, 0]
+                unary += matmul(b.task_rel, wt[b.task][:, :, None])[:, :, 0]
             if (wt := self._w(w, f"aet_obj{s}")) is not None:
-                unary += np.matmul(b.objects, wt[b.task, np.where(holding, 0, 1)][:, :, None])[:, :, 0]
+                unary += matmul(b.objects, wt[b.task, np.where(holding, 0, 1)][:, :, None])[:, :, 0]
             table = np.repeat(unary[:, :, None], N_PRIM, axis=2)
             if (wt := self._w(w, f"pae{s}")) is not None:
-                table += (flat_objects @ wt.T).reshape(S, N, N_PRIM)
+                table += matmul(flat_objects, wt.T).reshape(S, N, N_PRIM)
             if (wt := self._w(w, f"paae{s}")) is not None:
-                table += (flat_hist @ wt.T).reshape(S, N, N_PRIM)
+                table += matmul(flat_hist, wt.T).reshape(S, N, N_PRIM)
             if (wt := self._w(w, f"rel{s}")) is not None:
                 for t, rows, flat_rel in b.by_task:
-                    table[rows] += (flat_rel @ wt[t].T).reshape(len(rows), N, N_PRIM)
+                    table[rows] += matmul(flat_rel, wt[t].T).reshape(len(rows), N, N_PRIM)
             U.append(table.transpose(0, 2, 1))
         pair = np.zeros((S, N, N))
         if (wt := self._w(w, "ae_pair")) is not None:
@@ -239,7 +244,7 @@ class _Batched:
         # the task relations of a1 and a2, crossed, are a rank-4 term per primitive: (task_rel W_p) task_rel^T
         left, right = np.zeros((N_PRIM, S, N, 0)), np.zeros((S, N, 0))
         if (w_pair := self._w(w, "rel_pair")) is not None:
-            left = np.stack([np.matmul(b.task_rel, w_pair[b.task, p]) for p in range(N_PRIM)])
+            left = np.stack([matmul(b.task_rel, w_pair[b.task, p]) for p in range(N_PRIM)])
             right = b.task_rel
         return Tables(P, U[0], U[1], pair, left, right)
 
@@ -467,7 +472,7 @@ class MRFModel(_Batched):
         f = self.batch_tables(StepBatch.of([x], RELATION_FAMILY in self.families), w)
         pair = f.pair[0][None]
         if f.right.shape[-1]:  # the low-rank term, per primitive
-            pair = pair + f.left[:, 0] @ f.right[0].T
+            pair = pair + matmul(f.left[:, 0], f.right[0].T)
         return f.P[0], f.U1[0], f.U2[0], np.broadcast_to(pair, (N_PRIM, x.n, x.n))
 
     def scores(self, x: StepContext, w: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], np.ndarray]:

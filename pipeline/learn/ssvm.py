@@ -33,6 +33,11 @@ matrix, one joint feature per row) to score all examples at once
 Stopping is certified: the dual of the working set bounds the optimum from
 below, the objective at the best w seen bounds it from above, and training
 stops when they are within `tol` (relative).
+
+Both bounds are sums in a fixed order (`products.dot`, NumPy's pairwise sum,
+scipy's sparse products), never BLAS, whose order depends on the processor: the
+stopping test and the QP's tolerance follow from them, so the weights are the
+same bits on every processor.
 """
 
 from __future__ import annotations
@@ -46,6 +51,7 @@ from typing import Any, Protocol
 import numpy as np
 import scipy.sparse as sp
 
+from .products import dot
 from .working_set import WorkingSet
 
 log = logging.getLogger(__name__)
@@ -146,7 +152,7 @@ class CuttingPlaneSSVM:
             deltas = summed @ (psi_true - self._joint_features(X, Y_hat))  # sparse rows, one per group
             t1 = time.perf_counter()
             violation = losses - deltas @ w  # per group, >= 0: the true labelling is a candidate
-            primal = 0.5 * float(w @ w) + self.C * float(np.maximum(violation, 0.0).sum())
+            primal = 0.5 * dot(w, w) + self.C * float(np.maximum(violation, 0.0).sum())
             if primal < best:
                 best, best_w = primal, w
             scale = max(1.0, abs(best))

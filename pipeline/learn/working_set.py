@@ -45,6 +45,8 @@ import numpy as np
 import scipy.sparse as sp
 from numba import njit
 
+from .products import dot
+
 
 class WorkingSet:
     """The cuts of a cutting-plane SSVM (sparse rows), their Gram matrix and the dual variables.
@@ -90,7 +92,7 @@ class WorkingSet:
     def dual(self, w: np.ndarray | None = None) -> float:
         """The dual objective; `w` may pass the current weights when the caller has them."""
         w = self.w if w is None else w
-        return float(self.losses @ self.alpha - 0.5 * w @ w)
+        return dot(self.losses, self.alpha) - 0.5 * dot(w, w)  # not BLAS: the same bits on every processor
 
     def slacks(self) -> np.ndarray:
         """(n_groups,): each group's slack at the last solve, max(0, max_k L_k - d_k . w) over its cuts.
