@@ -36,7 +36,7 @@ from mlflow.tracking import MlflowClient
 
 from pipeline.track.mlflow_runs import EXPERIMENT
 
-STAGES = ("select", "train", "folds", "crossval", "noise", "feedback", "recipes", "aggregate", "report")
+STAGES = ("select", "train", "fold_models", "crossval", "noise", "feedback", "recipes", "aggregate", "report")
 
 
 def free_port() -> int:

@@ -68,8 +68,8 @@ def test_the_tutorials_method_reaches_table1_mlflow_the_store_and_the_tables_ove
     monkeypatch.setenv("MLFLOW_TRACKING_URI", uri)
     data = ["--features", str(tiny / "features"), "--processed", str(tiny / "processed")]
 
-    # the model store: the folds stage trains it with the built-in MRF methods
-    assert main(["folds", *data, *SMALL, "--output", str(tiny / "store"), "--n-jobs", "1"]) == 0
+    # the model store: the fold_models stage trains it with the built-in MRF methods
+    assert main(["fold_models", *data, *SMALL, "--output", str(tiny / "store"), "--n-jobs", "1"]) == 0
     stored = json.loads((tiny / "store" / "index.json").read_text())["models"]
     uses = {u["method"] for m in stored for u in m["uses"]}
     assert "full_chained" in uses and "full" in uses

@@ -1,4 +1,4 @@
-"""Fold models are trained once by the `folds` stage and served to every evaluation stage."""
+"""Fold models are trained once by the `fold_models` stage and served to every evaluation stage."""
 
 from functools import partial
 

@@ -65,7 +65,7 @@ def test_transfer_trains_on_the_first_world_only_and_tests_every_scenario_of_the
 def test_scenes_hold_out_whole_rooms_whatever_crossval_group_by_says():
     s = scenes.settings(Params.load(None, ["crossval.group_by=scenario", "crossval.folds=4"]))
     assert s.world.family == "procedural"
-    assert (s.folds.folds.group_by, s.crossval.crossval.group_by, s.noise.replay.folds.group_by,
+    assert (s.fold_models.folds.group_by, s.crossval.crossval.group_by, s.noise.replay.folds.group_by,
             s.feedback.replay.folds.group_by) == ("environment",) * 4
     assert s.crossval.crossval.folds == 4
 

@@ -39,7 +39,7 @@ def test_a_stopped_stage_marks_its_run_killed_and_writes_nothing(data, tmp_path,
     env = {**os.environ, "MLFLOW_TRACKING_URI": f"sqlite:///{db}", "TASKSEQ_N_JOBS": "1"}
     out, metrics, log, said = tmp_path / "store", tmp_path / "folds.json", tmp_path / "stderr.txt", tmp_path / "out"
     with log.open("w") as fh, said.open("w") as sh:
-        proc = subprocess.Popen([sys.executable, "-u", "-m", "pipeline.cli", "folds", "--features",
+        proc = subprocess.Popen([sys.executable, "-u", "-m", "pipeline.cli", "fold_models", "--features",
                                  str(data / "features"), "--processed", str(data / "processed"), "--output", str(out),
                                  "--metrics", str(metrics)], env=env, stdout=sh, stderr=fh,
                                 preexec_fn=_default_sigint)
@@ -51,12 +51,12 @@ def test_a_stopped_stage_marks_its_run_killed_and_writes_nothing(data, tmp_path,
     err = log.read_text()
     assert proc.returncode == code, err[-3000:]
     lines = [line for line in err.splitlines() if line.startswith("taskseq")]
-    assert lines == [f"taskseq folds: stopped by {name}; nothing was written; its MLflow run is marked KILLED"]
+    assert lines == [f"taskseq fold_models: stopped by {name}; nothing was written; its MLflow run is marked KILLED"]
     assert "Traceback" not in err
     assert not out.exists() and not metrics.exists()
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".store")]  # no half-written temporary folder
     with sqlite3.connect(db) as conn:
-        assert conn.execute("select name, status from runs").fetchall() == [("folds", "KILLED")]
+        assert conn.execute("select name, status from runs").fetchall() == [("fold_models", "KILLED")]
 
 
 @pytest.fixture
@@ -99,11 +99,11 @@ def test_a_signal_while_the_run_is_being_opened_still_leaves_it_killed(handlers,
 
     monkeypatch.setattr(mlflow_runs._Channel, "send", send_then_signal)
     reached = []
-    with pytest.raises(handlers.Stopped), mlflow_runs.stage_run("folds", {}) as run:
+    with pytest.raises(handlers.Stopped), mlflow_runs.stage_run("fold_models", {}) as run:
         reached.append(run)
     assert not reached  # the stage's work never started
     with sqlite3.connect(tmp_path / "mlflow.db") as conn:  # written whole before the stage's exception leaves
-        assert conn.execute("select name, status from runs").fetchall() == [("folds", "KILLED")]
+        assert conn.execute("select name, status from runs").fetchall() == [("fold_models", "KILLED")]
 
 
 def test_a_stage_killed_outright_leaves_no_run_running(data, tmp_path):
@@ -112,7 +112,7 @@ def test_a_stage_killed_outright_leaves_no_run_running(data, tmp_path):
     env = {**os.environ, "MLFLOW_TRACKING_URI": f"sqlite:///{db}", "TASKSEQ_N_JOBS": "1"}
     said = tmp_path / "out"
     with said.open("w") as sh:
-        proc = subprocess.Popen([sys.executable, "-u", "-m", "pipeline.cli", "folds", "--features",
+        proc = subprocess.Popen([sys.executable, "-u", "-m", "pipeline.cli", "fold_models", "--features",
                                  str(data / "features"), "--processed", str(data / "processed"), "--output",
                                  str(tmp_path / "store")], env=env, stdout=sh, stderr=subprocess.DEVNULL)
         while proc.poll() is None and not _working(said):
@@ -127,7 +127,7 @@ def test_a_stage_killed_outright_leaves_no_run_running(data, tmp_path):
             with sqlite3.connect(db) as conn:
                 if conn.execute("select 1 from sqlite_master where name = 'runs'").fetchall():
                     runs = conn.execute("select name, status from runs").fetchall()
-        if runs and runs != [("folds", "RUNNING")]:
+        if runs and runs != [("fold_models", "RUNNING")]:
             break
         time.sleep(0.1)
-    assert runs == [("folds", "KILLED")]
+    assert runs == [("fold_models", "KILLED")]

@@ -32,7 +32,7 @@ def tiny(benchmark_logs, tmp_path_factory) -> Path:
                  "--metrics", str(w / "dataset.json")]) == 0
     assert main(["features", "--input", str(root / "processed"), "--output", str(root / "features")]) == 0
     (root / "selection.json").write_text(json.dumps({"C": 2.0}))
-    assert main(["folds", "--features", str(root / "features"), "--processed", str(root / "processed"), *FOLDS,
+    assert main(["fold_models", "--features", str(root / "features"), "--processed", str(root / "processed"), *FOLDS,
                  *LEARN, "--selection", str(root / "selection.json"), "--output", str(root / "store"),
                  "--metrics", str(root / "folds.json"), "--n-jobs", "1"]) == 0
     return root

@@ -59,7 +59,7 @@ def test_dvc_deps_are_exactly_the_project_code_a_stage_loads(stage):
     assert f"pipeline/stages/{stage}.py" in deps
 
 
-@pytest.mark.parametrize("stage", ["train", "select", "folds", "crossval", "noise", "feedback", "recipes"])
+@pytest.mark.parametrize("stage", ["train", "select", "fold_models", "crossval", "noise", "feedback", "recipes"])
 def test_stages_that_load_planners_start_without_scikit_learn(stage):
     # importing scikit-learn takes about a second in every stage process and worker; only the baselines'
     # fits need it, and they import it themselves

@@ -1,4 +1,4 @@
-"""Every MRF model the evaluation stages use, trained once (the `folds` stage).
+"""Every MRF model the evaluation stages use, trained once (the `fold_models` stage).
 
 Cross-validation fits every MRF method of Table I on each training fold;
 attribute noise and feedback replay the models of the same folds; recipes fit

@@ -123,7 +123,7 @@ class MRFMethod:
     where it ended (`imitation.starts`); `dagger_rounds` rolls the planner out
     on the training scenarios that many times and adds the demonstrator's
     answers in the states it reached (`imitation.dagger`). Both need the
-    training scenarios at `fit`. With a `store` folder (written by the `folds`
+    training scenarios at `fit`. With a `store` folder (written by the `fold_models`
     stage), a model already trained on the same steps with the same settings
     is loaded, not retrained.
     """
@@ -270,7 +270,7 @@ def table1_methods(settings: Crossval, learner: Learner, horizon: int = Pddl.hor
 
 def mrf_methods(learner: Learner, store: str | None = None,
                 names: Sequence[str] | None = None) -> dict[str, Callable[[], MRFMethod]]:
-    """The MRF methods of Table I (the ones the `folds` stage trains), by name; `names` picks some, in that order.
+    """The MRF methods of Table I (the ones the `fold_models` stage trains), by name; `names` picks some, in that order.
 
     Raises `ValueError` naming any of `names` that is not an MRF method.
     """

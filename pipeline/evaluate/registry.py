@@ -44,7 +44,7 @@ class MethodSettings:
     crossval: Any  # settings.Crossval: baselines' seeds and C
     learner: Any  # settings.Learner: the structural SVM's settings, C as `select` chose it
     horizon: int  # longest plan of symbolic planners
-    store: str | None  # folder of fold models (`folds` stage); an MRF method loads its models from it
+    store: str | None  # folder of fold models (`fold_models` stage); an MRF method loads its models from it
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,7 @@
 """Fitted models addressed by what they were fitted on, so that each is trained once.
 
 Cross-validation, attribute noise, feedback and recipes all need the MRF
-trained on the same training folds with the same settings. The `folds` stage
+trained on the same training folds with the same settings. The `fold_models` stage
 trains every one of them once and writes them here; a later stage asks for the
 model of its own training steps and settings and gets the stored one. The
 address is a hash of the feature set, every learner setting that changes the

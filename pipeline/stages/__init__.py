@@ -42,7 +42,7 @@ STAGES: dict[str, Stage] = {
                    P.TrainPaths, per_world=True),
     "pddl": Stage("write the PDDL domain, a problem per scenario and its shortest plan (SAT)", P.PddlPaths,
                   per_world=True),
-    "folds": Stage("train every MRF model the evaluation stages use, once, into a model store", P.FoldsPaths,
+    "fold_models": Stage("train every MRF model the evaluation stages use, once, into a model store", P.FoldModelsPaths,
                    True, True),
     "crossval": Stage("cross-validate every method and write Table I, metrics and a confusion matrix",
                       P.CrossvalPaths, True, True),

@@ -29,8 +29,8 @@ def _selection() -> Any:
 
 
 def _store() -> Any:
-    return option("folder written by `taskseq folds`: models trained on the same steps with the same settings are "
-                  "loaded from it instead of trained again (default: train)", None)
+    return option("folder written by `taskseq fold_models`: models trained on the same steps with the same settings "
+                  "are loaded from it instead of trained again (default: train)", None)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -87,7 +87,7 @@ class WorldPaths:
 
 
 @dataclass(frozen=True, kw_only=True)
-class FoldsPaths(WorldPaths):
+class FoldModelsPaths(WorldPaths):
     output: Path = option("model store folder to write (replaced)")
     metrics: Path | None = option("training times and objectives (JSON; default: not written)", None)
 

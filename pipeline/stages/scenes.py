@@ -27,13 +27,13 @@ from ..report.csvs import csv_text
 from ..report.seeds import curve_over_seeds, json_over_seeds, world_dirs
 from ..settings import Crossval, Folds, Generate, Learner, Params, Replay, World
 from ..track.mlflow_runs import NO_RUN, Tracker
-from . import aggregate, crossval, features, feedback, folds, generate, ingest, noise
+from . import aggregate, crossval, features, feedback, fold_models, generate, ingest, noise
 from .paths import (
     AggregatePaths,
     CrossvalPaths,
     EvaluationPaths,
     FeaturesPaths,
-    FoldsPaths,
+    FoldModelsPaths,
     GeneratePaths,
     IngestPaths,
     ScenesPaths,
@@ -46,7 +46,7 @@ TRANSFER = ("sequence_arg", "sequence_prim", "success", "goal_reached")
 class Settings:
     world: Generate  # family procedural; the seed is each of `seeds` in turn
     seeds: tuple[int, ...]
-    folds: folds.Settings
+    fold_models: fold_models.Settings
     crossval: crossval.Settings
     noise: noise.Settings
     feedback: feedback.Settings
@@ -61,7 +61,7 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
     return Settings(
         world=Generate(family="procedural", procedural=params.procedural),
         seeds=params.world.seeds,
-        folds=folds.Settings(rooms, learner, ()),
+        fold_models=fold_models.Settings(rooms, learner, ()),
         crossval=crossval.Settings(Crossval(c.folds, "environment", c.seed, c.chance_seed, c.multiclass_C,
                                             c.ranking_C, c.max_steps), learner, params.pddl.horizon),
         noise=noise.Settings(params.noise, replay),
@@ -103,7 +103,7 @@ def _held_out_rooms(settings: Settings, paths: ScenesPaths, world: Path, here: P
     """Fold models and Table I of one world's data (`world`: its features and tables), whole rooms held out, into
     `here`."""
     data = {"features": world / "features", "processed": world / "processed", "selection": paths.selection}
-    folds.run(settings.folds, FoldsPaths(**data, output=here / "folds"), tracker, n_jobs)
+    fold_models.run(settings.fold_models, FoldModelsPaths(**data, output=here / "folds"), tracker, n_jobs)
     evaluation = {**data, "model_store": here / "folds", "output": here}
     crossval.run(settings.crossval, CrossvalPaths(**evaluation, recordings=0), tracker, n_jobs)
 

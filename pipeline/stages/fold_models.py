@@ -1,4 +1,4 @@
-"""Stage `folds`: every MRF model the evaluation stages use, trained once into a content-addressed store.
+"""Stage `fold_models`: every MRF model the evaluation stages use, trained once into a content-addressed store.
 
 Its metrics file holds what the fits computed (iterations, objectives), which
 are the same bytes on every run, so `dvc.lock` stays as committed after a
@@ -18,7 +18,7 @@ from ..io import write_json_atomic
 from ..logs.benchmark import load_benchmark
 from ..settings import Folds, Learner, Params
 from ..track.mlflow_runs import NO_RUN, Tracker
-from .paths import FoldsPaths
+from .paths import FoldModelsPaths
 
 
 @dataclass(frozen=True)
@@ -33,7 +33,7 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
     return Settings(c.fold_settings, params.train.learner, params.recipes.methods)
 
 
-def run(settings: Settings, paths: FoldsPaths, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> dict[str, Any]:
+def run(settings: Settings, paths: FoldModelsPaths, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> dict[str, Any]:
     folds, output = settings.folds, paths.output
     contexts, meta = read_features(paths.features)
     bench = load_benchmark(paths.processed)
