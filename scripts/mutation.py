@@ -58,8 +58,8 @@ GROUPS = {
     "features": Group(("pipeline/features/context.py", "pipeline/learn/mrf.py"),
                       ("tests/test_mrf.py", "tests/test_dataset.py")),
     "learner": Group(("pipeline/learn/ssvm.py", "pipeline/learn/working_set.py", "pipeline/learn/estimator.py"),
-                     ("tests/test_ssvm.py",)),
-    "recipes": Group(("pipeline/evaluate/recipes.py",), ("tests/test_recipes.py",)),
+                     ("tests/test_learner_behaviour.py", "tests/test_ssvm.py")),
+    "recipes": Group(("pipeline/evaluate/recipes.py",), ("tests/test_recipes_behaviour.py",)),
 }
 
 
