@@ -56,7 +56,7 @@ GROUPS = {
     "planner": Group(("pipeline/plan/planner.py", "pipeline/evaluate/robustness.py"),
                      ("tests/test_feedback_behaviour.py", "tests/test_robustness_behaviour.py")),
     "features": Group(("pipeline/features/context.py", "pipeline/learn/mrf.py"),
-                      ("tests/test_mrf.py", "tests/test_dataset.py")),
+                      ("tests/test_features_behaviour.py",)),
     "learner": Group(("pipeline/learn/ssvm.py", "pipeline/learn/working_set.py", "pipeline/learn/estimator.py"),
                      ("tests/test_learner_behaviour.py", "tests/test_ssvm.py")),
     "recipes": Group(("pipeline/evaluate/recipes.py",), ("tests/test_recipes_behaviour.py",)),
