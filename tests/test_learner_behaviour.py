@@ -3,10 +3,14 @@ working set's invariants, and the step scorer's settings, fit, prediction and mo
 
 from __future__ import annotations
 
+import logging
+import time
+
 import cvxpy as cp
 import numpy as np
 import pytest
 import scipy.sparse as sps
+from threadpoolctl import threadpool_info
 
 from pipeline.features.context import NO_PRIM, OBJECT_COLUMNS, RELATION_COLUMNS, StepContext
 from pipeline.learn.estimator import StepScorer
@@ -182,7 +186,7 @@ def test_an_empty_working_set():
     assert len(ws) == 0 and ws.C == 1.5 and isinstance(ws.C, float)
     assert np.array_equal(ws.w, np.zeros(3)) and ws.dual() == 0.0
     assert np.array_equal(ws.slacks(), np.zeros(2))
-    assert ws.solve(1e-6) == 0.0 and ws.n_steps == 0
+    assert ws.solve(1e-6) == 0.0 and ws.n_steps == 0 and ws.n_shrinks == 0
     ws.add(np.zeros((0, 3)), np.zeros(0), np.zeros(0, dtype=int), iteration=1)
     assert len(ws) == 0
 
@@ -405,6 +409,180 @@ def test_a_planner_from_given_weights(steps):
     d = MRFModel("edge").size_joint_feature
     p = StepScorer.from_weights("edge", np.arange(d), C=2.0)
     assert p.w_.dtype == np.float64 and p.C == 2.0 and p.ssvm_ is None and p.model_.features == "edge"
+    assert p.get_params() == {"features": "edge", **Learner().ssvm, "C": 2.0}
     assert p.predict(steps) == MRFModel("edge").batch_inference(steps, np.arange(d, dtype=float))
     with pytest.raises(ValueError, match=rf"^edge weights must have shape \({d},\), got \({d - 1},\)$"):
         StepScorer.from_weights("edge", np.zeros(d - 1))
+
+
+# --- what a fit reports beside its weights -------------------------------------------------------------------
+
+
+class Bar:
+    """Stands in for tqdm: what the bar was made with and what it was shown, and the BLAS threads meanwhile."""
+
+    made: list[Bar] = []
+
+    def __init__(self, **kwargs) -> None:
+        self.kwargs, self.updates, self.postfix, self.closed, self.threads = kwargs, [], [], False, set()
+        Bar.made.append(self)
+
+    def update(self, n):
+        self.updates.append(n)
+        self.threads |= {pool["num_threads"] for pool in threadpool_info()}
+
+    def set_postfix(self, **kwargs):
+        self.postfix.append(kwargs)
+
+    def close(self):
+        self.closed = True
+
+
+@pytest.mark.parametrize("progress", [False, True])
+def test_the_progress_bar_counts_iterations_with_the_gap_and_constraints(steps, monkeypatch, progress):
+    monkeypatch.setattr("pipeline.learn.estimator.tqdm", Bar)
+    Bar.made = []
+    s = StepScorer("edge", **SETTINGS)
+    (s.fit(steps, progress=True) if progress else s.fit(steps))
+    (bar,) = Bar.made
+    # a bar on a terminal only (disable=None lets tqdm decide) when asked for, none otherwise
+    assert bar.kwargs == {"total": 300, "desc": "ssvm edge", "unit": "it", "disable": None if progress else True,
+                          "leave": False, "mininterval": 0.5}
+    h = s.ssvm_.history_
+    assert bar.updates == [1] * len(h) and bar.closed
+    assert bar.postfix == [{"gap": f"{it.gap:.3g}", "constraints": it.n_constraints} for it in h]
+    assert bar.threads == {1}  # one BLAS thread while the learner runs: the same sums in any process
+
+
+def test_a_failed_fit_closes_its_bar(steps, monkeypatch):
+    monkeypatch.setattr("pipeline.learn.estimator.tqdm", Bar)
+    Bar.made = []
+    with pytest.raises(IndexError):
+        StepScorer("edge", **SETTINGS).fit(steps, [(0, 9, -1)] * len(steps))  # an argument no step has
+    assert Bar.made[0].closed
+
+
+def test_the_times_a_fit_reports_are_within_its_wall_time(steps):
+    start = time.perf_counter()
+    s = StepScorer("edge", **SETTINGS).fit(steps)
+    elapsed = time.perf_counter() - start
+    assert 0 < s.fit_seconds_ <= elapsed
+    ssvm = s.ssvm_
+    assert 0 < ssvm.seconds_oracle_ + ssvm.seconds_qp_ <= elapsed
+    assert 0 < ssvm.history_[-1].seconds <= elapsed
+
+
+class SlowFirst(MulticlassModel):
+    """The first oracle call does a fixed amount of extra work; each call times itself."""
+
+    def __init__(self, *args) -> None:
+        super().__init__(*args)
+        self.spent = 0.0
+        self.calls = 0
+
+    def loss_augmented_inference(self, x, y, w):
+        t = time.perf_counter()
+        if self.calls == 0:
+            np.linalg.svd(np.random.default_rng(0).normal(size=(150, 150)))
+        self.calls += 1
+        out = super().loss_augmented_inference(x, y, w)
+        self.spent += time.perf_counter() - t
+        return out
+
+
+class SlowFirstSolve(WorkingSet):
+    spent = 0.0
+    solves = 0
+
+    def solve(self, tol, max_steps=10_000_000):
+        t = time.perf_counter()
+        if SlowFirstSolve.solves == 0:
+            np.linalg.svd(np.random.default_rng(0).normal(size=(150, 150)))
+        SlowFirstSolve.solves += 1
+        out = super().solve(tol, max_steps)
+        SlowFirstSolve.spent += time.perf_counter() - t
+        return out
+
+
+def test_oracle_and_qp_times_add_up_over_the_iterations(monkeypatch):
+    monkeypatch.setattr("pipeline.learn.ssvm.WorkingSet", SlowFirstSolve)
+    SlowFirstSolve.spent, SlowFirstSolve.solves = 0.0, 0
+    model = SlowFirst(1, 2)
+    start = time.perf_counter()
+    ssvm = CuttingPlaneSSVM(model, C=0.1, tol=1e-9).fit(X2, Y2)
+    elapsed = time.perf_counter() - start
+    assert ssvm.n_iter_ >= 2 and SlowFirstSolve.solves >= 1
+    assert model.spent <= ssvm.seconds_oracle_ and SlowFirstSolve.spent <= ssvm.seconds_qp_
+    assert ssvm.seconds_oracle_ + ssvm.seconds_qp_ <= elapsed
+
+
+def test_each_iteration_is_logged(caplog):
+    with caplog.at_level(logging.DEBUG, logger="pipeline.learn.ssvm"):
+        ssvm = CuttingPlaneSSVM(MulticlassModel(1, 2), C=0.1, tol=1e-9).fit(X2, Y2)
+    lines = [r.getMessage() for r in caplog.records if r.name == "pipeline.learn.ssvm"]
+    assert lines == [f"iteration {it.iteration}: primal {it.primal:.6g} best {it.best_primal:.6g} dual {it.dual:.6g}"
+                     for it in ssvm.history_]
+    assert lines[0].startswith("iteration 1: primal 0.2 best 0.2 dual ")
+
+
+def test_no_iteration_certifies_nothing():
+    ssvm = CuttingPlaneSSVM(MulticlassModel(1, 2), max_iter=0).fit(X2, Y2)
+    assert ssvm.converged_ is False and ssvm.n_iter_ == 0 and ssvm.primal_objective_ == np.inf
+    assert np.array_equal(ssvm.w_, np.zeros(2))
+
+
+def blobs():
+    rng = np.random.default_rng(0)
+    n, d, k = 30, 3, 3
+    centers = rng.normal(scale=2.0, size=(k, d))
+    y = rng.integers(k, size=n)
+    return list(centers[y] + rng.normal(size=(n, d))), [int(c) for c in y], MulticlassModel(d, k)
+
+
+def test_idle_cuts_leave_the_working_set_only_with_a_window():
+    X, Y, model = blobs()
+    kept = CuttingPlaneSSVM(model, C=0.3, tol=1e-7, n_slacks=0, inactive_window=0).fit(X, Y)
+    pruned = CuttingPlaneSSVM(model, C=0.3, tol=1e-7, n_slacks=0, inactive_window=1).fit(X, Y)
+    sizes = [h.n_constraints for h in pruned.history_]
+    assert any(b < a for a, b in zip(sizes, sizes[1:], strict=False))  # cuts left
+    sizes = [h.n_constraints for h in kept.history_]
+    assert all(b >= a for a, b in zip(sizes, sizes[1:], strict=False))
+    assert pruned.primal_objective_ == pytest.approx(kept.primal_objective_, rel=1e-6)
+
+
+def test_an_example_the_weights_already_separate_adds_no_cut():
+    X, Y, _ = blobs()
+    wrong: list[int] = []
+
+    class Counting(MulticlassModel):
+        def loss_augmented_inference(self, x, y, w):
+            out = super().loss_augmented_inference(x, y, w)
+            wrong[-1] += out != y
+            return out
+
+    class Start(Counting):
+        def batch_loss_augmented_inference(self, X, Y, w):
+            wrong.append(0)
+            return [self.loss_augmented_inference(x, y, w) for x, y in zip(X, Y, strict=True)]
+
+    ssvm = CuttingPlaneSSVM(Start(3, 3), C=0.3, tol=1e-7, n_slacks=0, inactive_window=0).fit(X, Y)
+    sizes = [0] + [h.n_constraints for h in ssvm.history_]
+    added = [b - a for a, b in zip(sizes, sizes[1:], strict=False)]
+    assert all(a <= w for a, w in zip(added, wrong, strict=True)) and wrong[-1] < len(X)
+    assert sum(wrong) > sum(added)  # some violated examples were within their slack already
+
+
+def test_shrinkings_are_counted_over_all_solves():
+    rng = np.random.default_rng(11)
+    K, d, B = 300, 20, 100
+    deltas = rng.normal(size=(K, d)) * (rng.uniform(size=(K, d)) < 0.3)
+    losses, groups = rng.uniform(0.5, 3.0, size=K), rng.integers(B, size=K)
+    ws = WorkingSet(d, B, 1.5)
+    for part in np.array_split(np.arange(K), 3):
+        ws.add(deltas[part], losses[part], groups[part], iteration=1)
+        ws.solve(1e-9)
+    shrinks = ws.n_shrinks
+    assert shrinks > 0
+    ws.solve(1e-9)  # at the optimum already: no step, no shrinking, and the count stays
+    assert ws.n_shrinks == shrinks
+    assert ws.dual() == pytest.approx(cvxpy_dual(deltas, losses, groups, B, 1.5), rel=1e-7)
