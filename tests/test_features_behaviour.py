@@ -127,12 +127,48 @@ def test_relations_are_the_formulas_written_out():
     only = relations(state, cup, ids)
     np.testing.assert_allclose(only, reference_relations(state, cup, ids), atol=1e-12)
     assert not only[:, len(RELATION_KINDS):].any() and only[ids.index("obj14"), 0] == 1.0
+    # no container, but a held object: the held object's columns are filled all the same
+    stir = Task("stir", ("obj35",))
+    both = relations(held, stir, ids)
+    np.testing.assert_allclose(both, reference_relations(held, stir, ids), atol=1e-12)
+    assert both[ids.index("obj14"), 2 * len(RELATION_KINDS)] == 1.0
 
 
 def test_a_task_object_not_in_the_world_has_no_relations():
     state = pour_world()
     ids = sorted(state.specs)
     assert not relations(state, Task("pour", ("obj99",)), ids).any()
+
+
+def test_on_a_shelf_and_far_away():
+    # the bottle on the shelf's upper level, a glass on a second table 12 m away
+    state = world({2: 0.0, 8: 1.6, 3: 12.0}, [(14, 2, 0, 0.3), (20, 8, 1, 0.0), (27, 20), (15, 3, 0, 0.0)])
+    task = Task("pour_to", ("obj27", "obj14"))
+    ctx = step_context(state, task, [])
+    ids = ctx.object_ids
+    np.testing.assert_allclose(ctx.objects, reference_objects(state, ids), atol=1e-12)
+    shelf, dist = STATE_COLUMNS.index("over_shelf"), STATE_COLUMNS.index("distance")
+    assert {ids[i] for i in np.flatnonzero(ctx.objects[:, shelf])} == {"obj20", "obj27"}
+    assert ctx.objects[ids.index("obj15"), dist] == 1.0  # capped at 10 m
+    rel = relations(state, task, ids)
+    np.testing.assert_allclose(rel, reference_relations(state, task, ids), atol=1e-12)
+    near = RELATION_COLUMNS.index("near_object")
+    assert rel[ids.index("obj15"), near] == 0.0 and rel[ids.index("obj08"), near] > 0.0
+    # nearness is horizontal only: the bottle and the liquid in it share x and y, not z
+    assert state.poses["obj20"][2] != state.poses["obj27"][2] and rel[ids.index("obj20"), near] == 1.0
+
+
+def test_footprints_that_only_touch_do_not_overlap_but_collide():
+    # the cup (7.5 cm wide) and the glass (6.5 cm) side by side, edge to edge
+    state = world({2: 0.0}, [(14, 2, 0, 0.3), (15, 2, 0, 0.37), (20, 2, 0, -0.3)])
+    assert state.box("obj14")[3] == pytest.approx(state.box("obj15")[0], abs=1e-9)
+    for task in (Task("pick_and_place", ("obj14", "obj15")), Task("pick_and_place", ("obj15", "obj14"))):
+        ctx = step_context(state, task, [])
+        ids = ctx.object_ids
+        cup, glass = ids.index("obj14"), ids.index("obj15")
+        assert ctx.task_rel[glass, 2] == 0.0 and ctx.task_rel[cup, 2] == 0.0 and ctx.task_rel[cup, 3] == 0.0
+        assert ctx.task_rel[ids.index("obj02"), 2] == 1.0  # the table under it does overlap
+        assert ctx.collide[cup, glass] and ctx.collide[glass, cup]
 
 
 @pytest.mark.parametrize("make", [pour_world, stacked_world])
@@ -231,7 +267,9 @@ def test_a_steps_history_bits_holding_and_actions():
     assert ctx.holding
     assert ctx.action((3, 1, 2)) == Action("place_above", ("o1", "o2"))
     assert ctx.action((1, 3, -1)) == Action("grasp", ("o3",)) and ctx.action((7, -1, -1)) == Action("done")
-    for y in [(3, 1, 2), (1, 3, -1), (7, -1, -1)]:
+    assert ctx.action((1, 0, -1)) == Action("grasp", ("o0",)) and ctx.action((4, 1, 0)) == Action("hold_above",
+                                                                                                ("o1", "o0"))
+    for y in [(3, 1, 2), (1, 3, -1), (7, -1, -1), (3, 0, 1)]:
         assert ctx.encode(ctx.action(y)) == y
     with pytest.raises(ValueError, match=r"^grasp\(o9\): object o9 is not in this step's environment$"):
         ctx.encode(Action("grasp", ("o9",)))
@@ -260,7 +298,8 @@ def test_candidates_respect_arity_in_primitive_then_argument_order(n):
 def steps() -> list[StepContext]:
     rng = np.random.default_rng(4)
     return [hand_step(rng, 3, 0), hand_step(rng, 4, 2, (1, 0), (1, -1, 1, -1), holding=True),
-            hand_step(rng, 2, 4, (7, NO_PRIM), (-1, -1, -1, -1)), hand_step(rng, 5, 3, (3, 4), (0, 4, 2, 1))]
+            hand_step(rng, 2, 4, (7, NO_PRIM), (-1, -1, -1, -1)), hand_step(rng, 5, 3, (3, 4), (0, 4, 2, 1)),
+            hand_step(rng, 4, 2, (2, 1), (0, -1, 0, -1)), hand_step(rng, 1, 1)]
 
 
 def all_candidates(x: StepContext) -> list[tuple[int, int, int]]:
@@ -292,14 +331,14 @@ def test_every_score_is_the_weights_dot_the_joint_feature(steps, features):
 def test_the_batch_methods_equal_the_per_step_ones(steps, features):
     model = MRFModel(features)
     w = np.random.default_rng(2).normal(size=model.size_joint_feature)
-    golds = [all_candidates(x)[k] for x, k in zip(steps, (0, 5, 3, 40), strict=True)]
+    golds = [all_candidates(x)[k] for x, k in zip(steps, (0, 5, 3, 40, 20, 1), strict=True)]
     assert model.batch_inference(steps, w) == [model.inference(x, w) for x in steps]
     oracle = model.batch_loss_augmented_inference(steps, golds, w)
-    assert oracle.dtype == np.int64 and oracle.shape == (4, 3)
+    assert oracle.dtype == np.int64 and oracle.shape == (6, 3)
     assert [tuple(r) for r in oracle.tolist()] == [model.loss_augmented_inference(x, g, w)
                                                    for x, g in zip(steps, golds, strict=True)]
     rows = model.batch_joint_feature_rows(steps, golds)
-    assert rows.shape == (4, model.size_joint_feature) and rows.has_sorted_indices
+    assert rows.shape == (6, model.size_joint_feature) and rows.has_sorted_indices
     np.testing.assert_allclose(rows.toarray(), [model.joint_feature(x, g) for x, g in zip(steps, golds, strict=True)],
                                atol=1e-15)
     assert not np.any(rows.data == 0.0)
@@ -391,13 +430,13 @@ def test_the_relations_model_needs_relations_and_the_others_ignore_them():
 
 def test_a_padded_batch_never_picks_padding(steps):
     batch = StepBatch.of(steps)
-    assert batch.valid.shape == (4, 5) and batch.valid.sum() == 3 + 4 + 2 + 5
+    assert batch.valid.shape == (6, 5) and batch.valid.sum() == 3 + 4 + 2 + 5 + 4 + 1
     assert np.isneginf(batch.valid_neg[2, 2:]).all() and not batch.valid_neg[2, :2].any()
     assert not batch.pair_valid[0, 1, 1] and batch.pair_valid[0, 0, 1] and not batch.pair_valid[0, 0, 3]
     np.testing.assert_array_equal(batch.rel_rows[1, :4], rel_row(steps[1].objects, steps[1].task_rel,
                                                                  steps[1].relations))
     assert not batch.rel_rows[1, 4:].any()
-    assert StepBatch.of(steps, relations=False).rel_rows.shape == (4, 5, 0)
+    assert StepBatch.of(steps, relations=False).rel_rows.shape == (6, 5, 0)
     assert StepBatch.of(steps, relations=False).by_task == []
     model = MRFModel("relations")
     w = -np.abs(np.random.default_rng(5).normal(size=model.size_joint_feature))  # padding at zero would win
@@ -429,3 +468,62 @@ def test_rel_rows_key_the_state_on_the_task_object_and_its_container():
                                                            np.zeros(k)]))
     np.testing.assert_array_equal(rows[1], np.concatenate([rel[1], task_rel[1], objects[1, :k], np.zeros(k),
                                                            objects[1, :k]]))
+
+
+@pytest.mark.parametrize("features", sorted(FEATURE_SETS))
+def test_the_oracle_weighs_the_loss_against_close_scores(steps, features):
+    """Small weights: the Hamming loss decides between candidates, including the missing arguments of `done`."""
+    model = MRFModel(features)
+    rng = np.random.default_rng(7)
+    for trial in range(3):
+        w = 0.05 * rng.normal(size=model.size_joint_feature)
+        for x in steps:
+            cands = all_candidates(x)
+            direct = np.array([w @ model.joint_feature(x, y) for y in cands])
+            for gold in {cands[0], cands[-1], cands[len(cands) // 2], cands[trial % len(cands)], (7, -1, -1)}:
+                aug = direct + np.array([model.loss(gold, y) for y in cands])
+                expected = cands[int(np.argmax(aug))]
+                assert model.loss_augmented_inference(x, gold, w) == expected
+                assert model.batch_loss_augmented_inference([x], [gold], w).tolist() == [list(expected)]
+
+
+def test_the_pair_features_of_colliding_arguments(steps):
+    model = MRFModel("relations")
+    x = steps[3]
+    pairs = [(p, a1, a2) for p, a1, a2 in all_candidates(x) if a2 >= 0 and x.collide[a1, a2]]
+    assert any(a1 == 0 for _, a1, _ in pairs) and any(a2 == 0 for _, _, a2 in pairs)
+    rows = model.batch_joint_feature_rows([x] * len(pairs), pairs).toarray()
+    collide = model.feature_names().index("ae_pair[collide]")
+    assert np.all(rows[:, collide] == 1.0)
+    np.testing.assert_array_equal(rows, [model.joint_feature(x, y) for y in pairs])
+
+
+def test_the_default_model_is_the_full_one():
+    model = MRFModel()
+    assert model.features == "full" and model.size_joint_feature == 1589
+    assert MRFModel("edge").features == "edge" and MRFModel("edge").families == ("ae", "pt")
+
+
+def test_the_blocks_of_the_model():
+    from pipeline.features.context import HISTORY_ARG_COLUMNS, TASK_REL_COLUMNS
+    from pipeline.learn.mrf import REL_ROW, _blocks
+    from pipeline.sim.tasks import TASKS
+
+    prims, prev = ALL_PRIMITIVES, ALL_PRIMITIVES + ("none",)
+    hands = ("holding", "empty_hand")
+    expected = [
+        ("ae1", "ae", (("held", "distance"),)), ("ae2", "ae", (("held", "distance"),)),
+        ("ae_pair", "ae", (("collide",),)), ("pt", "pt", (TASKS, prims)),
+        ("aet_rel1", "aet", (TASKS, TASK_REL_COLUMNS)), ("aet_obj1", "aet", (TASKS, hands, OBJECT_COLUMNS)),
+        ("aet_rel2", "aet", (TASKS, TASK_REL_COLUMNS)), ("aet_obj2", "aet", (TASKS, hands, OBJECT_COLUMNS)),
+        ("pae1", "pae", (prims, OBJECT_COLUMNS)), ("pae2", "pae", (prims, OBJECT_COLUMNS)),
+        ("ppt1", "ppt", (TASKS, prev, prims)), ("ppt2", "ppt", (TASKS, prev, prims)),
+        ("paae1", "paae", (prims, HISTORY_ARG_COLUMNS)), ("paae2", "paae", (prims, HISTORY_ARG_COLUMNS)),
+        ("rel1", "rel", (TASKS, prims, REL_ROW)), ("rel2", "rel", (TASKS, prims, REL_ROW)),
+        ("rel_pair", "rel", (TASKS, prims, TASK_REL_COLUMNS, TASK_REL_COLUMNS)),
+    ]
+    blocks = _blocks()
+    assert [(b.name, b.family, b.labels) for b in blocks] == expected
+    assert all(b.shape == tuple(len(labels) for labels in b.labels) for b in blocks)
+    assert [b.size for b in blocks] == [math.prod(len(labels) for labels in e[2]) for e in expected]
+    assert sum(b.size for b in blocks) == MRFModel("relations").size_joint_feature
