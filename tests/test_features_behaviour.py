@@ -4,6 +4,7 @@ against the world's own queries or a formula, every score against the dot produc
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -527,3 +528,29 @@ def test_the_blocks_of_the_model():
     assert all(b.shape == tuple(len(labels) for labels in b.labels) for b in blocks)
     assert [b.size for b in blocks] == [math.prod(len(labels) for labels in e[2]) for e in expected]
     assert sum(b.size for b in blocks) == MRFModel("relations").size_joint_feature
+
+
+def test_a_volume_exactly_twice_the_references_counts_as_twice():
+    state = world({2: 0.0}, [(14, 2, 0, 0.3), (15, 2, 0, -0.3)])
+    width, depth, height = state.specs["obj14"].size
+    state.specs["obj15"] = replace(state.specs["obj14"], id="obj15", size=(width, depth, 2 * height))  # a taller copy
+    ids = sorted(state.specs)
+    r = relations(state, Task("pick_and_place", ("obj14", "obj02")), ids)
+    tall = ids.index("obj15")
+    assert [r[tall, RELATION_COLUMNS.index(f"volume_ge_{t:g}x_object")] for t in VOLUME_RATIOS] == [
+        1.0, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0]
+    assert r[tall, RELATION_COLUMNS.index("log_volume_ratio_object")] == pytest.approx(math.log10(2) / 2)
+
+
+def test_the_oracle_charges_done_nothing_for_the_arguments_a_done_label_lacks():
+    """Gold `done`, and `done` scored 2.5 above every other candidate: with its loss 0 against the pairs' 3, the
+    most violated labelling is the first pair (2.5 + 0 < 0 + 3); at 3.5 it is `done` itself."""
+    model = MRFModel("edge")
+    x = hand_step(np.random.default_rng(8), 3, 1)
+    w = np.zeros(model.size_joint_feature)
+    w[model.feature_names().index("pt[pick_and_place,done]")] = 2.5
+    assert model.inference(x, w) == (7, -1, -1)
+    assert model.loss_augmented_inference(x, (7, -1, -1), w) == (3, 0, 1)
+    assert model.batch_loss_augmented_inference([x], [(7, -1, -1)], w).tolist() == [[3, 0, 1]]
+    w[model.feature_names().index("pt[pick_and_place,done]")] = 3.5
+    assert model.batch_loss_augmented_inference([x], [(7, -1, -1)], w).tolist() == [[7, -1, -1]]
