@@ -9,9 +9,9 @@ reuse a mutant's verdict when only the tests changed. Functions with a decorator
 `@njit` kernels among them) are never mutated by mutmut; the kernels are checked bit for bit against scipy by
 tests/test_ssvm.py and tests/test_mrf.py.
 
-Score: killed (a test failed, or the mutant ran past mutmut's timeout) over all mutants, where a mutant no selected
-test reaches counts as a survivor; mutants listed in scripts/mutation_equivalent.toml (each with the reason it
-changes nothing observable) are left out of the denominator and listed apart in the report.
+Score: killed (a test failed, the test process crashed, or the mutant ran past mutmut's timeout) over all mutants,
+where a mutant no selected test reaches counts as a survivor; mutants listed in scripts/mutation_equivalent.toml
+(each with the reason it changes nothing observable) are left out of the denominator and listed apart in the report.
 """
 
 from __future__ import annotations
@@ -33,6 +33,9 @@ from pipeline.io import write_text_atomic
 ROOT = Path(__file__).resolve().parents[1]
 EQUIVALENT = ROOT / "scripts" / "mutation_equivalent.toml"
 MUTMUT = Path(sys.executable).with_name("mutmut")  # the one installed beside this Python
+# mutmut's verdicts that count as killed: a failed test, a test process that crashed (a mutant that makes a compiled
+# kernel write out of bounds), a run past the timeout
+KILLED = ("killed", "segfault", "timeout")
 
 
 @dataclass(frozen=True)
@@ -56,10 +59,10 @@ GROUPS = {
     "planner": Group(("pipeline/plan/planner.py", "pipeline/evaluate/robustness.py"),
                      ("tests/test_feedback_behaviour.py", "tests/test_robustness_behaviour.py")),
     "features": Group(("pipeline/features/context.py", "pipeline/learn/mrf.py"),
-                      ("tests/test_mrf.py", "tests/test_dataset.py")),
+                      ("tests/test_features_behaviour.py",)),
     "learner": Group(("pipeline/learn/ssvm.py", "pipeline/learn/working_set.py", "pipeline/learn/estimator.py"),
-                     ("tests/test_ssvm.py",)),
-    "recipes": Group(("pipeline/evaluate/recipes.py",), ("tests/test_recipes.py",)),
+                     ("tests/test_learner_behaviour.py", "tests/test_ssvm.py")),
+    "recipes": Group(("pipeline/evaluate/recipes.py",), ("tests/test_recipes_behaviour.py",)),
 }
 
 
@@ -95,7 +98,7 @@ def report(name: str, group: Group, scratch: Path, command: str, minutes: float)
     status = dict(re.findall(r"^\s*(\S+): (.+)$", _mutmut(scratch, "results", "--all", "true"), re.M))
     equivalent = {m: why for m, why in _equivalent().items() if m in status}
     counted = {m: s for m, s in status.items() if m not in equivalent}
-    killed = sum(s in ("killed", "timeout") for s in counted.values())
+    killed = sum(s in KILLED for s in counted.values())
     survivors = sorted((m for m, s in counted.items() if s in ("survived", "no tests")),
                        key=_natural)
     counts = {"mutants": len(status), "killed": killed, "survived": len(survivors), "equivalent": len(equivalent)}
@@ -111,7 +114,7 @@ def report(name: str, group: Group, scratch: Path, command: str, minutes: float)
     lines += ["| module | mutants | killed | survived | equivalent | score |", "|---|---:|---:|---:|---:|---:|"]
     for module in sorted({_module(m) for m in status}):
         mine = {m: s for m, s in counted.items() if _module(m) == module}
-        k = sum(s in ("killed", "timeout") for s in mine.values())
+        k = sum(s in KILLED for s in mine.values())
         n_eq = sum(_module(m) == module for m in equivalent)
         lines.append(f"| `{module}` | {len(mine) + n_eq} | {k} | {len(mine) - k} | {n_eq} | "
                      f"{100.0 * k / max(len(mine), 1):.1f}% |")
