@@ -36,7 +36,8 @@ from mlflow.tracking import MlflowClient
 
 from pipeline.track.mlflow_runs import EXPERIMENT
 
-STAGES = ("select", "train", "fold_models", "crossval", "noise", "feedback", "recipes", "aggregate", "report")
+STAGES = ("select", "train", "fold_models", "crossval", "noise", "feedback", "recipes", "scenes", "aggregate",
+          "report")
 
 
 def free_port() -> int:
