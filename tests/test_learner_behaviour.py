@@ -454,11 +454,24 @@ def test_the_progress_bar_counts_iterations_with_the_gap_and_constraints(steps, 
 
 
 def test_a_failed_fit_closes_its_bar(steps, monkeypatch):
+    def fails(self, X, y):
+        raise RuntimeError("the solver gave up")
+
     monkeypatch.setattr("pipeline.learn.estimator.tqdm", Bar)
+    monkeypatch.setattr("pipeline.learn.estimator.CuttingPlaneSSVM.fit", fails)
     Bar.made = []
-    with pytest.raises(IndexError):
-        StepScorer("edge", **SETTINGS).fit(steps, [(0, 9, -1)] * len(steps))  # an argument no step has
+    with pytest.raises(RuntimeError, match="gave up"):
+        StepScorer("edge", **SETTINGS).fit(steps)
     assert Bar.made[0].closed
+
+
+def test_a_label_that_is_not_a_candidate_is_refused_by_name(steps):
+    labels = [x.gold for x in steps]
+    labels[1] = (0, 99, -1)  # an argument no step has
+    with pytest.raises(ValueError, match=r"label 1 \(0, 99, -1\) is not a candidate of its step"):
+        StepScorer("edge", **SETTINGS).fit(steps, labels)
+    with pytest.raises(ValueError, match="2 labels"):
+        StepScorer("edge", **SETTINGS).fit(steps, labels[:2])
 
 
 def test_the_times_a_fit_reports_are_within_its_wall_time(steps):

@@ -23,7 +23,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
-from ..features.context import StepContext
+from ..features.context import StepContext, candidate_index
 from ..settings import Learner
 from .mrf import FEATURE_SETS, MRFModel
 from .persist import load_model, save_model
@@ -111,6 +111,7 @@ class StepScorer:
             if any(x.gold is None for x in X):
                 raise ValueError("steps without a demonstrated label need `y`")
             y = [x.gold for x in X]
+        _check_labels(X, y)
         model = MRFModel(self.features)
         # a bar on a terminal only: logs of CI and DVC stay readable
         bar = tqdm(total=self.max_iter, desc=f"ssvm {self.features}", unit="it", disable=None if progress else True,
@@ -180,3 +181,14 @@ class StepScorer:
             raise ValueError(f"{features} weights must have shape ({planner.model_.size_joint_feature},), "
                              f"got {planner.w_.shape}")
         return planner
+
+
+def _check_labels(X: list[StepContext], y: list) -> None:
+    """Every label is one of its step's candidates; otherwise a `ValueError` naming the first that is not."""
+    if len(y) != len(X):
+        raise ValueError(f"{len(X)} steps but {len(y)} labels")
+    for i, (x, label) in enumerate(zip(X, y, strict=True)):
+        p, a1, a2 = candidate_index(x.n)
+        if not np.any((p == label[0]) & (a1 == label[1]) & (a2 == label[2])):
+            raise ValueError(f"label {i} {tuple(label)} is not a candidate of its step ({x.n} objects): a "
+                             "primitive index, then argument indices among the step's objects or -1")
