@@ -305,3 +305,27 @@ def test_methods_without_a_label_keep_their_name_and_a_summary_without_tasks_is_
     assert "| mine | 100.0 ± 0.0 |" in failures_markdown(rows, ["mine"], 1)
     columns, wide = plot_columns([{"n": "1", "method": "mine", "k": 2, "v": 5.0}], "n", ["method", "k"], "v", {})
     assert columns == ["n", "method mine k 2"] and wide == [{"n": "1", "method mine k 2": 5.0}]
+
+
+@pytest.mark.parametrize("missing", ["noise.csv", "feedback.csv", "recipes.json", "dataset.json"])
+def test_a_table_only_some_worlds_lack_stops_the_stage_and_one_every_world_lacks_is_left_out(tmp_path, missing):
+    """Worlds evaluated with other folds (the scenes stage) have Table I alone: what none of them has is not
+    written, and its group is absent from metrics.json; a file one world lacks is an error that names it."""
+    for seed, w in WORLD.items():
+        _write_world(tmp_path / "worlds" / str(seed), w)
+    (tmp_path / "worlds" / "3" / missing).unlink()
+    with pytest.raises(FileNotFoundError, match=missing):
+        aggregate.run(World(seeds=SEEDS), AggregatePaths(worlds=tmp_path / "worlds", output=tmp_path / "a"))
+    for seed in SEEDS:
+        (tmp_path / "worlds" / str(seed) / missing).unlink(missing_ok=True)
+    out = tmp_path / "b"
+    aggregate.run(World(seeds=SEEDS), AggregatePaths(worlds=tmp_path / "worlds", output=out))
+    written = {p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file()}
+    left_out = {"noise.csv": {"noise.csv", "noise_seeds.csv", "noise.png", "plots/noise.csv"},
+                "feedback.csv": {"feedback.csv", "feedback_seeds.csv", "feedback.png", "plots/feedback.csv"},
+                "recipes.json": {"recipes.json"}, "dataset.json": {"dataset.json"}}[missing]
+    assert not written & left_out and {"table1.md", "failures.md", "crossval_means.json"} <= written
+    groups = json.loads((out / "metrics.json").read_text())
+    group = {"noise.csv": "noise", "feedback.csv": "feedback", "recipes.json": "recipes"}.get(missing)
+    assert group is None or groups.get(group, {}) == {}
+    assert groups["crossval"]["full"]["sequence_arg"] == 75.0

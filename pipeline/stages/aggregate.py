@@ -147,6 +147,10 @@ def _plot_columns(noise: list[dict[str, Any]], fb: list[dict[str, Any]], out: Pa
 
 
 def _everywhere(dirs: dict[int, Path], name: str) -> bool:
-    """Whether every world has `name`: recipes run in paper-shaped rooms only, and a world evaluated again with
-    other folds has Table I alone."""
-    return all((d / name).exists() for d in dirs.values())
+    """Whether the worlds have `name`: all of them (True) or none (False). Recipes run in paper-shaped rooms only,
+    and worlds evaluated again with other folds have Table I alone; a file only some worlds lack is an error."""
+    missing = [seed for seed, d in dirs.items() if not (d / name).exists()]
+    if missing and len(missing) < len(dirs):
+        raise FileNotFoundError(f"{dirs[missing[0]] / name}: missing; run the stage that writes it for world seed "
+                                f"{missing[0]} (the other worlds have it)")
+    return not missing
