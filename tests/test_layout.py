@@ -36,7 +36,7 @@ def layout(edit):
 @pytest.mark.parametrize("edit, message", [
     (lambda d: d["objects"][3].pop("size"), "objects[3]: missing field 'size'"),
     (lambda d: d["objects"][3].update(size=[0.1, 0.1]), "objects[3]: object thermos: size must be three"),
-    (lambda d: d["objects"][3].update(category="flask"), "unknown category 'flask'"),
+    (lambda d: d["objects"][3].update(category="spaceship"), "unknown category 'spaceship'"),
     (lambda d: d["objects"][3].update(flags=["shiny"]), "unknown flags ['shiny']"),
     (lambda d: d["objects"][3].update(id="../x"), "objects[3].id"),
     (lambda d: d["items"][0].update(colour="red"), "items[0]: unknown field 'colour'"),
