@@ -74,3 +74,36 @@ def line_plot_png(series: dict[str, tuple[list[float], list[float], list[float] 
     ax.legend(fontsize=7)
     fig.tight_layout()
     _save(fig, path)
+
+
+def scaling_png(steps: list[int], stage_seconds: dict[str, list[float]], ms_per_step: list[float], tol: float,
+                path: str) -> None:
+    """Left: each stage's wall time against steps on log-log axes, with a dotted line of slope 1 through the
+    smallest size of the slowest stage (a stage steeper than it grows worse than linearly). Right: training
+    time per step, flat when training grows linearly."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (left, right) = plt.subplots(1, 2, figsize=(9.6, 3.8), dpi=120)
+    for label, seconds in stage_seconds.items():
+        left.plot(steps, seconds, marker="o", label=label)
+    top = max(stage_seconds.values(), key=lambda s: s[0])[0]
+    left.plot(steps, [top * n / steps[0] for n in steps], linestyle=":", color="grey", label="linear")
+    left.set_xscale("log")
+    left.set_yscale("log")
+    left.set_xlabel("steps in the world")
+    left.set_ylabel("wall time (s)")
+    left.set_title("time per stage", fontsize=9)
+    left.grid(alpha=0.3, which="both")
+    left.legend(fontsize=7)
+    right.plot(steps, ms_per_step, marker="o")
+    right.set_xscale("log")
+    right.set_ylim(0, max(ms_per_step) * 1.3)
+    right.set_xlabel("steps in the world")
+    right.set_ylabel("ms of training per step")
+    right.set_title(f"training time per step (full model, gap {tol:g})", fontsize=9)
+    right.grid(alpha=0.3, which="both")
+    fig.tight_layout()
+    _save(fig, path)
