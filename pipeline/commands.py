@@ -130,10 +130,12 @@ def _scaling(args: argparse.Namespace) -> int:
                 max_iter=learner.max_iter, n_slacks=learner.n_slacks, world_seed=args.world_seed,
                 n_jobs=args.n_jobs or default_jobs(), methods=None if args.methods is None else tuple(args.methods),
                 params=args.params, overrides=tuple(args.overrides), selection=args.selection)
-    result = run_scaling(plan, args.keep)
-    write_json_atomic(args.output, result)
-    if args.plot is not None:
-        plot_scaling(result, args.plot)
+    def write(so_far: dict) -> None:  # after every measurement: a run stopped part way keeps what it measured
+        write_json_atomic(args.output, so_far)
+        if args.plot is not None:
+            plot_scaling(so_far, args.plot)
+
+    result = run_scaling(plan, args.keep, update=write)
     print(format_scaling(result))
     print(f"written to {args.output}" + (f" and {args.plot}" if args.plot is not None else ""))
     return 0

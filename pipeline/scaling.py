@@ -198,28 +198,43 @@ def _scenarios(world: Path) -> int:
     return json.loads((world / "dataset.json").read_text(encoding="utf-8"))["scenarios"]
 
 
-def measure_size(plan: Plan, rooms: int, world: Path, say: Callable[[str], None]) -> dict[str, Any]:
-    """Draw a world of `rooms` rooms into `world` and measure every stage of the plan and the timed fit."""
+def measure_size(plan: Plan, rooms: int, world: Path, say: Callable[[str], None],
+                 done: Callable[[dict[str, Any]], None]) -> dict[str, Any]:
+    """Draw a world of `rooms` rooms into `world`, time the fit on its features, then every stage of the plan.
+
+    `done` gets the size's entry after each measurement (`complete` false until the last), so a long run
+    stopped part way keeps what it measured.
+    """
     commands = stage_commands(plan, rooms, world)
     logs = world / "logs"
     logs.mkdir(parents=True, exist_ok=True)
-    stages: dict[str, dict[str, float]] = {}
-    load_before = os.getloadavg()
-    for name in (*PREPARE, *plan.stages):
+    entry: dict[str, Any] = {"rooms": rooms, "stages": {}, "complete": False,
+                             "load_average": {"before": list(os.getloadavg())}}
+
+    def stage(name: str) -> None:
         say(f"[{rooms} rooms] {name} ...")
         m = measured(f"taskseq {name}", [sys.executable, "-m", "pipeline.cli", "--no-mlflow", *commands[name]],
                      logs / f"{name}.log")
-        stages[name] = asdict(m)
+        entry["stages"][name] = asdict(m)
         say(f"[{rooms} rooms] {name}: {m.seconds:.1f} s, peak {m.peak_rss_mib:.0f} MiB")
+
+    for name in PREPARE:
+        stage(name)
     say(f"[{rooms} rooms] timed fit of the full model (C={plan.C:g}, gap {plan.tol:g}) ...")
     train = time_fit(world, plan)
     inference = train.pop("inference")
     say(f"[{rooms} rooms] {train['steps']} steps: fit {train['seconds']:.2f} s, {train['iterations']} iterations, "
         f"{train['ms_per_step']:.3f} ms a step, peak {train['peak_rss_mib']:.0f} MiB; "
         f"inference {inference['median_ms']:.3f} ms a step")
-    return {"rooms": rooms, "scenarios": _scenarios(world), "steps": train["steps"],
-            "train": train, "inference": inference, "stages": stages,
-            "load_average": {"before": list(load_before), "after": list(os.getloadavg())}}
+    entry.update(scenarios=_scenarios(world), steps=train["steps"], train=train, inference=inference)
+    done(entry)
+    for name in plan.stages:
+        stage(name)
+        done(entry)
+    entry["load_average"]["after"] = list(os.getloadavg())
+    entry["complete"] = True
+    done(entry)
+    return entry
 
 
 def growth(sizes: list[dict[str, Any]]) -> dict[str, Any]:
@@ -240,12 +255,17 @@ def growth(sizes: list[dict[str, Any]]) -> dict[str, Any]:
         "train_peak_rss_mib": lambda s: s["train"]["peak_rss_mib"],
         "inference_ms": lambda s: s["inference"]["median_ms"],
     }
-    for name in sizes[0]["stages"]:
+    measured_at = {key: sizes for key in series}
+    for name in dict.fromkeys(n for s in sizes for n in s["stages"]):
         series[f"stage.{name}"] = lambda s, n=name: s["stages"][n]["seconds"]
-    pairs = list(zip(sizes, sizes[1:], strict=False))
+        measured_at[f"stage.{name}"] = [s for s in sizes if name in s["stages"]]  # a run stopped part way
     out = {}
     for key, get in series.items():
-        out[key] = {"overall": slope(sizes[0], sizes[-1], get),
+        have = measured_at[key]
+        if len(have) < 2:
+            continue
+        pairs = list(zip(have, have[1:], strict=False))
+        out[key] = {"overall": slope(have[0], have[-1], get),
                     "between": [{"steps": [a["steps"], b["steps"]], "slope": slope(a, b, get)} for a, b in pairs]}
     return out
 
@@ -254,22 +274,33 @@ def _machine() -> dict[str, Any]:
     return {"python": platform.python_version(), "processor": platform.machine(), "cpus": os.cpu_count() or 1}
 
 
-def run_scaling(plan: Plan, keep: Path | None = None, say: Callable[[str], None] = print) -> dict[str, Any]:
-    """Every size of the plan, smallest first; each world in a temporary folder, or kept under `keep`."""
+def run_scaling(plan: Plan, keep: Path | None = None, say: Callable[[str], None] = print,
+                update: Callable[[dict[str, Any]], None] = lambda result: None) -> dict[str, Any]:
+    """Every size of the plan, smallest first; each world in a temporary folder, or kept under `keep`.
+
+    `update` gets the result so far after every measurement (the command writes it out each time).
+    """
     plan.check()
-    sizes = []
-    for rooms in sorted(plan.rooms):
-        if keep is None:
-            with tempfile.TemporaryDirectory(prefix=f"taskseq-scaling-{rooms}-") as tmp:
-                sizes.append(measure_size(plan, rooms, Path(tmp), say))
-        else:
-            world = keep / f"rooms-{rooms}"
-            shutil.rmtree(world, ignore_errors=True)  # a world of this size from an earlier run: replaced
-            sizes.append(measure_size(plan, rooms, world, say))
     settings = asdict(plan)
     for key in ("params", "selection"):
         settings[key] = None if settings[key] is None else str(settings[key])
-    return {"machine": _machine(), "settings": settings, "sizes": sizes, "growth": growth(sizes)}
+    result: dict[str, Any] = {"machine": _machine(), "settings": settings, "sizes": [], "growth": {}}
+
+    def done(entry: dict[str, Any]) -> None:
+        sizes = [s for s in result["sizes"] if s["rooms"] != entry["rooms"]] + [entry]
+        result["sizes"] = sizes
+        result["growth"] = growth(sizes)
+        update(result)
+
+    for rooms in sorted(plan.rooms):
+        if keep is None:
+            with tempfile.TemporaryDirectory(prefix=f"taskseq-scaling-{rooms}-") as tmp:
+                measure_size(plan, rooms, Path(tmp), say, done)
+        else:
+            world = keep / f"rooms-{rooms}"
+            shutil.rmtree(world, ignore_errors=True)  # a world of this size from an earlier run: replaced
+            measure_size(plan, rooms, world, say, done)
+    return result
 
 
 def stage_order(result: dict[str, Any]) -> list[str]:
@@ -288,7 +319,8 @@ def format_scaling(result: dict[str, Any]) -> str:
         t = s["train"]
         lines.append(f"{s['rooms']:>5} {s['scenarios']:>6} {s['steps']:>6} {t['seconds']:>7.2f} {t['iterations']:>5} "
                      f"{t['ms_per_step']:>7.3f} {t['peak_rss_mib']:>8.0f} {s['inference']['median_ms']:>8.3f} "
-                     + " ".join(f"{s['stages'][n]['seconds']:>9.1f}" for n in names))
+                     + " ".join(f"{s['stages'][n]['seconds']:>9.1f}" if n in s["stages"] else f"{'-':>9}"
+                                for n in names))
     slopes = result["growth"]
     if slopes:
         shown = ", ".join(f"{k} {v['overall']:.2f}" for k, v in slopes.items() if v["overall"] is not None)
@@ -302,8 +334,11 @@ def plot_scaling(result: dict[str, Any], path: Path | str) -> None:
 
     sizes = sorted(result["sizes"], key=lambda s: s["steps"])
     steps = [s["steps"] for s in sizes]
-    stages = {name: [s["stages"][name]["seconds"] for s in sizes] for name in stage_order(result)}
-    stages["fit (full model)"] = [s["train"]["seconds"] for s in sizes]
+    stages = {}
+    for name in stage_order(result):
+        have = [s for s in sizes if name in s["stages"]]
+        stages[name] = ([s["steps"] for s in have], [s["stages"][name]["seconds"] for s in have])
+    stages["fit (full model)"] = (steps, [s["train"]["seconds"] for s in sizes])
     per_step = [s["train"]["ms_per_step"] for s in sizes]
     scaling_png(steps, stages, per_step, result["settings"]["tol"], str(path))
 

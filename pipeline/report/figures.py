@@ -76,22 +76,25 @@ def line_plot_png(series: dict[str, tuple[list[float], list[float], list[float] 
     _save(fig, path)
 
 
-def scaling_png(steps: list[int], stage_seconds: dict[str, list[float]], ms_per_step: list[float], tol: float,
-                path: str) -> None:
-    """Left: each stage's wall time against steps on log-log axes, with a dotted line of slope 1 through the
-    smallest size of the slowest stage (a stage steeper than it grows worse than linearly). Right: training
-    time per step, flat when training grows linearly."""
+def scaling_png(steps: list[int], stage_seconds: dict[str, tuple[list[int], list[float]]], ms_per_step: list[float],
+                tol: float, path: str) -> None:
+    """Left: each stage's wall time against steps (the sizes it was measured at) on log-log axes, with a dotted
+    line of slope 1 through the slowest stage at the smallest size (a stage steeper than it grows worse than
+    linearly). Right: training time per step against steps, flat when training grows linearly."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, (left, right) = plt.subplots(1, 2, figsize=(9.6, 3.8), dpi=120)
-    for label, seconds in stage_seconds.items():
-        left.plot(steps, seconds, marker="o", label=label)
-    top = max(stage_seconds.values(), key=lambda s: s[0])[0]
+    for label, (x, seconds) in stage_seconds.items():
+        left.plot(x, seconds, marker="o", label=label)
+    top = max(seconds[0] for x, seconds in stage_seconds.values() if x and x[0] == steps[0])
     left.plot(steps, [top * n / steps[0] for n in steps], linestyle=":", color="grey", label="linear")
-    left.set_xscale("log")
+    for ax in (left, right):
+        ax.set_xscale("log")
+        ax.set_xticks(steps, [str(n) for n in steps])
+        ax.minorticks_off()
     left.set_yscale("log")
     left.set_xlabel("steps in the world")
     left.set_ylabel("wall time (s)")
@@ -99,7 +102,6 @@ def scaling_png(steps: list[int], stage_seconds: dict[str, list[float]], ms_per_
     left.grid(alpha=0.3, which="both")
     left.legend(fontsize=7)
     right.plot(steps, ms_per_step, marker="o")
-    right.set_xscale("log")
     right.set_ylim(0, max(ms_per_step) * 1.3)
     right.set_xlabel("steps in the world")
     right.set_ylabel("ms of training per step")
