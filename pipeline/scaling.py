@@ -82,9 +82,11 @@ class Plan:
 
 @dataclass(frozen=True)
 class Measured:
-    """One process: its wall time and the peak resident memory of its largest process."""
+    """One command: its wall time, the CPU time of its processes (on a shared machine wall time follows the
+    load, CPU time much less) and the peak resident memory of its largest process."""
 
     seconds: float
+    cpu_seconds: float
     peak_rss_mib: float
 
 
@@ -120,14 +122,14 @@ def stage_commands(plan: Plan, rooms: int, world: Path) -> dict[str, list[str]]:
 # memory of the process it was started from (Linux carries it over at exec), so the measured command is
 # started from this small one, which reports its children's peak (`RUSAGE_CHILDREN`) to the file argv[1].
 _LAUNCHER = ("import resource, subprocess, sys; code = subprocess.call(sys.argv[2:]); "
-             "open(sys.argv[1], 'w').write(str(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)); "
-             "sys.exit(code)")
+             "r = resource.getrusage(resource.RUSAGE_CHILDREN); "
+             "open(sys.argv[1], 'w').write(f'{r.ru_maxrss} {r.ru_utime + r.ru_stime}'); sys.exit(code)")
 
 
 def measured(label: str, argv: list[str], log: Path) -> Measured:
     """Run `argv` to its end (its output to `log`): wall time and peak memory; raise with the log's tail if it
     fails."""
-    peak = log.with_suffix(".maxrss")
+    peak = log.with_suffix(".rusage")
     start = time.perf_counter()
     with open(log, "w", encoding="utf-8") as out:
         code = subprocess.call([sys.executable, "-c", _LAUNCHER, str(peak), *argv], stdout=out,
@@ -136,7 +138,8 @@ def measured(label: str, argv: list[str], log: Path) -> Measured:
     if code != 0:
         tail = "".join(log.read_text(encoding="utf-8", errors="replace").splitlines(keepends=True)[-15:])
         raise RuntimeError(f"scaling: {label} exited with {code}; its log {log} ends:\n{tail}")
-    return Measured(seconds, int(peak.read_text()) / 1024)  # KiB on Linux
+    maxrss, cpu = peak.read_text().split()
+    return Measured(seconds, float(cpu), int(maxrss) / 1024)  # KiB on Linux
 
 
 def _rss_mib() -> float:
@@ -154,7 +157,9 @@ def fit_and_infer(features: str, C: float, tol: float, max_iter: int, n_slacks: 
     loaded = _rss_mib()
     # an untimed fit on a few steps first: the first fit of a process loads the compiled code (about 0.3 s)
     StepScorer("full", C=C, tol=tol, max_iter=max_iter, n_slacks=n_slacks).fit(contexts[:WARM_UP_STEPS])
+    cpu = time.process_time()
     planner = StepScorer("full", C=C, tol=tol, max_iter=max_iter, n_slacks=n_slacks).fit(contexts)
+    cpu = time.process_time() - cpu
     fitted = _rss_mib()
     ssvm = planner.ssvm_
     every = max(1, len(contexts) // INFERENCE_STEPS)
@@ -169,6 +174,7 @@ def fit_and_infer(features: str, C: float, tol: float, max_iter: int, n_slacks: 
     return {
         "steps": len(contexts),
         "seconds": planner.fit_seconds_,
+        "cpu_seconds": cpu,
         "iterations": ssvm.n_iter_,
         "converged": bool(ssvm.converged_),
         "oracle_share": ssvm.seconds_oracle_ / planner.fit_seconds_,
@@ -190,6 +196,7 @@ def time_fit(world: Path, plan: Plan) -> dict[str, Any]:
     result = json.loads(out.read_text(encoding="utf-8"))
     result["process_seconds"] = process.seconds
     result["ms_per_step"] = 1000 * result["seconds"] / result["steps"]
+    result["cpu_ms_per_step"] = 1000 * result["cpu_seconds"] / result["steps"]
     return result
 
 
@@ -216,7 +223,7 @@ def measure_size(plan: Plan, rooms: int, world: Path, say: Callable[[str], None]
         m = measured(f"taskseq {name}", [sys.executable, "-m", "pipeline.cli", "--no-mlflow", *commands[name]],
                      logs / f"{name}.log")
         entry["stages"][name] = asdict(m)
-        say(f"[{rooms} rooms] {name}: {m.seconds:.1f} s, peak {m.peak_rss_mib:.0f} MiB")
+        say(f"[{rooms} rooms] {name}: {m.seconds:.1f} s ({m.cpu_seconds:.1f} s CPU), peak {m.peak_rss_mib:.0f} MiB")
 
     for name in PREPARE:
         stage(name)
@@ -251,6 +258,7 @@ def growth(sizes: list[dict[str, Any]]) -> dict[str, Any]:
 
     series: dict[str, Callable[[dict[str, Any]], float]] = {
         "train_seconds": lambda s: s["train"]["seconds"],
+        "train_cpu_seconds": lambda s: s["train"]["cpu_seconds"],
         "train_iterations": lambda s: s["train"]["iterations"],
         "train_peak_rss_mib": lambda s: s["train"]["peak_rss_mib"],
         "inference_ms": lambda s: s["inference"]["median_ms"],
@@ -258,7 +266,9 @@ def growth(sizes: list[dict[str, Any]]) -> dict[str, Any]:
     measured_at = {key: sizes for key in series}
     for name in dict.fromkeys(n for s in sizes for n in s["stages"]):
         series[f"stage.{name}"] = lambda s, n=name: s["stages"][n]["seconds"]
-        measured_at[f"stage.{name}"] = [s for s in sizes if name in s["stages"]]  # a run stopped part way
+        series[f"stage.{name}.cpu"] = lambda s, n=name: s["stages"][n]["cpu_seconds"]
+        measured_at[f"stage.{name}"] = measured_at[f"stage.{name}.cpu"] = [
+            s for s in sizes if name in s["stages"]]  # a run stopped part way
     out = {}
     for key, get in series.items():
         have = measured_at[key]

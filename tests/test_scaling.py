@@ -24,7 +24,7 @@ def test_scaling_on_two_tiny_worlds(tmp_path: Path, capsys):
     assert sizes[0]["steps"] < sizes[1]["steps"] and sizes[0]["scenarios"] < sizes[1]["scenarios"]
     for s in sizes:
         assert set(s["stages"]) == {*PREPARE, "folds", "crossval"}
-        assert all(m["seconds"] > 0 and m["peak_rss_mib"] > 0 for m in s["stages"].values())
+        assert all(m["seconds"] > 0 and m["cpu_seconds"] > 0 and m["peak_rss_mib"] > 0 for m in s["stages"].values())
         t = s["train"]
         assert t["seconds"] > 0 and t["iterations"] >= 1 and t["converged"]
         assert t["ms_per_step"] == pytest.approx(1000 * t["seconds"] / s["steps"])
@@ -65,10 +65,12 @@ def test_bad_rooms_on_the_command_line_exit_with_one_line(tmp_path, capsys):
 
 def test_growth_is_the_log_log_slope_against_steps():
     def size(steps: int, seconds: float) -> dict:
-        return {"steps": steps, "train": {"seconds": seconds, "iterations": 10, "peak_rss_mib": 100.0},
-                "inference": {"median_ms": 0.1}, "stages": {"folds": {"seconds": seconds}}}
+        return {"steps": steps, "train": {"seconds": seconds, "cpu_seconds": seconds, "iterations": 10,
+                                          "peak_rss_mib": 100.0},
+                "inference": {"median_ms": 0.1}, "stages": {"folds": {"seconds": seconds, "cpu_seconds": 1.0}}}
 
     slopes = growth([size(1000, 4.0), size(100, 1.0), size(10, 0.25)])
     assert slopes["train_seconds"]["overall"] == pytest.approx(0.6020599913)  # log10(16) / log10(100)
     assert [b["steps"] for b in slopes["stage.folds"]["between"]] == [[10, 100], [100, 1000]]
     assert slopes["train_iterations"]["overall"] == pytest.approx(0.0)
+    assert slopes["stage.folds.cpu"]["overall"] == pytest.approx(0.0)
