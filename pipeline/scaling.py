@@ -349,7 +349,8 @@ def plot_scaling(result: dict[str, Any], path: Path | str) -> None:
         have = [s for s in sizes if name in s["stages"]]
         stages[name] = ([s["steps"] for s in have], [s["stages"][name]["seconds"] for s in have])
     stages["fit (full model)"] = (steps, [s["train"]["seconds"] for s in sizes])
-    per_step = [s["train"]["ms_per_step"] for s in sizes]
+    per_step = {"wall time": [s["train"]["ms_per_step"] for s in sizes],
+                "CPU time": [s["train"]["cpu_ms_per_step"] for s in sizes]}
     scaling_png(steps, stages, per_step, result["settings"]["tol"], str(path))
 
 

@@ -76,11 +76,12 @@ def line_plot_png(series: dict[str, tuple[list[float], list[float], list[float] 
     _save(fig, path)
 
 
-def scaling_png(steps: list[int], stage_seconds: dict[str, tuple[list[int], list[float]]], ms_per_step: list[float],
-                tol: float, path: str) -> None:
+def scaling_png(steps: list[int], stage_seconds: dict[str, tuple[list[int], list[float]]],
+                ms_per_step: dict[str, list[float]], tol: float, path: str) -> None:
     """Left: each stage's wall time against steps (the sizes it was measured at) on log-log axes, with a dotted
     line of slope 1 through the slowest stage at the smallest size (a stage steeper than it grows worse than
-    linearly). Right: training time per step against steps, flat when training grows linearly."""
+    linearly). Right: training time per step against steps (a line per measure, e.g. wall and CPU time), flat
+    when training grows linearly."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -100,9 +101,11 @@ def scaling_png(steps: list[int], stage_seconds: dict[str, tuple[list[int], list
     left.set_ylabel("wall time (s)")
     left.set_title("time per stage", fontsize=9)
     left.grid(alpha=0.3, which="both")
-    left.legend(fontsize=7)
-    right.plot(steps, ms_per_step, marker="o")
-    right.set_ylim(0, max(ms_per_step) * 1.3)
+    left.legend(fontsize=6, loc="upper left")
+    for label, values in ms_per_step.items():
+        right.plot(steps, values, marker="o", label=label)
+    right.set_ylim(0, max(max(v) for v in ms_per_step.values()) * 1.3)
+    right.legend(fontsize=7, loc="upper left")
     right.set_xlabel("steps in the world")
     right.set_ylabel("ms of training per step")
     right.set_title(f"training time per step (full model, gap {tol:g})", fontsize=9)
