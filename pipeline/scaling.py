@@ -2,12 +2,12 @@
 
 For each size (rooms of a procedural world, seed 0 by default) the world is
 drawn and taken through the per-world stages exactly as `dvc.yaml` runs them,
-each stage a `taskseq` process of its own whose wall time and peak resident
-memory are measured (`getrusage(RUSAGE_CHILDREN).ru_maxrss` of a small
-launcher: the largest process of the stage's tree, its loky workers
-included). The full model is then fitted once more, alone, in a process of
-its own (`python -m pipeline.scaling`), to time training to the set gap,
-count its iterations, read that process's peak resident memory
+each stage a `taskseq` process of its own whose wall time, CPU time and peak
+resident memory are measured (`getrusage(RUSAGE_CHILDREN)` of a small
+launcher: the largest process of the stage's tree, its loky workers included
+once reaped). After `features`, the full model is fitted alone in a process of
+its own (`python -m pipeline.scaling`), to time training to the set gap, count
+its iterations, read that process's peak resident memory
 (`getrusage(RUSAGE_SELF).ru_maxrss`) after reading the features and after the
 fit, and time inference on the world's own steps.
 
@@ -46,7 +46,7 @@ class Plan:
     """What one scaling run measures: sizes, stages and the settings of the timed fit."""
 
     rooms: tuple[int, ...]
-    stages: tuple[str, ...]  # of EVALUATE, in order; PREPARE always runs
+    stages: tuple[str, ...]  # of EVALUATE, run in EVALUATE's order; PREPARE always runs
     C: float
     tol: float
     max_iter: int
@@ -235,7 +235,7 @@ def measure_size(plan: Plan, rooms: int, world: Path, say: Callable[[str], None]
         f"inference {inference['median_ms']:.3f} ms a step")
     entry.update(scenarios=_scenarios(world), steps=train["steps"], train=train, inference=inference)
     done(entry)
-    for name in plan.stages:
+    for name in (s for s in EVALUATE if s in plan.stages):
         stage(name)
         done(entry)
     entry["load_average"]["after"] = list(os.getloadavg())
@@ -315,7 +315,7 @@ def run_scaling(plan: Plan, keep: Path | None = None, say: Callable[[str], None]
 
 def stage_order(result: dict[str, Any]) -> list[str]:
     """The measured stages in the order they ran (the JSON sorts its keys)."""
-    return [*PREPARE, *result["settings"]["stages"]]
+    return [*PREPARE, *(s for s in EVALUATE if s in result["settings"]["stages"])]
 
 
 def format_scaling(result: dict[str, Any]) -> str:
