@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .settings import Crossval
+from .stages.command import positive
 
 
 @dataclass(frozen=True)
@@ -90,6 +91,56 @@ def _bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def _scaling_options(p: argparse.ArgumentParser) -> None:
+    from .scaling import EVALUATE, PREPARE
+
+    p.add_argument("--rooms", nargs="+", required=True, metavar="N",
+                   help="world sizes in rooms (13 is the paper's size), e.g. --rooms 13 39 130")
+    p.add_argument("--stages", nargs="*", default=list(EVALUATE), metavar="STAGE",
+                   help=f"stages timed after {', '.join(PREPARE)} (which always run), among {' '.join(EVALUATE)} "
+                        f"(default: all; crossval, noise and feedback need folds)")
+    p.add_argument("--methods", nargs="+", default=None, help="crossval's methods (default: every method of Table I)")
+    p.add_argument("--world-seed", type=int, default=0, help="seed of the drawn worlds (default 0)")
+    p.add_argument("--params", type=Path, default=None,
+                   help="settings file of the stages and of the timed fit (default: params.yaml, else defaults)")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                   help="override one setting in every stage, e.g. --set train.tol=0.1 (repeatable)")
+    p.add_argument("--selection", type=Path, default=None,
+                   help="C of the stages and of the timed fit, from this file written by `taskseq select` "
+                        "(default: train.C of the settings)")
+    p.add_argument("--C", type=float, default=None, help="C of the timed fit (default: as the stages' C)")
+    p.add_argument("--tol", type=float, default=1e-3, help="relative gap the timed fit stops at (default 1e-3)")
+    p.add_argument("--n-jobs", type=positive, default=None,
+                   help="processes of the parallel stages (default: $TASKSEQ_N_JOBS, else one per CPU)")
+    p.add_argument("--keep", type=Path, default=None,
+                   help="keep each world's data, models, results and stage logs in KEEP/rooms-N (replaced; "
+                        "default: a temporary folder, removed)")
+    p.add_argument("--plot", type=Path, default=None, help="figure to write (.png; default: not written)")
+    p.add_argument("--output", type=Path, required=True, help="results (JSON)")
+
+
+def _scaling(args: argparse.Namespace) -> int:
+    from .io import write_json_atomic
+    from .scaling import Plan, format_scaling, parse_rooms, plot_scaling, run_scaling
+    from .stages.command import default_jobs, load_params
+
+    learner = load_params(args).train
+    C = learner.C if args.C is None else args.C
+    plan = Plan(rooms=parse_rooms(args.rooms), stages=tuple(args.stages), C=C, tol=args.tol,
+                max_iter=learner.max_iter, n_slacks=learner.n_slacks, world_seed=args.world_seed,
+                n_jobs=args.n_jobs or default_jobs(), methods=None if args.methods is None else tuple(args.methods),
+                params=args.params, overrides=tuple(args.overrides), selection=args.selection)
+    def write(so_far: dict) -> None:  # after every measurement: a run stopped part way keeps what it measured
+        write_json_atomic(args.output, so_far)
+        if args.plot is not None:
+            plot_scaling(so_far, args.plot)
+
+    result = run_scaling(plan, args.keep, update=write)
+    print(format_scaling(result))
+    print(f"written to {args.output}" + (f" and {args.plot}" if args.plot is not None else ""))
+    return 0
+
+
 def _serve_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1: this machine only)")
     p.add_argument("--port", type=int, default=8765, help="port (default 8765; 0 picks a free one)")
@@ -128,4 +179,6 @@ TOOLS: dict[str, Tool] = {
                    _layout_options, _layout),
     "bench": Tool("time training, per-step inference (10 to 100 objects) and features memory", _bench_options,
                   _bench),
+    "scaling": Tool("draw procedural worlds of several sizes and time every per-world stage, training to the gap, "
+                    "its memory and per-step inference", _scaling_options, _scaling),
 }

@@ -74,3 +74,41 @@ def line_plot_png(series: dict[str, tuple[list[float], list[float], list[float] 
     ax.legend(fontsize=7)
     fig.tight_layout()
     _save(fig, path)
+
+
+def scaling_png(steps: list[int], stage_seconds: dict[str, tuple[list[int], list[float]]],
+                ms_per_step: dict[str, list[float]], tol: float, path: str) -> None:
+    """Left: each stage's wall time against steps (the sizes it was measured at) on log-log axes, with a dotted
+    line of slope 1 through the slowest stage at the smallest size (a stage steeper than it grows worse than
+    linearly). Right: training time per step against steps (a line per measure, e.g. wall and CPU time), flat
+    when training grows linearly."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (left, right) = plt.subplots(1, 2, figsize=(9.6, 3.8), dpi=120)
+    for label, (x, seconds) in stage_seconds.items():
+        left.plot(x, seconds, marker="o", label=label)
+    top = max(seconds[0] for x, seconds in stage_seconds.values() if x and x[0] == steps[0])
+    left.plot(steps, [top * n / steps[0] for n in steps], linestyle=":", color="grey", label="linear")
+    for ax in (left, right):
+        ax.set_xscale("log")
+        ax.set_xticks(steps, [str(n) for n in steps])
+        ax.minorticks_off()
+    left.set_yscale("log")
+    left.set_xlabel("steps in the world")
+    left.set_ylabel("wall time (s)")
+    left.set_title("time per stage", fontsize=9)
+    left.grid(alpha=0.3, which="both")
+    left.legend(fontsize=6, loc="upper left")
+    for label, values in ms_per_step.items():
+        right.plot(steps, values, marker="o", label=label)
+    right.set_ylim(0, max(max(v) for v in ms_per_step.values()) * 1.3)
+    right.legend(fontsize=7, loc="upper left")
+    right.set_xlabel("steps in the world")
+    right.set_ylabel("ms of training per step")
+    right.set_title(f"training time per step (full model, gap {tol:g})", fontsize=9)
+    right.grid(alpha=0.3, which="both")
+    fig.tight_layout()
+    _save(fig, path)

@@ -149,13 +149,14 @@ def _select(pool: list[Scenario], rng: np.random.Generator, scale: float) -> lis
     quotas = {task: round(quota * scale) for task, quota in QUOTAS.items()}
     multi = [s for s in pool if len(s.demonstrations) == 2]
     n_alternatives = min(n_alternatives, len(multi))  # a drawn world may have fewer: it then holds what there is
+    # each task's one-sequence candidates, listed once: scanning the pool in every draw cost N_DRAWS passes
+    single = {task: [s for s in pool if len(s.demonstrations) == 1 and s.task.name == task] for task in quotas}
     best: tuple[int, list[Scenario]] | None = None
     for _ in range(N_DRAWS):
         chosen = _spread(multi, n_alternatives, rng)
         for task, quota in quotas.items():
             have = sum(1 for s in chosen if s.task.name == task)
-            single = [s for s in pool if len(s.demonstrations) == 1 and s.task.name == task]
-            chosen += _spread(single, min(quota - have, len(single)), rng)
+            chosen += _spread(single[task], min(quota - have, len(single[task])), rng)
         miss = abs(sum(len(q) for s in chosen for q in s.demonstrations) - target)
         if best is None or miss < best[0]:
             best = (miss, chosen)
@@ -169,7 +170,8 @@ def _spread(items: list[Scenario], k: int, rng: np.random.Generator) -> list[Sce
     for s in items:
         by_env.setdefault(s.env_id, []).append(s)
     queues = {e: [lst[i] for i in rng.permutation(len(lst))] for e, lst in sorted(by_env.items())}
-    order = [list(queues)[i] for i in rng.permutation(len(queues))]
+    envs = list(queues)  # once: listing the keys for every pick made a draw quadratic in the rooms
+    order = [envs[i] for i in rng.permutation(len(envs))]
     out: list[Scenario] = []
     while len(out) < k:
         for env in order:
