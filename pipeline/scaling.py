@@ -152,6 +152,7 @@ def fit_and_infer(features: str, C: float, tol: float, max_iter: int, n_slacks: 
     from .features.context import candidate_index
     from .features.dataset import read_features
     from .learn.estimator import StepScorer
+    from .timing import fit_summary
 
     contexts, _ = read_features(features)
     loaded = _rss_mib()
@@ -161,7 +162,6 @@ def fit_and_infer(features: str, C: float, tol: float, max_iter: int, n_slacks: 
     planner = StepScorer("full", C=C, tol=tol, max_iter=max_iter, n_slacks=n_slacks).fit(contexts)
     cpu = time.process_time() - cpu
     fitted = _rss_mib()
-    ssvm = planner.ssvm_
     every = max(1, len(contexts) // INFERENCE_STEPS)
     sample = contexts[::every]
     planner.model_.inference(sample[0], planner.w_)  # compiled code loaded before timing
@@ -173,14 +173,8 @@ def fit_and_infer(features: str, C: float, tol: float, max_iter: int, n_slacks: 
         candidates.append(len(candidate_index(ctx.n)[0]))
     return {
         "steps": len(contexts),
-        "seconds": planner.fit_seconds_,
+        **fit_summary(planner),
         "cpu_seconds": cpu,
-        "iterations": ssvm.n_iter_,
-        "converged": bool(ssvm.converged_),
-        "oracle_share": ssvm.seconds_oracle_ / planner.fit_seconds_,
-        "qp_share": ssvm.seconds_qp_ / planner.fit_seconds_,
-        "primal_objective": ssvm.primal_objective_,
-        "dual_objective": ssvm.dual_objective_,
         "loaded_rss_mib": loaded,
         "peak_rss_mib": fitted,
         "inference": {"steps_timed": len(sample), "median_ms": 1000 * statistics.median(times),
