@@ -109,3 +109,44 @@ def test_the_scenes_stage_writes_every_table_over_seeds(benchmark_logs, tmp_path
         for r in programs:
             folds_of.setdefault(r["scenario"].split("/")[0], set()).add(r["fold"])
         assert set(folds_of) == rooms and all(len(f) == 1 for f in folds_of.values()), folds_of
+
+
+def test_rooms_held_out_never_reach_training(tmp_path):
+    """A spy in every fold of a drawn world's cross-validation grouped by room: no step of a tested room trains."""
+    from pipeline.evaluate.crossval import cross_validate
+
+    contexts, meta, bench = _world(tmp_path / "drawn", Generate(seed=1, family="procedural",
+                                                                 procedural=Procedural(environments=4)))
+    spies = []
+
+    def make():
+        spies.append(_Spy())
+        return spies[-1]
+
+    cross_validate({"spy": make}, contexts, meta, bench, n_folds=4, group_by="environment")
+    spies = [s for s in spies if s.seen]  # one more is made, unfitted, to weigh the jobs
+    assert len(spies) == 4
+    tested_rooms = set()
+    for spy in spies:
+        trained = {s.split("/")[0] for s in spy.seen["trained"]}
+        tested = {s.split("/")[0] for s in spy.seen["predicted"]}
+        assert len(tested) == 1 and not trained & tested
+        tested_rooms |= tested
+    assert tested_rooms == {f"proc{i:03d}" for i in range(1, 5)}
+
+
+def test_a_drawn_objects_logged_attributes_follow_from_its_size_and_flags(tmp_path):
+    from pipeline.logs.records import expected_attributes
+    from pipeline.sim.procedural import NEW_KINDS
+
+    generate(Generate(seed=2, family="procedural", procedural=Procedural(environments=3, new_objects=0.9)),
+             tmp_path / "raw")
+    new_names = {k.name for kinds in NEW_KINDS.values() for k in kinds}
+    seen = 0
+    for record in (r.record for r in load_logs(tmp_path / "raw")[1]):
+        for obj in record["objects"]:
+            if obj["name"] in new_names:
+                seen += 1
+                assert obj["attributes"] == pytest.approx(expected_attributes(obj))
+                assert obj["attributes"]["volume"] == pytest.approx(obj["size"][0] * obj["size"][1] * obj["size"][2])
+    assert seen > 10
