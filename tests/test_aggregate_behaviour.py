@@ -325,6 +325,8 @@ def test_a_table_only_some_worlds_lack_stops_the_stage_and_one_every_world_lacks
                 "feedback.csv": {"feedback.csv", "feedback_seeds.csv", "feedback.png", "plots/feedback.csv"},
                 "recipes.json": {"recipes.json"}, "dataset.json": {"dataset.json"}}[missing]
     assert not written & left_out and {"table1.md", "failures.md", "crossval_means.json"} <= written
+    kept = {"noise.csv": "feedback", "feedback.csv": "noise"}.get(missing)  # the other curve is still drawn
+    assert kept is None or {f"{kept}.csv", f"{kept}.png", f"plots/{kept}.csv"} <= written
     groups = json.loads((out / "metrics.json").read_text())
     group = {"noise.csv": "noise", "feedback.csv": "feedback", "recipes.json": "recipes"}.get(missing)
     assert group is None or groups.get(group, {}) == {}

@@ -52,6 +52,8 @@ def test_among_the_steps_that_can_run_it_takes_the_best_scored(scenarios, benchm
         runnable = [(y, s) for y, s in ranked
                     if ctx.action(y).primitive == DONE or try_execute(state, ctx.action(y)) is not None]
         assert feasible(scorer, top_k=3)(ctx, state) == runnable[:3]
+        assert feasible(scorer)(ctx, state) == runnable[:3]  # three by default, as `plan` offers an observer
+        assert feasible(scorer, top_k=1)(ctx, state) == runnable[:1]
 
 
 def test_the_feasible_steps_method_is_a_labelled_row_sharing_the_dagger_models():
