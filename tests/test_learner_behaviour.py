@@ -468,7 +468,8 @@ def test_a_failed_fit_closes_its_bar(steps, monkeypatch):
 def test_a_label_that_is_not_a_candidate_is_refused_by_name(steps):
     labels = [x.gold for x in steps]
     labels[1] = (0, 99, -1)  # an argument no step has
-    with pytest.raises(ValueError, match=r"label 1 \(0, 99, -1\) is not a candidate of its step"):
+    with pytest.raises(ValueError, match=r"label 1 \(0, 99, -1\) is not a candidate of its step \(\d+ objects\): a "
+                                         r"primitive index, then argument indices among the step's objects or -1$"):
         StepScorer("edge", **SETTINGS).fit(steps, labels)
     with pytest.raises(ValueError, match="2 labels"):
         StepScorer("edge", **SETTINGS).fit(steps, labels[:2])
