@@ -51,8 +51,8 @@ STAGES: dict[str, Stage] = {
                       P.EvaluationPaths, True, True),
     "recipes": Stage("chain programs into recipes in environments held out from training", P.EvaluationPaths,
                      per_world=True),
-    "scenes": Stage("Table I, failures, noise and feedback in drawn rooms never seen in training, and models of the "
-                    "paper-shaped rooms run there", P.ScenesPaths, True),
+    "scenes": Stage("Table I and failures with whole rooms held out of training, paper-shaped and drawn (noise and "
+                    "feedback there too), and models of the paper-shaped rooms run in drawn ones", P.ScenesPaths, True),
     "people": Stage("check people's demonstrations, count them, and compare the planner with and without them",
                     P.PeoplePaths),
     "teach": Stage("success on unseen environments after a scripted person demonstrates k tasks in each",

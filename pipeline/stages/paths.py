@@ -117,7 +117,8 @@ class ScenesPaths:
     selection: Path | None = _selection()
     paper: Path = option("folder of the paper-shaped worlds' data, one subfolder per seed with its features and "
                          "processed tables (the transfer's training data)", Path("data/worlds"), input=True)
-    data: Path = option("folder for the drawn worlds: per seed its logs, tables, features, fold models and results")
+    data: Path = option("folder for the worlds evaluated with rooms held out: paper/SEED (fold models, results) and "
+                        "drawn/SEED (logs, tables, features, fold models, results)")
     output: Path = option("folder for the tables over seeds")
 
 
