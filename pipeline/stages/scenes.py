@@ -99,13 +99,14 @@ def run(settings: Settings, paths: ScenesPaths, tracker: Tracker = NO_RUN, n_job
 
 
 def _held_out_rooms(settings: Settings, paths: ScenesPaths, world: Path, here: Path, tracker: Tracker,
-                    n_jobs: int) -> None:
+                    n_jobs: int) -> EvaluationPaths:
     """Fold models and Table I of one world's data (`world`: its features and tables), whole rooms held out, into
-    `here`."""
+    `here`; the paths under which further evaluations of that world find its data and fold models."""
     data = {"features": world / "features", "processed": world / "processed", "selection": paths.selection}
     fold_models.run(settings.fold_models, FoldModelsPaths(**data, output=here / "folds"), tracker, n_jobs)
-    evaluation = {**data, "model_store": here / "folds", "output": here}
-    crossval.run(settings.crossval, CrossvalPaths(**evaluation, recordings=0), tracker, n_jobs)
+    evaluation = EvaluationPaths(**data, model_store=here / "folds", output=here)
+    crossval.run(settings.crossval, CrossvalPaths(**vars(evaluation), recordings=0), tracker, n_jobs)
+    return evaluation
 
 
 def _drawn_world(settings: Settings, paths: ScenesPaths, seed: int, here: Path, tracker: Tracker,
@@ -115,11 +116,9 @@ def _drawn_world(settings: Settings, paths: ScenesPaths, seed: int, here: Path, 
     generate.run(replace(settings.world, seed=seed), GeneratePaths(output=raw, metrics=here / "world.json"), tracker)
     ingest.run(None, IngestPaths(input=raw, output=processed, metrics=here / "dataset.json"), tracker)
     features.run(None, FeaturesPaths(input=processed, output=feats), tracker)
-    _held_out_rooms(settings, paths, here, here, tracker, n_jobs)
-    evaluation = {"features": feats, "processed": processed, "selection": paths.selection,
-                  "model_store": here / "folds", "output": here}
-    noise.run(settings.noise, EvaluationPaths(**evaluation), tracker, n_jobs)
-    feedback.run(settings.feedback, EvaluationPaths(**evaluation), tracker, n_jobs)
+    evaluation = _held_out_rooms(settings, paths, here, here, tracker, n_jobs)
+    noise.run(settings.noise, evaluation, tracker, n_jobs)
+    feedback.run(settings.feedback, evaluation, tracker, n_jobs)
 
     paper = Path(paths.paper) / str(seed)
     train = (*read_features(paper / "features"), load_benchmark(paper / "processed"))
