@@ -599,3 +599,95 @@ def test_shrinkings_are_counted_over_all_solves():
     ws.solve(1e-9)  # at the optimum already: no step, no shrinking, and the count stays
     assert ws.n_shrinks == shrinks
     assert ws.dual() == pytest.approx(cvxpy_dual(deltas, losses, groups, B, 1.5), rel=1e-7)
+
+
+# --- the working set past its Gram matrix ---------------------------------------------------------------------
+
+def sparse_cuts(seed: int, K: int, d: int, B: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Cuts with a third of their entries non-zero and one slack group per few cuts, as the n-slack problem has."""
+    rng = np.random.default_rng(seed)
+    deltas = rng.normal(size=(K, d)) * (rng.uniform(size=(K, d)) < 0.3)
+    return deltas, rng.uniform(0.5, 3.0, size=K), rng.integers(B, size=K)
+
+
+@pytest.mark.parametrize("sparse", [False, True])
+def test_explicit_weights_reach_cvxpys_optimum(sparse):
+    """With no Gram matrix at all (limit 0) the sweeps on explicit weights solve the same QP, batch after batch."""
+    K, d, B, C = 300, 20, 100, 1.5
+    deltas, losses, groups = sparse_cuts(11, K, d, B)
+    ws = WorkingSet(d, B, C, gram_limit=0)
+    for part in np.array_split(np.arange(K), 3):
+        ws.add(sps.csr_matrix(deltas[part]) if sparse else deltas[part], losses[part], groups[part], iteration=1)
+        gap = ws.solve(1e-9)
+        assert gap <= 1e-9
+    assert ws._gram is None and ws.n_sweeps > 0 and ws.n_shrinks == 0
+    assert ws.dual() == pytest.approx(cvxpy_dual(deltas, losses, groups, B, C), rel=1e-7)
+    assert np.all(ws.alpha >= 0) and np.bincount(groups, ws.alpha, minlength=B).max() <= C * (1 + 1e-12)
+    np.testing.assert_allclose(ws.w, deltas.T @ ws.alpha, rtol=1e-12, atol=1e-12)  # w is the alpha it reports
+    xi = np.zeros(B)
+    np.maximum.at(xi, groups, losses - deltas @ ws.w)
+    np.testing.assert_allclose(ws.slacks(), xi, atol=1e-9)
+
+
+def test_explicit_weights_by_hand():
+    """One cut, a = min(C, L / |d|^2), as with the Gram matrix; a second solve at the optimum takes no step."""
+    ws = WorkingSet(2, 1, 10.0, gram_limit=0)
+    ws.add(np.array([[3.0, 4.0]]), np.array([5.0]), np.array([0]), iteration=1)
+    assert np.array_equal(ws.slacks(), [5.0])
+    assert ws.solve(1e-12) <= 1e-12 and ws.alpha[0] == pytest.approx(0.2)
+    np.testing.assert_allclose(ws.w, [0.6, 0.8])
+    assert ws.dual() == pytest.approx(0.5)
+    steps, sweeps = ws.n_steps, ws.n_sweeps
+    ws.solve(1e-9)
+    assert (ws.n_steps, ws.n_sweeps) == (steps, sweeps)
+    ws.add(np.array([[1.0, 0.0]]), np.array([2.0]), np.array([0]), iteration=2)  # new cuts see the weights
+    np.testing.assert_allclose(ws.slacks(), [2.0 - 0.6], atol=1e-12)
+    w = ws.w
+    w[:] = 7.0  # a copy: the set's weights do not change with it
+    np.testing.assert_allclose(ws.w, [0.6, 0.8])
+
+
+def test_max_steps_bounds_a_solve_on_explicit_weights():
+    deltas, losses, groups = sparse_cuts(2, 60, 8, 3)
+    bounded, free = WorkingSet(8, 3, 1.0, gram_limit=0), WorkingSet(8, 3, 1.0, gram_limit=0)
+    for ws in (bounded, free):
+        ws.add(deltas, losses, groups, iteration=1)
+    gap = bounded.solve(1e-12, max_steps=1)
+    assert free.solve(1e-12) <= 1e-12 < gap and 0 < bounded.n_steps < free.n_steps
+
+
+def test_the_gram_matrix_goes_past_the_limit_and_comes_back_when_pruned():
+    """A set that outgrows its limit drops the Gram matrix and keeps the weights; pruned back under the limit
+    it forms the Gram matrix again, exactly symmetric and equal to every cross product. The optimum is the one
+    a set that always kept its Gram matrix finds."""
+    K, d, B, C = 240, 30, 80, 1.5
+    deltas, losses, groups = sparse_cuts(5, K, d, B)
+    limited, kept = WorkingSet(d, B, C, gram_limit=150), WorkingSet(d, B, C, gram_limit=10_000)
+    for ws in (limited, kept):
+        for it, part in enumerate(np.array_split(np.arange(K), 3), start=1):
+            ws.add(deltas[part], losses[part], groups[part], iteration=it)
+            ws.solve(1e-9)
+        assert ws.dual() == pytest.approx(cvxpy_dual(deltas, losses, groups, B, C), rel=1e-7)
+    assert limited._gram is None and limited.n_sweeps > 0  # 240 cuts > 150
+    assert kept._gram is not None and kept.n_sweeps == 0
+    limited.prune(10, 1)  # only the cuts with weight stay
+    size = len(limited)
+    assert size <= 150 and limited._gram is None
+    w = limited.w
+    limited.solve(1e-9)
+    gram = limited._gram[:size, :size]
+    assert np.array_equal(gram, gram.T)
+    held = limited._deltas.toarray()
+    np.testing.assert_allclose(gram, held @ held.T, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(limited.w, w, rtol=1e-12, atol=1e-12)  # the optimum did not move
+
+
+def test_a_fit_past_the_gram_limit_reaches_the_optimum(monkeypatch):
+    """The whole cutting plane with every working set on explicit weights still certifies the optimum."""
+    monkeypatch.setattr("pipeline.learn.working_set.GRAM_LIMIT", 0)
+    X, Y, model = blobs()
+    explicit = CuttingPlaneSSVM(model, C=0.3, tol=1e-7, n_slacks=0).fit(X, Y)
+    monkeypatch.setattr("pipeline.learn.working_set.GRAM_LIMIT", 10_000)
+    gram = CuttingPlaneSSVM(model, C=0.3, tol=1e-7, n_slacks=0).fit(X, Y)
+    assert explicit.converged_ and gram.converged_
+    assert explicit.primal_objective_ == pytest.approx(gram.primal_objective_, rel=1e-6)

@@ -34,6 +34,23 @@ few hundred entries, where its per-call overhead dominated: 36 us a step in
 NumPy, about 1 us compiled (`taskseq bench` shows the share of training time in
 the QP). The compiled function is cached on disk, so a process compiles it once.
 
+Why a second way to take the steps, for large working sets: the Gram matrix
+takes K^2 memory and every cut that moves updates K gradients, so the work of
+a pass over the groups grows with the square of the training steps. On a
+world of 8,570 steps the first iterations hold about 17,000 cuts: 4 GB of Gram
+matrix, and 79 to 93% of the fit in the QP (docs/scaling-benchmark.md). Past
+`gram_limit` cuts the set drops its Gram matrix and keeps the weights
+`w = sum_k a_k d_k` themselves instead (dual coordinate ascent, as liblinear
+does for linear SVMs and Chang and Yih 2013 for structured ones): a cut's
+gradient is one sparse product with `w`, a group's steps need only its own
+cuts' cross products, and moving weight updates `w` over the cut's non-zeros,
+so a pass costs time and memory in proportion to the set's non-zeros. It needs
+more passes than the greedy order above to close a tight gap (on a paper-shaped
+world's 886 steps, the relations model's QP took 2.9 s this way against 1.5 s
+with the Gram matrix), so when pruning brings the set back under the limit the
+Gram matrix is formed again and the steps go back to it. A fit that never holds
+more than `gram_limit` cuts takes only the greedy steps, bit for bit.
+
 Any feasible `a` gives a valid lower bound on the working-set optimum, and so
 on the SSVM optimum; the solver stops when the Frank-Wolfe gap of the dual,
 an upper bound on its own suboptimality, is below the tolerance it is given.
@@ -47,15 +64,21 @@ from numba import njit
 
 from .products import dot
 
+# Cuts up to which the set keeps their Gram matrix (128 MB of it at the limit). The fits of the paper-shaped
+# worlds stay below it (the largest set of world 0's fold models held 3,524 cuts), so they take the greedy steps
+# they always took; on 8,570 steps the sets start at about 17,000 cuts and fall to 2,600.
+GRAM_LIMIT = 4000
+
 
 class WorkingSet:
-    """The cuts of a cutting-plane SSVM (sparse rows), their Gram matrix and the dual variables.
+    """The cuts of a cutting-plane SSVM (sparse rows), their dual variables and, up to `gram_limit` cuts, their
+    Gram matrix (past it, the weights the dual variables give).
 
     The Gram matrix grows by half its size when full, so adding cuts never
     copies it per iteration.
     """
 
-    def __init__(self, dim: int, n_groups: int, C: float) -> None:
+    def __init__(self, dim: int, n_groups: int, C: float, gram_limit: int | None = None) -> None:
         self.C = float(C)
         self.dim = dim
         self.n_groups = n_groups
@@ -64,11 +87,14 @@ class WorkingSet:
         self._losses = np.zeros(0)  # L_k
         self._groups = np.zeros(0, dtype=np.int64)  # g(k)
         self._last_active = np.zeros(0, dtype=np.int64)  # iteration at which a_k was last positive
-        self._gram = np.zeros((0, 0))
+        self.gram_limit = GRAM_LIMIT if gram_limit is None else gram_limit
+        self._gram: np.ndarray | None = np.zeros((0, 0))  # None while the set holds more than gram_limit cuts
+        self._w = np.zeros(dim)  # sum_k a_k d_k, kept only while there is no Gram matrix
         self._alpha = np.zeros(0)
         self._grad = np.zeros(0)  # L_k - d_k . w at the last solve's alpha
         self.n_steps = 0  # pairwise steps taken, over all solves
         self.n_shrinks = 0  # times a solve set cuts aside, over all solves
+        self.n_sweeps = 0  # passes over the groups on explicit weights, over all solves
 
     def __len__(self) -> int:
         return self._size
@@ -87,6 +113,8 @@ class WorkingSet:
 
     @property
     def w(self) -> np.ndarray:
+        if self._gram is None:
+            return self._w.copy()
         return self._deltas.T @ self.alpha if self._size else np.zeros(self.dim)
 
     def dual(self, w: np.ndarray | None = None) -> float:
@@ -119,9 +147,10 @@ class WorkingSet:
 
         self._losses, self._groups = grown(self._losses), grown(self._groups)
         self._last_active, self._alpha, self._grad = grown(self._last_active), grown(self._alpha), grown(self._grad)
-        gram = np.empty((new, new))  # only the first K rows and columns are ever read, and add writes them
-        gram[:k, :k] = self._gram[:k, :k]
-        self._gram = gram
+        if self._gram is not None:
+            gram = np.empty((new, new))  # only the first K rows and columns are ever read, and add writes them
+            gram[:k, :k] = self._gram[:k, :k]
+            self._gram = gram
 
     def add(self, deltas: np.ndarray | sp.spmatrix, losses: np.ndarray, groups: np.ndarray, iteration: int) -> None:
         """Append cuts (rows of `deltas`, dense or sparse) with zero dual weight (the solution stays feasible)."""
@@ -132,11 +161,12 @@ class WorkingSet:
         new.sort_indices()
         k = self._size
         w = self.w
+        if self._gram is not None and k + m > self.gram_limit:
+            self._gram, self._w = None, w  # too many cuts for their Gram matrix: explicit weights from here
         self._reserve(k + m)
         self._deltas = sp.vstack([self._deltas, new], format="csr")
-        by_feature = new.tocsc()  # the new cuts having each feature
-        _cross_products(self._deltas.indptr, self._deltas.indices, self._deltas.data, by_feature.indptr,
-                        by_feature.indices, by_feature.data, self._gram, k)
+        if self._gram is not None:
+            _gram_columns(self._deltas, new, self._gram, k)
         self._losses[k : k + m] = losses
         self._groups[k : k + m] = groups
         self._last_active[k : k + m] = iteration
@@ -157,7 +187,8 @@ class WorkingSet:
         for a in (self._losses, self._groups, self._last_active, self._alpha, self._grad):
             a[:m] = a[keep]
         self._deltas = self._deltas[keep]
-        _compact(self._gram, keep)
+        if self._gram is not None:
+            _compact(self._gram, keep)
         self._size = m
 
     def solve(self, tol: float, max_steps: int = 10_000_000) -> float:
@@ -171,12 +202,43 @@ class WorkingSet:
         """
         if self._size == 0:
             return 0.0
-        # the whole Gram buffer goes in (its first K rows and columns are read): no copy per solve
-        gap, steps, shrinks = _pairwise_steps(self._gram, self.losses, self.groups, self.alpha, self._grad, self.C,
-                                              self.n_groups, tol, max_steps)
+        size = self._size
+        if self._gram is None and size <= self.gram_limit:
+            # back under the limit: the Gram matrix again, every cut against every cut, and greedy steps; the
+            # buffers shrink to the set first, so the matrix is no larger than the cuts it holds
+            self._losses, self._groups, self._last_active, self._alpha, self._grad = (
+                a[:size].copy() for a in (self._losses, self._groups, self._last_active, self._alpha, self._grad))
+            self._gram = np.empty((size, size))
+            _gram_columns(self._deltas, self._deltas, self._gram, 0)
+            _mirror_upper(self._gram, size)
+        if self._gram is None:
+            d = self._deltas
+            gap, steps, sweeps = _sweeps(d.indptr, d.indices, d.data, self.losses, self.groups, self.alpha,
+                                         self._grad[:size], self._w, self.C, self.n_groups, tol, max_steps)
+            self.n_sweeps += sweeps
+        else:
+            # the whole Gram buffer goes in (its first K rows and columns are read): no copy per solve
+            gap, steps, shrinks = _pairwise_steps(self._gram, self.losses, self.groups, self.alpha, self._grad,
+                                                  self.C, self.n_groups, tol, max_steps)
+            self.n_shrinks += shrinks
         self.n_steps += steps
-        self.n_shrinks += shrinks
         return gap
+
+
+def _gram_columns(deltas: sp.csr_matrix, new: sp.csr_matrix, gram: np.ndarray, k: int) -> None:
+    """The Gram entries of the `new` cuts, the last rows of `deltas` from row k on, against every cut."""
+    by_feature = new.tocsc()  # the new cuts having each feature
+    _cross_products(deltas.indptr, deltas.indices, deltas.data, by_feature.indptr, by_feature.indices,
+                    by_feature.data, gram, k)
+
+
+@njit(cache=True)
+def _mirror_upper(gram: np.ndarray, K: int) -> None:
+    """gram[j, i] = gram[i, j] for i < j < K: a Gram matrix formed at once is then exactly symmetric, as one
+    formed cut by cut is."""
+    for i in range(K):
+        for j in range(i + 1, K):
+            gram[j, i] = gram[i, j]
 
 
 @njit(cache=True)
@@ -440,3 +502,172 @@ def _cross_update(gram: np.ndarray, grad: np.ndarray, K: int, cuts: np.ndarray, 
         c, d = cuts[j], by[j]
         for k in range(K):
             grad[k] -= d * gram[c, k]
+
+
+@njit(cache=True)
+def _sparse_gradients(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, losses: np.ndarray, w: np.ndarray,
+               grad: np.ndarray) -> None:
+    """grad[k] = L_k - d_k . w for every row d_k of a CSR matrix, each product summed over the row's entries."""
+    for k in range(losses.shape[0]):
+        s = 0.0
+        for p in range(indptr[k], indptr[k + 1]):
+            s += data[p] * w[indices[p]]
+        grad[k] = losses[k] - s
+
+
+@njit(cache=True)
+def _weights(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, alpha: np.ndarray, w: np.ndarray) -> None:
+    """w = sum_k a_k d_k, cut by cut in index order: one fixed order of sums."""
+    w[:] = 0.0
+    for k in range(alpha.shape[0]):
+        a = alpha[k]
+        if a > 0.0:
+            for p in range(indptr[k], indptr[k + 1]):
+                w[indices[p]] += a * data[p]
+
+
+@njit(cache=True)
+def _sweeps(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, losses: np.ndarray, groups: np.ndarray,
+            alpha: np.ndarray, grad: np.ndarray, w: np.ndarray, C: float, n_groups: int, tol: float,
+            max_steps: int) -> tuple[float, int, int]:
+    """Block coordinate ascent on the dual, in place on `alpha` and `w`; returns (gap, steps, sweeps).
+
+    Each sweep starts exact: `w` from `alpha`, every gradient from `w`, and
+    each group's own Frank-Wolfe gap (their sum is the dual's gap). It then
+    visits, in index order, every group with a gap: the group's gradients are taken afresh from the current `w`, its
+    cuts' cross products d_i . d_j are formed, pairwise steps run among its
+    cuts, and `w` takes the weight that moved. A group's "no cut" variable
+    (its unused budget C - sum a_k) has gradient 0, so a step may move weight
+    between it and a cut as between two cuts. On return `w` and `grad` are
+    exact at `alpha`.
+    """
+    K = losses.shape[0]
+    B = n_groups
+    start = np.zeros(B + 1, np.int64)  # the cuts of each group, in index order
+    for k in range(K):
+        start[groups[k] + 1] += 1
+    for g in range(B):
+        start[g + 1] += start[g]
+    members = np.empty(K, np.int64)
+    fill = start[:B].copy()
+    for k in range(K):
+        members[fill[groups[k]]] = k
+        fill[groups[k]] += 1
+    widest = 0
+    for g in range(B):
+        widest = max(widest, start[g + 1] - start[g])
+    spare = np.full(B, C)
+    for k in range(K):
+        spare[groups[k]] -= alpha[k]
+    best_up = np.empty(B)
+    own_gap = np.empty(B)
+    cross = np.empty((widest, widest))  # a visited group's d_i . d_j
+    moved = np.empty(widest)  # weight moved per cut of a visited group
+    scratch = np.zeros(w.shape[0])  # one cut scattered dense, for its cross products
+    gap = np.inf
+    steps = sweeps = 0
+    while True:
+        _weights(indptr, indices, data, alpha, w)
+        _sparse_gradients(indptr, indices, data, losses, w, grad)
+        best_up[:] = 0.0  # the spare's gradient: a group's slack is never negative
+        own_gap[:] = 0.0
+        for k in range(K):
+            g = groups[k]
+            if grad[k] > best_up[g]:
+                best_up[g] = grad[k]
+            own_gap[g] -= alpha[k] * grad[k]
+        gap, largest = 0.0, 0.0
+        for g in range(B):
+            own_gap[g] += C * best_up[g]
+            gap += own_gap[g]
+            largest = max(largest, own_gap[g])
+        if gap <= tol or steps >= max_steps or largest <= 0.0:
+            return gap, steps, sweeps
+        sweeps += 1
+        for g in range(B):
+            if own_gap[g] <= 0.0:
+                continue
+            first, m = start[g], start[g + 1] - start[g]
+            for a in range(m):
+                i = members[first + a]
+                s = 0.0
+                for p in range(indptr[i], indptr[i + 1]):
+                    s += data[p] * w[indices[p]]
+                grad[i] = losses[i] - s
+                for p in range(indptr[i], indptr[i + 1]):
+                    scratch[indices[p]] = data[p]
+                for b in range(a, m):
+                    j = members[first + b]
+                    s = 0.0
+                    for p in range(indptr[j], indptr[j + 1]):
+                        s += data[p] * scratch[indices[p]]
+                    cross[a, b] = s
+                    cross[b, a] = s
+                for p in range(indptr[i], indptr[i + 1]):
+                    scratch[indices[p]] = 0.0
+                moved[a] = 0.0
+            tiny = 1e-12
+            for a in range(m):
+                tiny = max(tiny, 1e-12 * cross[a, a])
+            weighted = 0.0
+            up = 0.0
+            for a in range(m):
+                i = members[first + a]
+                up = max(up, grad[i])
+                weighted += alpha[i] * grad[i]
+            target = 0.1 * (C * up - weighted)
+            for _ in range(10 * m + 10):
+                up, u = 0.0, -1  # u = -1: the spare
+                weighted = 0.0
+                for a in range(m):
+                    i = members[first + a]
+                    if grad[i] > up:
+                        up, u = grad[i], a
+                    weighted += alpha[i] * grad[i]
+                if C * up - weighted <= target:
+                    break
+                # v: the cut with weight whose pairing with u gains most, or the spare into u
+                v, gain_v, curv_v = -2, 0.0, 0.0
+                if u >= 0 and spare[g] > 0.0:
+                    v, curv_v = -1, max(cross[u, u], tiny)
+                    gain_v = up * up / curv_v
+                for a in range(m):
+                    j = members[first + a]
+                    if alpha[j] <= 0.0 or a == u:
+                        continue
+                    diff = up - grad[j]
+                    if diff <= 0.0:
+                        continue
+                    curv = max(cross[u, u] + cross[a, a] - 2.0 * cross[u, a] if u >= 0 else cross[a, a], tiny)
+                    gain = diff * diff / curv
+                    if gain > gain_v:
+                        v, gain_v, curv_v = a, gain, curv
+                if v == -2:
+                    break
+                if v >= 0:
+                    j = members[first + v]
+                    room = alpha[j]
+                    step = min(room, (up - grad[j]) / curv_v)
+                    alpha[j] = 0.0 if step == room else alpha[j] - step
+                    moved[v] -= step
+                else:
+                    room = spare[g]
+                    step = min(room, up / curv_v)
+                    spare[g] = 0.0 if step == room else spare[g] - step
+                if u >= 0:
+                    alpha[members[first + u]] += step
+                    moved[u] += step
+                else:
+                    spare[g] += step
+                for a in range(m):
+                    i = members[first + a]
+                    if u >= 0:
+                        grad[i] -= step * cross[u, a]
+                    if v >= 0:
+                        grad[i] += step * cross[v, a]
+                steps += 1
+            for a in range(m):  # w takes the weight that moved
+                if moved[a] != 0.0:
+                    i = members[first + a]
+                    for p in range(indptr[i], indptr[i + 1]):
+                        w[indices[p]] += moved[a] * data[p]
