@@ -151,9 +151,9 @@ def check_fingerprints(equivalent: dict[str, Equivalent], diffs: dict[str, str])
     moved = [m for m, e in equivalent.items() if e.mutation and fingerprint(diffs[m]) != e.mutation]
     if moved:
         raise MovedMutant("\n".join(
-            [f"{len(moved)} recorded equivalent mutant(s) of {EQUIVALENT.name} now name other mutants (mutmut "
-             "renumbers a function's mutants when its code changes); move each entry to the mutant whose diff its "
-             "reason describes, or drop it:"]
+            [f"{len(moved)} recorded equivalent mutant(s) of {EQUIVALENT.relative_to(ROOT)} now name other "
+             "mutants (mutmut renumbers a function's mutants when its code changes); move each entry to the mutant "
+             "whose diff its reason describes, or drop it:"]
             + [f"  {m}\n    recorded: {' | '.join(equivalent[m].mutation)}\n    now:      "
                f"{' | '.join(fingerprint(diffs[m]))}" for m in moved]))
 
