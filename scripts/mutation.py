@@ -12,6 +12,11 @@ tests/test_ssvm.py and tests/test_mrf.py.
 Score: killed (a test failed, the test process crashed, or the mutant ran past mutmut's timeout) over all mutants,
 where a mutant no selected test reaches counts as a survivor; mutants listed in scripts/mutation_equivalent.toml
 (each with the reason it changes nothing observable) are left out of the denominator and listed apart in the report.
+
+mutmut names a mutant by its function and a number, and the numbers shift when the function's code changes, so each
+entry also records the mutant's changed lines (`mutation`): a run whose mutant of that name changes other lines stops
+and names it. `python scripts/mutation.py GROUP --fill-fingerprints` records the lines of the entries that have none
+yet, from the group's last report (the diffs a person checked against the reasons), without running mutmut.
 """
 
 from __future__ import annotations
@@ -44,6 +49,10 @@ class Group:
 
     modules: tuple[str, ...]
     tests: tuple[str, ...]
+
+    def dotted(self) -> set[str]:
+        """The modules as mutmut's names begin with them (`pipeline.sim.primitives`)."""
+        return {m.removesuffix(".py").replace("/", ".") for m in self.modules}
 
 
 GROUPS = {
@@ -90,14 +99,91 @@ def _mutmut(scratch: Path, *args: str) -> str:
     return subprocess.run([str(MUTMUT), *args], cwd=scratch, check=True, capture_output=True, text=True).stdout
 
 
-def _equivalent() -> dict[str, str]:
-    return tomllib.loads(EQUIVALENT.read_text()) if EQUIVALENT.exists() else {}
+@dataclass(frozen=True)
+class Equivalent:
+    """A mutant that changes nothing observable: why, and the lines it changes (empty until recorded)."""
+
+    reason: str
+    mutation: tuple[str, ...] = ()
+
+
+class MovedMutant(Exception):
+    """A recorded equivalent whose name now belongs to a mutant that changes other lines."""
+
+
+HEADER = """\
+# Mutants that change nothing observable, by mutmut's name, each with the reason and the lines it changes.
+# scripts/mutation.py leaves them out of the score and lists them apart in reports/mutation/<group>.md, and stops
+# when a name has come to mean a mutant with other changed lines (`mutation`: the diff's - and + lines, stripped).
+"""
+
+
+def _equivalent(path: Path = EQUIVALENT) -> dict[str, Equivalent]:
+    """The recorded equivalents: a table with `reason` and `mutation`, or the reason alone (lines not yet recorded)."""
+    raw = tomllib.loads(path.read_text()) if path.exists() else {}
+    return {m: Equivalent(e) if isinstance(e, str) else Equivalent(e["reason"], tuple(e.get("mutation", ())))
+            for m, e in raw.items()}
+
+
+def write_equivalent(entries: dict[str, Equivalent], path: Path = EQUIVALENT) -> None:
+    """The equivalents as TOML, one table each, in the given order (JSON strings are TOML basic strings)."""
+    lines = [HEADER]
+    for m, e in entries.items():
+        lines += [f"[{json.dumps(m, ensure_ascii=False)}]", f"reason = {json.dumps(e.reason, ensure_ascii=False)}"]
+        if e.mutation:
+            lines.append("mutation = [" + ", ".join(json.dumps(x, ensure_ascii=False) for x in e.mutation) + "]")
+        lines.append("")
+    write_text_atomic(path, "\n".join(lines))
+
+
+def fingerprint(diff: str) -> tuple[str, ...]:
+    """The lines a mutant's diff removes and adds, each as its sign and its text without the indentation.
+
+    With the function that mutmut's name carries, this says which mutant it is, whatever its number.
+    """
+    lines = diff.splitlines()
+    body = lines[next((i for i, line in enumerate(lines) if line.startswith("@@")), 0):]  # past the file names
+    return tuple(f"{line[0]} {line[1:].strip()}" for line in body if line.startswith(("-", "+")))
+
+
+def check_fingerprints(equivalent: dict[str, Equivalent], diffs: dict[str, str]) -> None:
+    """Raise `MovedMutant` naming every recorded equivalent whose mutant now changes other lines."""
+    moved = [m for m, e in equivalent.items() if e.mutation and fingerprint(diffs[m]) != e.mutation]
+    if moved:
+        raise MovedMutant("\n".join(
+            [f"{len(moved)} recorded equivalent mutant(s) of {EQUIVALENT.relative_to(ROOT)} now name other "
+             "mutants (mutmut renumbers a function's mutants when its code changes); move each entry to the mutant "
+             "whose diff its reason describes, or drop it:"]
+            + [f"  {m}\n    recorded: {' | '.join(equivalent[m].mutation)}\n    now:      "
+               f"{' | '.join(fingerprint(diffs[m]))}" for m in moved]))
+
+
+def report_diffs(report_text: str) -> dict[str, str]:
+    """The diff of each equivalent mutant listed in a report written by `report`."""
+    section = report_text.split("\n## Equivalent mutants\n", 1)[-1]
+    return dict(re.findall(r"^### `([^`]+)`\n\n.*?^```diff\n(.*?)\n```$", section, re.M | re.S))
+
+
+def fill_fingerprints(group: str, report_file: Path, path: Path = EQUIVALENT) -> list[str]:
+    """Record, for the group's equivalents that have none, the changed lines shown in its report; the names filled.
+
+    The report is the one a person checked each equivalent's diff against its reason in; a name the report does not
+    list is left as it is (it belongs to another group, or the report is older than the entry).
+    """
+    entries = _equivalent(path)
+    diffs = report_diffs(report_file.read_text())
+    modules = GROUPS[group].dotted()
+    filled = [m for m, e in entries.items() if not e.mutation and _module(m) in modules and m in diffs]
+    for m in filled:
+        entries[m] = Equivalent(entries[m].reason, fingerprint(diffs[m]))
+    write_equivalent(entries, path)
+    return filled
 
 
 def report(name: str, group: Group, scratch: Path, command: str, minutes: float) -> tuple[str, dict[str, int]]:
     """The Markdown report of the last run: counts, score and every surviving mutant's diff."""
     status = dict(re.findall(r"^\s*(\S+): (.+)$", _mutmut(scratch, "results", "--all", "true"), re.M))
-    equivalent = {m: why for m, why in _equivalent().items() if m in status}
+    equivalent = {m: e for m, e in _equivalent().items() if m in status}
     counted = {m: s for m, s in status.items() if m not in equivalent}
     killed = sum(s in KILLED for s in counted.values())
     survivors = sorted((m for m, s in counted.items() if s in ("survived", "no tests")),
@@ -120,12 +206,13 @@ def report(name: str, group: Group, scratch: Path, command: str, minutes: float)
         lines.append(f"| `{module}` | {len(mine) + n_eq} | {k} | {len(mine) - k} | {n_eq} | "
                      f"{100.0 * k / max(len(mine), 1):.1f}% |")
     diffs = _diffs(scratch, [*survivors, *equivalent])
+    check_fingerprints(equivalent, diffs)
     lines += ["", "## Survivors", ""] + (["None.", ""] if not survivors else [])
     for m in survivors:
         lines += [f"### `{m}` ({counted[m]})", "", "```diff", diffs[m], "```", ""]
     lines += ["## Equivalent mutants", ""] + (["None.", ""] if not equivalent else [])
     for m in sorted(equivalent, key=_natural):
-        lines += [f"### `{m}`", "", equivalent[m], "", "```diff", diffs[m], "```", ""]
+        lines += [f"### `{m}`", "", equivalent[m].reason, "", "```diff", diffs[m], "```", ""]
     return "\n".join(lines).rstrip() + "\n", {**counts, "score": round(score, 1)}
 
 
@@ -160,12 +247,20 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--max-children", type=int, default=2, help="mutants tested at once (default 2)")
     parser.add_argument("--output", type=Path, default=None,
                         help="report file (default reports/mutation/GROUP.md)")
+    parser.add_argument("--fill-fingerprints", action="store_true",
+                        help="record the changed lines of the group's equivalents that have none, from the report "
+                             "(--output), without running mutmut")
     args = parser.parse_args(argv)
     if args.group == "list":
         for name, g in GROUPS.items():
             print(f"{name}: {' '.join(g.modules)}")
         return 0
     group = GROUPS[args.group]
+    output = args.output or ROOT / "reports" / "mutation" / f"{args.group}.md"
+    if args.fill_fingerprints:
+        filled = fill_fingerprints(args.group, output)
+        print(f"{args.group}: recorded the changed lines of {len(filled)} equivalent mutant(s) from {output}")
+        return 0
     scratch = _scratch(args.group, group)
     start = time.monotonic()
     run = subprocess.run([str(MUTMUT), "run", "--max-children", str(args.max_children)], cwd=scratch,
@@ -174,8 +269,16 @@ def main(argv: list[str] | None = None) -> int:
         print(f"mutmut run failed with exit code {run.returncode} (in {scratch})", file=sys.stderr)
         return run.returncode
     command = f"nice -n 10 python scripts/mutation.py {args.group}"
-    text, counts = report(args.group, group, scratch, command, (time.monotonic() - start) / 60)
-    output = args.output or ROOT / "reports" / "mutation" / f"{args.group}.md"
+    try:
+        text, counts = report(args.group, group, scratch, command, (time.monotonic() - start) / 60)
+    except MovedMutant as moved:
+        print(moved, file=sys.stderr)
+        return 1
+    unrecorded = [m for m, e in _equivalent().items() if not e.mutation and _module(m) in group.dotted()]
+    if unrecorded:
+        print(f"{len(unrecorded)} equivalent(s) of {args.group} have no recorded lines, so a renumbering would go "
+              f"unnoticed: check their diffs in the report, then `python scripts/mutation.py {args.group} "
+              "--fill-fingerprints`", file=sys.stderr)
     write_text_atomic(output, text)
     print(f"{args.group}: {counts}; survivors in {output}")
     return 0

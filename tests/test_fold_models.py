@@ -1,6 +1,7 @@
 """Fold models are trained once by the `fold_models` stage and served to every evaluation stage."""
 
 from functools import partial
+from pathlib import Path
 
 import pytest
 
@@ -12,7 +13,10 @@ from pipeline.evaluate.robustness import NoiseCondition, evaluate_conditions
 from pipeline.features.dataset import build_steps
 from pipeline.learn.estimator import StepScorer
 from pipeline.logs.benchmark import Benchmark
-from pipeline.settings import Folds, Learner
+from pipeline.logs.generate import generate
+from pipeline.logs.ingest import load_logs
+from pipeline.settings import Folds, Generate, Learner, Procedural
+from pipeline.sim.procedural import NEW_KINDS
 
 SETTINGS = {"C": 3.0, "tol": 1e-2, "max_iter": 2000, "n_slacks": 2}
 # two of the paper's models and both that consult the demonstrator (chained starts, DAgger)
@@ -20,20 +24,42 @@ METHODS = {name: make for name, make in mrf_methods(Learner(**SETTINGS, dagger_r
            if name in ("full", "only_edge", "chained", "dagger")}
 
 
-@pytest.fixture(scope="module")
-def small(benchmark_tables):
-    records = [i.record for i in benchmark_tables[1] if i.record["env_id"] in ("env01", "env02", "env03")]
+def _steps(records: list[dict]) -> tuple:
     contexts, meta = build_steps(records)
     return records, contexts, meta, Benchmark.from_records(records).scenarios
 
 
+def _train(steps: tuple, out: Path, n_jobs: int) -> tuple:
+    """The fold models of METHODS on `steps`, stored in `out`: (out, jobs, index rows)."""
+    records, contexts, meta, scenarios = steps
+    jobs = training_jobs(METHODS, meta, scenarios, n_folds=2, seed=0, group_by="scenario")
+    return out, jobs, train_fold_models(METHODS, contexts, meta, scenarios, jobs, out, n_jobs=n_jobs)
+
+
+@pytest.fixture(scope="module")
+def small(benchmark_tables):
+    return _steps([i.record for i in benchmark_tables[1] if i.record["env_id"] in ("env01", "env02", "env03")])
+
+
 @pytest.fixture(scope="module")
 def store(small, tmp_path_factory):
-    records, contexts, meta, scenarios = small
-    jobs = training_jobs(METHODS, meta, scenarios, n_folds=2, seed=0, group_by="scenario")
-    out = tmp_path_factory.mktemp("store") / "folds"
-    fitted = train_fold_models(METHODS, contexts, meta, scenarios, jobs, out, n_jobs=1)
-    return out, jobs, fitted
+    return _train(small, tmp_path_factory.mktemp("store") / "folds", n_jobs=1)
+
+
+@pytest.fixture(scope="module")
+def drawn(tmp_path_factory):
+    """Two rooms of a procedural world, with objects of kinds the catalog never had."""
+    folder = tmp_path_factory.mktemp("drawn") / "raw"
+    generate(Generate(seed=1, family="procedural", procedural=Procedural(environments=2)), folder)
+    records = [r.record for r in load_logs(folder)[1]]
+    new = {k.name for kinds in NEW_KINDS.values() for k in kinds}
+    assert any(o["name"] in new for r in records for o in r["objects"])
+    return _steps(records)
+
+
+@pytest.fixture(scope="module")
+def drawn_store(drawn, tmp_path_factory):
+    return _train(drawn, tmp_path_factory.mktemp("drawn_store") / "folds", n_jobs=2)  # loky's processes
 
 
 @pytest.fixture
@@ -92,19 +118,22 @@ def test_the_store_is_the_same_bytes_whether_trained_serially_or_in_parallel(sma
         assert (again / path.name).read_bytes() == path.read_bytes(), path.name
 
 
-def test_a_dask_cluster_trains_the_same_bytes_as_local_processes(small, store, tmp_path, monkeypatch):
-    """The backend is a machine setting: a local Dask cluster (two worker processes) gives the loky store."""
-    distributed = pytest.importorskip("distributed")
+@pytest.mark.parametrize("world, local", [("small", "store"), ("drawn", "drawn_store")])
+def test_a_dask_cluster_trains_the_same_bytes_as_local_processes(world, local, request, tmp_path, monkeypatch):
+    """The backend is a machine setting: a local Dask cluster (two worker processes) gives the store trained by
+    local processes, on three paper-shaped rooms and on two drawn ones (the `dev` extra installs Dask)."""
+    import distributed
+
     from pipeline.evaluate.dispatch import SCHEDULER_ENV
 
-    records, contexts, meta, scenarios = small
-    out, jobs, _ = store
+    records, contexts, meta, scenarios = request.getfixturevalue(world)
+    out, jobs, fitted = request.getfixturevalue(local)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
                                   host="127.0.0.1") as cluster:
         monkeypatch.setenv(SCHEDULER_ENV, cluster.scheduler_address)
         again = tmp_path / "folds"
-        fitted = train_fold_models(METHODS, contexts, meta, scenarios, jobs, again, n_jobs=1)
+        on_cluster = train_fold_models(METHODS, contexts, meta, scenarios, jobs, again, n_jobs=1)
         assert cluster.scheduler.transition_counter > 0  # the jobs went through the cluster's scheduler
-    assert len(fitted) == len(store[2])
+    assert len(on_cluster) == len(fitted)
     for path in out.iterdir():
         assert (again / path.name).read_bytes() == path.read_bytes(), path.name

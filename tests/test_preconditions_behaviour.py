@@ -185,6 +185,20 @@ def test_a_cup_goes_to_the_free_spot_nearest_the_robot(room, robot, spot):
     assert free_spot(room, CUP, TABLE) == ((*spot, 0.75), ON)
 
 
+@pytest.mark.xfail(strict=True, reason="free_spot floors 0.35 // 0.05 to 6.0; counting the flush spot would move the "
+                   "large mug of env03 on the counter (1.15 m of play, 23 steps) and so change the paper rooms' logs")
+def test_an_object_that_spans_a_whole_number_of_grid_steps_can_stand_flush_with_the_edge():
+    """(1.0 - 0.3) / 2 = 0.35 m of play is 7 steps of 0.05 m, though 0.35 // 0.05 is 6.0 in floating point.
+
+    A known deviation kept for the paper rooms' bytes (docs/world.md, the primitives): strict, so a fix shows here.
+    """
+    from pipeline.sim.primitives import free_spot
+    from pipeline.sim.state import ON
+
+    room = world({4: 0.0}, [(12, 4, 0, -0.3)], robot_x=3.0)  # a wastebasket on the coffee table; the robot far right
+    assert free_spot(room, "obj12", "obj04") == ((0.35, 0.15, 0.45), ON)  # the wastebasket flush with the right edge
+
+
 def test_a_shelf_takes_an_object_on_the_lowest_level_it_fits_under(room):
     from pipeline.sim.primitives import free_spot
     from pipeline.sim.state import ON

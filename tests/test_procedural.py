@@ -14,7 +14,7 @@ from pipeline.logs.generate import generate
 from pipeline.settings import Generate, Params, Procedural
 from pipeline.sim.catalog import OBJECTS, EnvironmentSpec, Placement, build_environment
 from pipeline.sim.primitives import execute
-from pipeline.sim.procedural import NEW_KINDS, Redraw, check_fits, draw_room
+from pipeline.sim.procedural import NEW_KINDS, SHAPES, Kind, Redraw, check_fits, draw_room
 from pipeline.sim.scenarios import QUOTAS, drawn_scenarios, world_scenarios
 from pipeline.sim.tasks import goal_reached
 
@@ -68,6 +68,37 @@ def test_drawn_rooms_hold_varied_catalog_objects_and_kinds_the_catalog_never_had
     # every object id belongs to one room: a held-out room takes its objects with it
     rooms = {o: {s.env_id for s in scenarios if o in s.initial.specs} for o in specs if o != "obj01"}
     assert all(len(r) == 1 for r in rooms.values())
+
+
+def test_a_new_kinds_flags_are_drawn_with_its_probabilities_and_those_that_define_it_stay():
+    draws = 400
+    for kind in (k for group in NEW_KINDS.values() for k in group):
+        fixed = frozenset(kind.flags.split())
+        flags = [kind.draw_flags(np.random.default_rng([7, seed])) for seed in range(draws)]
+        assert flags == [kind.draw_flags(np.random.default_rng([7, seed])) for seed in range(draws)]  # seeded
+        assert all(fixed <= f and len(f & set(SHAPES)) <= 1 for f in flags), kind.name
+        varying = {f for f, _ in kind.maybe} | {s for s, _ in kind.shapes if s}
+        assert all(f - fixed <= varying for f in flags), kind.name
+        for flag, p in (*kind.maybe, *kind.shapes):
+            share = sum((flag in f) if flag else not f & set(SHAPES) for f in flags) / draws
+            assert abs(share - p) < 0.08, (kind.name, flag, share)
+        assert (len(set(flags)) > 1) == bool(varying), kind.name  # objects of one kind differ where flags vary
+    assert any(k.maybe or k.shapes for k in NEW_KINDS["vessel"] + NEW_KINDS["pourer"] + NEW_KINDS["bin"])
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"maybe": (("container", 0.5),)}, r"\['container'\] define the kind and cannot vary"),
+    ({"maybe": (("movable", 0.5),)}, r"\['movable'\] define the kind and cannot vary"),
+    ({"maybe": (("handle", 1.0),)}, r"must lie in \(0, 1\)"),
+    ({"shapes": (("cylinder", 0.5), ("box", 0.4))}, "summing to 1"),
+    ({"flags": "cylinder container", "shapes": (("cylinder", 0.5), ("", 0.5))}, r"\['cylinder'\] both fixed and drawn"),
+])
+def test_a_kind_that_draws_a_flag_defining_it_or_a_bad_probability_is_refused(change, message):
+    base = {"name": "cup2", "category": "cup", "flags": "container movable", "width": (0.07, 0.08),
+            "length": (0, 0), "height": (0.09, 0.1)}
+    with pytest.raises(ValueError, match=message):
+        Kind(**{**base, **change})
+    assert Kind(**{**base, "category": "bin", "flags": "container", "maybe": (("movable", 0.5),)}).maybe  # bins only
 
 
 def test_the_same_seed_draws_the_same_bytes_and_another_seed_other_rooms(tmp_path):

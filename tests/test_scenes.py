@@ -136,17 +136,25 @@ def test_rooms_held_out_never_reach_training(tmp_path):
 
 
 def test_a_drawn_objects_logged_attributes_follow_from_its_size_and_flags(tmp_path):
+    """A new object's flags are its kind's fixed ones and some of those drawn for it; objects of a kind differ."""
     from pipeline.logs.records import expected_attributes
+    from pipeline.sim.objects import BINARY_ATTRIBUTES, attributes_of_box
     from pipeline.sim.procedural import NEW_KINDS
 
     generate(Generate(seed=2, family="procedural", procedural=Procedural(environments=3, new_objects=0.9)),
              tmp_path / "raw")
-    new_names = {k.name for kinds in NEW_KINDS.values() for k in kinds}
-    seen = 0
+    kinds = {k.name: k for group in NEW_KINDS.values() for k in group}
+    flag_sets: dict[str, set[frozenset[str]]] = {}
     for record in (r.record for r in load_logs(tmp_path / "raw")[1]):
         for obj in record["objects"]:
-            if obj["name"] in new_names:
-                seen += 1
+            if obj["name"] in kinds:
+                kind = kinds[obj["name"]]
+                flags = frozenset(f for f in BINARY_ATTRIBUTES if obj["attributes"][f] == 1)
+                drawn = {f for f, _ in kind.maybe} | {s for s, _ in kind.shapes}
+                assert set(kind.flags.split()) <= flags <= set(kind.flags.split()) | drawn, obj["id"]
+                assert obj["attributes"] == pytest.approx(attributes_of_box(tuple(obj["size"]), flags))
                 assert obj["attributes"] == pytest.approx(expected_attributes(obj))
                 assert obj["attributes"]["volume"] == pytest.approx(obj["size"][0] * obj["size"][1] * obj["size"][2])
-    assert seen > 10
+                flag_sets.setdefault(kind.name, set()).add(flags)
+    assert sum(len(s) for s in flag_sets.values()) > 10
+    assert any(len(s) > 1 for s in flag_sets.values())  # one kind, objects with different drawn flags

@@ -5,8 +5,9 @@ seed. Here the world seed draws the rooms themselves: which furniture stands
 along the wall and where, which objects there are, how big each one is, and
 where it rests. Objects are catalog objects with their sizes varied, or
 objects of kinds the catalog never had (a tumbler, a jug, a ladle, a pedal
-bin), drawn from size ranges. Attributes follow from the drawn size, as for
-every object, so the model meets attribute vectors it never saw in training.
+bin), drawn from size ranges, with the flags that can vary for the kind (its
+shape, a handle) drawn too. Attributes follow from the drawn size and flags, as
+for every object, so the model meets attribute vectors it never saw in training.
 
 The distribution is fixed here (the new kinds) and in `settings.Procedural`; the
 reasons for each value are in docs/world.md. A drawn room is kept only when it
@@ -33,9 +34,22 @@ WALL_GAP = (0.2, 0.8)  # gap (m) between neighbouring furniture along the wall, 
 MAX_REDRAWS = 200  # attempts at one room before the distribution is declared unable to produce it
 
 
+# Flags an object of a new kind may have or lack. The rest define what the kind is for (a vessel receives
+# liquid, a cutting board carries a load, a liquid is poured), so they never vary; `movable` varies for bins
+# only, since everything else is there to be picked up.
+SHAPES = ("cylinder", "box")
+VARIABLE_FLAGS = frozenset({*SHAPES, "handle"})
+
+
 @dataclass(frozen=True)
 class Kind:
-    """An object kind the catalog never had: a name, a category the simulator knows, flags and size ranges (m)."""
+    """An object kind the catalog never had: a name, a category the simulator knows, size ranges (m) and flags.
+
+    `flags` every object of the kind has. `shapes` gives the probability of each shape flag (`""`: neither, a
+    tapered or flat object), one drawn per object; empty when the shape is fixed in `flags`. `maybe` gives,
+    for the other flags that can vary for the kind, the probability that an object has the flag. Why each
+    value: docs/world.md, "Drawn rooms".
+    """
 
     name: str
     category: str
@@ -43,34 +57,70 @@ class Kind:
     width: tuple[float, float]
     length: tuple[float, float]  # (0, 0): round, as long as it is wide
     height: tuple[float, float]
+    shapes: tuple[tuple[str, float], ...] = ()
+    maybe: tuple[tuple[str, float], ...] = ()
+
+    def __post_init__(self) -> None:
+        fixed = set(self.flags.split())
+        varying = {f for f, _ in self.maybe} | ({*SHAPES} if self.shapes else set())
+        allowed = VARIABLE_FLAGS | ({"movable"} if self.category == "bin" else set())
+        if varying - allowed:
+            raise ValueError(f"kind {self.name}: {sorted(varying - allowed)} define the kind and cannot vary")
+        if fixed & varying:
+            raise ValueError(f"kind {self.name}: {sorted(fixed & varying)} both fixed and drawn")
+        if self.shapes and ({s for s, _ in self.shapes} - {*SHAPES, ""}
+                            or abs(sum(p for _, p in self.shapes) - 1) > 1e-9):
+            raise ValueError(f"kind {self.name}: shapes must be cylinder, box or '' with probabilities summing to 1")
+        if not all(0 < p < 1 for _, p in self.maybe):
+            raise ValueError(f"kind {self.name}: the probability of a drawn flag must lie in (0, 1)")
+
+    def draw_flags(self, rng: np.random.Generator) -> frozenset[str]:
+        """The fixed flags, one shape drawn from `shapes`, and each flag of `maybe` with its probability."""
+        flags = set(self.flags.split())
+        if self.shapes:
+            shapes, probs = zip(*self.shapes, strict=True)
+            flags.add(shapes[int(rng.choice(len(shapes), p=probs))])
+        flags.update(f for f, p in self.maybe if rng.uniform() < p)
+        return frozenset(flags - {""})
 
 
 NEW_KINDS: dict[str, tuple[Kind, ...]] = {
     "vessel": (
-        Kind("tumbler", "tumbler", "cylinder container movable", (0.06, 0.085), (0, 0), (0.09, 0.14)),
-        Kind("beaker", "beaker", "cylinder container movable", (0.07, 0.1), (0, 0), (0.1, 0.16)),
-        Kind("ramekin", "ramekin", "cylinder container movable", (0.08, 0.12), (0, 0), (0.04, 0.06)),
-        Kind("soup_mug", "mug", "cylinder container handle movable", (0.1, 0.12), (0.13, 0.16), (0.09, 0.12)),
+        Kind("tumbler", "tumbler", "container movable", (0.06, 0.085), (0, 0), (0.09, 0.14),
+             shapes=(("cylinder", 0.7), ("", 0.3))),
+        Kind("beaker", "beaker", "cylinder container movable", (0.07, 0.1), (0, 0), (0.1, 0.16),
+             maybe=(("handle", 0.25),)),
+        Kind("ramekin", "ramekin", "container movable", (0.08, 0.12), (0, 0), (0.04, 0.06),
+             shapes=(("cylinder", 0.8), ("box", 0.2)), maybe=(("handle", 0.15),)),
+        Kind("soup_mug", "mug", "container handle movable", (0.1, 0.12), (0.13, 0.16), (0.09, 0.12),
+             shapes=(("cylinder", 0.85), ("", 0.15))),
     ),
     "pourer": (
-        Kind("jug", "jug", "cylinder container handle movable", (0.11, 0.15), (0.15, 0.2), (0.18, 0.25)),
-        Kind("flask", "flask", "cylinder container movable", (0.06, 0.09), (0, 0), (0.2, 0.3)),
-        Kind("thermos", "thermos", "cylinder container movable", (0.08, 0.1), (0, 0), (0.25, 0.32)),
+        Kind("jug", "jug", "container movable", (0.11, 0.15), (0.15, 0.2), (0.18, 0.25),
+             shapes=(("cylinder", 0.6), ("box", 0.1), ("", 0.3)), maybe=(("handle", 0.85),)),
+        Kind("flask", "flask", "container movable", (0.06, 0.09), (0, 0), (0.2, 0.3),
+             shapes=(("cylinder", 0.7), ("", 0.3)), maybe=(("handle", 0.1),)),
+        Kind("thermos", "thermos", "cylinder container movable", (0.08, 0.1), (0, 0), (0.25, 0.32),
+             maybe=(("handle", 0.4),)),
     ),
     "stirrer": (
-        Kind("stir_stick", "stirrer", "movable", (0.005, 0.012), (0.15, 0.25), (0.005, 0.01)),
+        Kind("stir_stick", "stirrer", "movable", (0.005, 0.012), (0.15, 0.25), (0.005, 0.01),
+             shapes=(("cylinder", 0.4), ("", 0.6))),
         Kind("dessert_spoon", "stirrer", "movable", (0.03, 0.04), (0.16, 0.2), (0.015, 0.02)),
         Kind("ladle", "stirrer", "handle movable", (0.07, 0.09), (0.28, 0.35), (0.05, 0.07)),
     ),
     "bin": (
-        Kind("pedal_bin", "bin", "cylinder container", (0.3, 0.4), (0, 0), (0.4, 0.55)),
-        Kind("crate_bin", "bin", "box container movable", (0.3, 0.4), (0.25, 0.35), (0.25, 0.35)),
+        Kind("pedal_bin", "bin", "container", (0.3, 0.4), (0, 0), (0.4, 0.55),
+             shapes=(("cylinder", 0.6), ("box", 0.4)), maybe=(("movable", 0.3),)),
+        Kind("crate_bin", "bin", "box container", (0.3, 0.4), (0.25, 0.35), (0.25, 0.35),
+             maybe=(("movable", 0.8), ("handle", 0.5))),
     ),
     "item": (
         Kind("notebook", "item", "box movable", (0.15, 0.21), (0.21, 0.3), (0.01, 0.02)),
         Kind("napkin", "item", "movable", (0.1, 0.15), (0.1, 0.15), (0.005, 0.01)),
         Kind("remote", "item", "box movable", (0.04, 0.06), (0.15, 0.2), (0.02, 0.03)),
-        Kind("cutting_board", "item", "box movable large_surface", (0.25, 0.4), (0.2, 0.3), (0.015, 0.03)),
+        Kind("cutting_board", "item", "box movable large_surface", (0.25, 0.4), (0.2, 0.3), (0.015, 0.03),
+             maybe=(("handle", 0.35),)),
     ),
     "liquid": (
         Kind("lemonade", "liquid", "cylinder liquid movable", (0.05, 0.08), (0, 0), (0.04, 0.08)),
@@ -176,7 +226,7 @@ class _Room:
         l = _uniform(self.rng, kind.length) if kind.length != (0, 0) else w  # noqa: E741
         oid = self._id()
         self.objects[oid] = ObjectSpec(oid, kind.name, kind.category, (w, l, _uniform(self.rng, kind.height)),
-                                       frozenset(kind.flags.split()))
+                                       kind.draw_flags(self.rng))
         return self.objects[oid]
 
     def draw(self, kind: str) -> ObjectSpec:
