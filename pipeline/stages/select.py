@@ -8,6 +8,7 @@ stage ships the method ranked first.
 
 from __future__ import annotations
 
+import shutil
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -54,6 +55,7 @@ def run(settings: Settings, paths: SelectPaths, tracker: Tracker = NO_RUN, n_job
     contexts, meta = build_steps([r.record for r in records])
     write_features(contexts, meta, data / "features")
     bench = Benchmark.from_records([r.record for r in records])
+    shutil.rmtree(data / "models", ignore_errors=True)  # the rounds of an earlier run: this one writes its own
     dev = DevData(contexts, meta, bench, folds, settings.max_steps)
     print(f"choosing C for {', '.join(select.methods)} among {' '.join(f'{c:g}' for c in select.C)} (extended at "
           f"an edge, {select.max_extensions} times at most) on the development world (seed {world.dev_seed}, "
