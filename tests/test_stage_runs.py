@@ -284,7 +284,7 @@ def test_select_sees_only_the_development_world(tiny, monkeypatch, tmp_path, cap
     first = result["methods"][0]
     assert result["method"] == first["method"] and first["C"] == result["settings"][first["method"]]["C"]
     assert f"chose method {result['method']} at C={first['C']:g}; written to {out}" in capsys.readouterr().out
-    assert {p.name for p in (tmp_path / "dev").iterdir()} == {"raw", "processed", "features", "models"}
+    assert {p.name for p in (tmp_path / "dev").iterdir()} == {"raw", "processed", "features"}
     model = tmp_path / "shipped.npz"
     assert main(["--no-mlflow", "train", "--features", str(tiny / "features"), *LEARN, "--selection", str(out),
                  "--model", str(model)]) == 0

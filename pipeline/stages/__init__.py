@@ -31,7 +31,7 @@ class Stage:
 
 
 STAGES: dict[str, Stage] = {
-    "select": Stage("draw the development world and choose each MRF method's C on it by cross-validation",
+    "select": Stage("draw the development world; cross-validate each MRF method there to choose its own C",
                     P.SelectPaths, True),
     "generate": Stage("simulate the demonstrator and write demonstration logs (JSON Lines)", P.GeneratePaths,
                       per_world=True),

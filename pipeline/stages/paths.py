@@ -36,7 +36,7 @@ def _store() -> Any:
 
 @dataclass(frozen=True, kw_only=True)
 class SelectPaths:
-    data: Path = option("folder for the development world's logs, tables, features and fold models (replaced)")
+    data: Path = option("folder for the development world's logs, tables and features (replaced)")
     output: Path = option("the choice (JSON)")
 
 
