@@ -78,8 +78,19 @@ class Generate:
 class Select:
     """Settings chosen on the development world by cross-validation, never on a reported world."""
 
-    C: tuple[float, ...] = (0.3, 1.0, 3.0, 10.0)  # slack weights tried for the MRF models
-    methods: tuple[str, ...] = ("full", "relations", "chained", "dagger")  # MRF methods ranked at the chosen C
+    C: tuple[float, ...] = (0.3, 1.0, 3.0, 10.0)  # slack weights tried for each MRF method (grid, extended at an edge)
+    methods: tuple[str, ...] = ("full", "relations", "chained", "dagger", "feasible")  # each tuned, then ranked
+    max_extensions: int = 2  # grid values added beyond an edge per method at most (docs/planner-shipped.md)
+
+    def __post_init__(self) -> None:
+        if len(self.C) < 2 or min(self.C) <= 0:
+            raise ValueError(f"select.C must list at least two positive values (the grid's spacing is how it is "
+                             f"extended), got {' '.join(f'{c:g}' for c in self.C)}")
+        if "full" not in self.methods:
+            raise ValueError("select.methods must include full: its C is also the paper's ablations' (only_edge, "
+                             "only_clique) and the teach and people stages'")
+        if self.max_extensions < 0:
+            raise ValueError(f"select.max_extensions must be at least 0, got {self.max_extensions}")
 
 
 @dataclass(frozen=True)
@@ -91,6 +102,11 @@ class Learner:
     max_iter: int = 2000  # cutting-plane iterations at most
     n_slacks: int = 0  # slack groups, one cut each per iteration (0: one per step, n-slack; 1: classic 1-slack)
     dagger_rounds: int = 1  # DAgger rounds (roll out, ask the demonstrator, refit) of the `dagger` method
+    tuned: tuple[tuple[str, float], ...] = ()  # (method, C) that `select` chose per MRF method; the rest take C
+
+    def of(self, method: str) -> Learner:
+        """The learner of one MRF method: with the C `select` chose for it, when it chose one."""
+        return replace(self, C=dict(self.tuned).get(method, self.C), tuned=())
 
     @property
     def ssvm(self) -> dict[str, float | int]:
@@ -107,7 +123,7 @@ class Train(Learner):
     @property
     def learner(self) -> Learner:
         """The learner without the feature set: what every evaluated MRF method takes."""
-        return Learner(self.C, self.tol, self.max_iter, self.n_slacks, self.dagger_rounds)
+        return Learner(self.C, self.tol, self.max_iter, self.n_slacks, self.dagger_rounds, self.tuned)
 
 
 @dataclass(frozen=True)
@@ -222,7 +238,8 @@ CHOICES: dict[tuple[str, str], tuple[str, ...]] = {
 }
 
 # Fields of a section's class that params.yaml leaves out, and why.
-NOT_IN_PARAMS = {("train", "C"): "chosen by the select stage on the development world (reports/selection.json)"}
+NOT_IN_PARAMS = {("train", "C"): "chosen by the select stage on the development world (reports/selection.json)",
+                 ("train", "tuned"): "each MRF method's C, chosen by the select stage (reports/selection.json)"}
 
 
 @dataclass(frozen=True)
@@ -282,9 +299,9 @@ class Params:
             sections[f.name] = parse_section(type(getattr(cls(), f.name)), section, f.name, source)
         return cls(**sections)
 
-    def with_C(self, C: float) -> Params:
-        """These settings with the learner's slack weight set (from the `select` stage's choice)."""
-        return replace(self, train=replace(self.train, C=C))
+    def with_C(self, C: float, tuned: tuple[tuple[str, float], ...] = ()) -> Params:
+        """These settings with the learner's slack weight set, and each MRF method's (the `select` stage's choice)."""
+        return replace(self, train=replace(self.train, C=C, tuned=tuned))
 
     def flat(self) -> dict[str, Any]:
         """Every setting as `section.key`: what a stage's run records."""
@@ -330,6 +347,8 @@ def parse_section(cls: type, section: Mapping[str, Any], name: str | None = None
         if f.name not in section:
             continue
         value, default, key = section[f.name], getattr(cls(), f.name), f"{name}.{f.name}"
+        if (name, f.name) in NOT_IN_PARAMS and isinstance(default, tuple):
+            raise ValueError(f"{source}: {key} cannot be set: {NOT_IN_PARAMS[(name, f.name)]}")
         if isinstance(default, tuple):
             items = value.split() if isinstance(value, str) else value if isinstance(value, list) else [value]
             value = tuple(_value(type(default[0]), v, key, source) for v in items)

@@ -10,11 +10,11 @@ from typing import Any
 from jsonschema import Draft202012Validator
 
 from .learn.estimator import StepScorer
-from .learn.persist import describe
+from .learn.persist import describe, policy_of
 from .logs.records import load_schema, spec_from_dict, state_from_dict
 from .logs.validate import LogError, check_record, check_references, check_schema, log_files, read_records
 from .logs.validate import _field as field_name  # the log checks' way of writing a field's path
-from .plan.planner import Program, plan
+from .plan.planner import POLICIES, Program, run_loop
 from .sim.state import WorldState
 from .sim.tasks import Task
 
@@ -96,14 +96,19 @@ LIQUID_TASKS = ("pour", "pour_to", "stir")  # tasks whose first argument is a li
 def plan_task(model_path: Path, env: Path, record: int, task_text: str, max_steps: int,
               top_k: int) -> tuple[Program, dict[str, str], str]:
     """The program the model plans for the task in that environment, the objects' names, and what the model is
-    (its method and settings, `persist.describe`)."""
+    (its method, settings and policy, `persist.describe`); the program is planned with the policy the file
+    records (greedy when it records none)."""
     planner = StepScorer.load(model_path)
+    policy = policy_of(planner.meta_)
+    if policy not in POLICIES:
+        raise ValueError(f"{model_path}: policy {policy!r} is not one this version plans with "
+                         f"({', '.join(POLICIES)})")
     objects, state_dict = load_environment(env, record)
     specs = {o["id"]: spec_from_dict(o) for o in objects}
     state = state_from_dict(specs, state_dict)
     task = parse_task(task_text, state)
-    return (plan(planner, state, task, max_steps=max_steps, top_k=top_k), {o: s.name for o, s in specs.items()},
-            describe(planner.meta_))
+    program = run_loop(POLICIES[policy](planner, top_k), state, task, max_steps)
+    return program, {o: s.name for o, s in specs.items()}, describe(planner.meta_)
 
 
 def parse_task(task_text: str, state: WorldState) -> Task:

@@ -161,10 +161,16 @@ def test_plan_command_says_which_method_and_settings_it_runs(small_fit, benchmar
     main(["plan", "--model", str(tmp_path / "old.npz"), *env])
     first = capsys.readouterr().out.splitlines()[0]
     assert first.startswith(f"planner {tmp_path / 'old.npz'}: method not recorded") and f"C {fit.C:g}" in first
+    assert "policy greedy (not recorded: a file from before policies were recorded)" in first
     main(["plan", "--model", str(tmp_path / "new.npz"), *env, "--json"])
     captured = capsys.readouterr()
     assert json.loads(captured.out)["task"] == "pour(obj27)"  # stdout stays JSON; the planner line goes to stderr
     assert "ours + relations (method relations: " in captured.err and "DAgger rounds 0" in captured.err
+    assert "policy greedy (not recorded" in captured.err  # a file from before policies: greedy, as it always ran
+    fit.save(tmp_path / "odd.npz", method="relations", policy="cautious")
+    assert main(["plan", "--model", str(tmp_path / "odd.npz"), *env]) == 2
+    assert f"{tmp_path / 'odd.npz'}: policy 'cautious' is not one this version plans with (greedy, feasible)" in (
+        capsys.readouterr().err)
 
 
 @pytest.mark.parametrize("task, message", [

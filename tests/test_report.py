@@ -26,7 +26,8 @@ def test_summary_sets_our_numbers_beside_the_papers(tmp_path):
         "0": {"no_feedback": 1, "feedback_first_step": 2}, "3": {"no_feedback": 4, "feedback_first_step": 5}}}}}))
     text = build_summary(tmp_path, method_labels())
     assert "| steps | 736 | 759 | 741 |" in text
-    assert "C = 3, chosen by 6-fold cross-validation of the full model on the development world (seed 100" in text
+    assert "Each MRF method's C, chosen by 6-fold cross-validation on the development world (seed 100" in text
+    assert "(sequence arg per C tried: ours - full C = 3 (3: 61.1))" in text  # a file from before per-method C
     assert ("| ours - full | 96.8 ± 0.4 | 96.7 | 88.4 ± 1.0 | 90.0 | 69.9 ± 2.0 | 91.6 | 56.6 ± 7.5 | 69.7 | "
             "77.0 ± 3.0 |") in text
     assert "| multiclass | 95.0 ± 0.5 | 78.4 | - | - |" in text
@@ -46,3 +47,17 @@ def test_summary_skips_what_was_not_run(tmp_path):
     text = build_summary(tmp_path, method_labels())
     assert [line for line in text.splitlines() if line.startswith("## ")] == [
         "## Recipes (environments held out from training; successes per world seed)"]
+
+
+def test_summary_gives_each_methods_own_c(tmp_path):
+    row = {"sequence_arg": 61.1, "success": 80.0, "average_arg": 86.0}
+    (tmp_path / "selection.json").write_text(json.dumps({
+        "C": 10.0, "dev_seed": 100, "criterion": "sequence_arg", "method": "relations",
+        "settings": {"full": {"C": 10.0, "candidates": [{"C": 3.0, **row, "sequence_arg": 60.2}, {"C": 10.0, **row}]},
+                     "relations": {"C": 3.0, "candidates": [{"C": 3.0, **row, "sequence_arg": 82.3}]}},
+        "methods": [{"method": "relations", "C": 3.0, **row, "sequence_arg": 82.3},
+                    {"method": "full", "C": 10.0, **row}]}))
+    text = build_summary(tmp_path, method_labels())
+    assert ("(sequence arg per C tried: ours - full C = 10 (3: 60.2, 10: 61.1); ours + relations C = 3 (3: 82.3))"
+            in text)
+    assert "(ours + relations 82.3, ours - full 61.1); the shipped planner" in text and text.count("## Settings") == 1

@@ -1,18 +1,33 @@
-"""Choosing C: every grid value is cross-validated with its own C, the figures of each candidate are its own, and the
-documented rule picks among them; the selection file is read back with errors that name what is wrong."""
+"""Choosing each method's C: every value tried is cross-validated with that C, a grid whose best is at an edge is
+extended until the best is inside or the cap stops it (recorded), the documented rule picks and ranks; the
+selection file is read back with errors that name what is wrong."""
 
 from __future__ import annotations
 
+import argparse
 import json
+import math
 
 import pytest
 
 from pipeline.evaluate import selection
 from pipeline.evaluate.crossval import FoldResult, SequenceOutcome
-from pipeline.evaluate.selection import read_selection, select_C
+from pipeline.evaluate.methods import MRFMethod, mrf_methods
+from pipeline.evaluate.selection import (
+    DevData,
+    Selection,
+    choose_C,
+    cross_validate_settings,
+    rank_methods,
+    read_selection,
+)
 from pipeline.features.context import StepContext
-from pipeline.settings import Folds, Learner
+from pipeline.logs.benchmark import Benchmark
+from pipeline.settings import Folds, Learner, Replay
 from pipeline.sim.primitives import ALL_PRIMITIVES
+from pipeline.stages import fold_models as fold_models_stage
+from pipeline.stages import train as train_stage
+from pipeline.stages.command import load_params
 
 GRASP = ALL_PRIMITIVES.index("grasp")
 # per C: sequences right (of 4), successes (of 4), steps with the right arguments (of 2)
@@ -26,54 +41,129 @@ def _ctx(gold):
                        (-1, -1, -1, -1), gold)
 
 
-def _fake_cross_validate(calls):
+def _fake_fold_runs(calls):
+    """Stand-ins for fitting the fold models and cross-validating from them: each records what it is given and
+    returns figures that depend on the method's own C only."""
+    def train_fold_models(methods, contexts, meta, scenarios, jobs, output, n_jobs, verbose):
+        calls.append(("fit", sorted((name, make().C, make().store) for name, make in methods.items()), output))
+
     def cross_validate(methods, contexts, meta, bench, n_folds, seed, group_by, max_steps, n_jobs, verbose):
         calls.append({"data": (contexts, meta, bench), "n_folds": n_folds, "seed": seed, "group_by": group_by,
                       "max_steps": max_steps, "workers": (n_jobs, verbose)})
         out = []
         for name, make in methods.items():
             method = make()
-            assert method.name == name and method.features == "full"
+            assert method.name == name
             right, successes, args = FIGURES[method.C]
-            calls.append((name, method.C, method.tol, method.max_iter))
+            calls.append((name, method.C, method.tol, method.max_iter, method.policy, method.store))
             seqs = [SequenceOutcome(f"s{i}", "pour", (), "done", True, i < right, i < successes, True, i < successes,
                                     "exact") for i in range(4)]
             preds = [(GRASP, 0, -1) if i < args else (GRASP, 1, -1) for i in range(2)]
             out.append(FoldResult(name, 0, [0, 1], preds, seqs))
         return out
 
-    return cross_validate
+    return train_fold_models, cross_validate
 
 
-def test_select_c_cross_validates_each_c_and_applies_the_rule(monkeypatch):
+def test_each_method_is_cross_validated_at_each_of_its_own_values_of_c(monkeypatch, tmp_path):
     calls = []
-    monkeypatch.setattr(selection, "cross_validate", _fake_cross_validate(calls))
-    contexts, meta, bench = [_ctx((GRASP, 0, -1)), _ctx((GRASP, 0, -1))], ["m0", "m1"], "the benchmark"
-    result = select_C((0.5, 2.0, 8.0), Learner(C=99.0, tol=0.02, max_iter=7), Folds(folds=3, seed=4),
-                      contexts, meta, bench, max_steps=9, n_jobs=3, verbose=2)
-    assert calls[0] == {"data": (contexts, meta, bench), "n_folds": 3, "seed": 4, "group_by": Folds().group_by,
+    fit, cv = _fake_fold_runs(calls)
+    monkeypatch.setattr(selection, "train_fold_models", fit)
+    monkeypatch.setattr(selection, "cross_validate", cv)
+    monkeypatch.setattr(selection, "training_jobs", lambda *args: "the jobs")
+    contexts, meta = [_ctx((GRASP, 0, -1)), _ctx((GRASP, 0, -1))], ["m0", "m1"]
+    bench = Benchmark([], {}, {}, {})
+    data = DevData(contexts, meta, bench, Folds(folds=3, seed=4), 9)
+    store = tmp_path / "models"
+    out = cross_validate_settings({"full": (0.5, 2.0), "feasible": (8.0,)}, Learner(C=99.0, tol=0.02, max_iter=7),
+                                  data, store, n_jobs=3, verbose=2)
+    assert calls[0] == ("fit", [("feasible C=8", 8.0, None), ("full C=0.5", 0.5, None), ("full C=2", 2.0, None)],
+                        store)  # fitted without a store, into it
+    assert calls[1] == {"data": (contexts, meta, bench), "n_folds": 3, "seed": 4, "group_by": Folds().group_by,
                         "max_steps": 9, "workers": (3, 2)}
-    assert calls[1:] == [("C=0.5", 0.5, 0.02, 7), ("C=2", 2.0, 0.02, 7), ("C=8", 8.0, 0.02, 7)]
-    assert result["candidates"] == [
-        {"C": 0.5, "sequence_arg": 50.0, "success": 100.0, "average_arg": 50.0},
-        {"C": 2.0, "sequence_arg": 75.0, "success": 25.0, "average_arg": 100.0},
-        {"C": 8.0, "sequence_arg": 75.0, "success": 50.0, "average_arg": 0.0},
-    ]
-    assert result["C"] == 8.0  # a tie in sequence accuracy, broken by success
-    assert result["criterion"] == "sequence_arg, then success, then the smaller C"
+    assert calls[2:] == [("full C=0.5", 0.5, 0.02, 7, "greedy", str(store)), ("full C=2", 2.0, 0.02, 7, "greedy",
+                                                                             str(store)),
+                         ("feasible C=8", 8.0, 0.02, 7, "feasible", str(store))]  # then run from it
+    assert out == {"full": {0.5: {"sequence_arg": 50.0, "success": 100.0, "average_arg": 50.0},
+                            2.0: {"sequence_arg": 75.0, "success": 25.0, "average_arg": 100.0}},
+                   "feasible": {8.0: {"sequence_arg": 75.0, "success": 50.0, "average_arg": 0.0}}}
 
 
-def test_an_empty_grid_is_refused():
-    with pytest.raises(ValueError, match="^select: the grid of C values is empty$"):
-        select_C((), Learner(), Folds(), [], [], None, 20)
+def _peaked(peaks, rounds):
+    """A hand-made score: each method's sequence arg falls with the distance of log C from its peak; every call
+    is recorded, so the test sees which values each round tried."""
+    def evaluate(pending):
+        rounds.append(pending)
+        return {m: {c: {"sequence_arg": 100.0 - abs(math.log(c / peaks[m])), "success": 50.0, "average_arg": 0.0}
+                    for c in values} for m, values in pending.items()}
+
+    return evaluate
 
 
-def test_read_selection_returns_c(tmp_path):
+GRID = (0.3, 1.0, 3.0, 10.0)  # spacing 10/3 at the top, 1/0.3 at the bottom
+
+
+def test_a_best_inside_the_grid_stops_at_once():
+    rounds = []
+    chosen = choose_C(["full"], GRID, _peaked({"full": 1.2}, rounds), max_extensions=2)
+    assert rounds == [{"full": GRID}]
+    assert chosen["full"]["C"] == 1.0 and chosen["full"]["extensions"] == 0 and not chosen["full"]["capped"]
+    assert [r["C"] for r in chosen["full"]["candidates"]] == list(GRID)
+
+
+def test_a_best_at_an_edge_is_extended_by_the_grid_spacing_until_it_is_inside():
+    rounds = []
+    chosen = choose_C(["full", "dagger", "relations"], GRID, _peaked({"full": 30.0, "dagger": 0.1, "relations": 2.0},
+                                                                     rounds), max_extensions=3)
+    # only the methods at an edge go on, each one value beyond its own edge per round
+    assert rounds[1:] == [{"full": (33.3333,), "dagger": (0.09,)}, {"full": (111.111,), "dagger": (0.027,)}]
+    assert chosen["full"] == {"C": 33.3333, "extensions": 2, "capped": False, "candidates": [
+        {"C": c, "sequence_arg": 100.0 - abs(math.log(c / 30.0)), "success": 50.0, "average_arg": 0.0}
+        for c in (*GRID, 33.3333, 111.111)]}
+    assert (chosen["dagger"]["C"], chosen["dagger"]["extensions"], chosen["dagger"]["capped"]) == (0.09, 2, False)
+    assert (chosen["relations"]["C"], chosen["relations"]["extensions"]) == (3.0, 0)
+
+
+def test_the_cap_stops_the_extension_and_is_recorded():
+    rounds = []
+    chosen = choose_C(["full"], GRID, _peaked({"full": 1000.0}, rounds), max_extensions=2)
+    assert [r["full"] for r in rounds] == [GRID, (33.3333,), (111.111,)]
+    assert chosen["full"]["C"] == 111.111 and chosen["full"]["extensions"] == 2 and chosen["full"]["capped"]
+    rounds.clear()
+    chosen = choose_C(["full"], GRID, _peaked({"full": 1000.0}, rounds), max_extensions=0)
+    assert rounds == [{"full": GRID}] and chosen["full"]["C"] == 10.0 and chosen["full"]["capped"]
+
+
+def test_ties_go_to_the_smaller_c_and_a_one_value_grid_is_refused():
+    flat = lambda pending: {m: {c: {"sequence_arg": 60.0, "success": 80.0, "average_arg": 0.0} for c in v}  # noqa: E731
+                            for m, v in pending.items()}
+    chosen = choose_C(["full"], (1.0, 3.0), flat, max_extensions=1)
+    assert chosen["full"]["C"] == 0.333333 and chosen["full"]["capped"]  # the smaller edge, so extended downwards once
+    with pytest.raises(ValueError, match="at least two values"):
+        choose_C(["full"], (3.0,), flat, max_extensions=1)
+
+
+def test_methods_are_ranked_each_at_its_own_c_by_sequence_arg_then_success_then_the_order_listed():
+    figures = {"full": (60.0, 80.0), "relations": (60.0, 85.0), "dagger": (70.0, 70.0), "chained": (60.0, 80.0)}
+    settings = {m: {"C": 3.0 if m == "dagger" else 1.0, "candidates": [
+        {"C": 1.0, "sequence_arg": a, "success": s, "average_arg": 90.0},
+        {"C": 3.0, "sequence_arg": a, "success": s, "average_arg": 90.0}]} for m, (a, s) in figures.items()}
+    settings = {m: settings[m] for m in ("full", "chained", "relations", "dagger")}
+    ranked = rank_methods(settings)
+    assert [(r["method"], r["C"]) for r in ranked] == [("dagger", 3.0), ("relations", 1.0), ("full", 1.0),
+                                                       ("chained", 1.0)]
+    with pytest.raises(ValueError, match="select.methods is empty"):
+        rank_methods({})
+
+
+def test_read_selection_returns_each_methods_c(tmp_path):
     path = tmp_path / "selection.json"
-    path.write_text(json.dumps({"C": 2, "candidates": []}))
-    assert read_selection(path) == 2.0 and isinstance(read_selection(path), float)
+    path.write_text(json.dumps({"C": 2, "candidates": []}))  # from before methods had their own C: all take C
+    assert read_selection(path) == Selection(2.0, ()) and isinstance(read_selection(path).C, float)
     path.write_text(json.dumps({"C": 0.25}))
-    assert read_selection(path) == 0.25  # below 1 is a valid slack weight
+    assert read_selection(path).C == 0.25  # below 1 is a valid slack weight
+    path.write_text(json.dumps({"C": 3, "settings": {"full": {"C": 3}, "dagger": {"C": 33.3333, "capped": True}}}))
+    assert read_selection(path) == Selection(3.0, (("dagger", 33.3333), ("full", 3.0)))
 
 
 @pytest.mark.parametrize("text, message", [
@@ -84,6 +174,9 @@ def test_read_selection_returns_c(tmp_path):
     (json.dumps({"C": "2"}), "got '2'"),
     (json.dumps({"c": 2}), "got None"),
     (json.dumps([2.0]), "got None"),
+    (json.dumps({"C": 1, "settings": [1]}), "field 'settings' must map each method to its choice"),
+    (json.dumps({"C": 1, "settings": {"dagger": {"C": -3}}}), "field 'settings.dagger.C' must be a positive number"),
+    (json.dumps({"C": 1, "settings": {"dagger": 3}}), "field 'settings.dagger.C' .* got None"),
 ])
 def test_read_selection_names_the_file_and_what_is_wrong(tmp_path, text, message):
     path = tmp_path / "selection.json"
@@ -95,3 +188,26 @@ def test_read_selection_names_the_file_and_what_is_wrong(tmp_path, text, message
 def test_a_missing_selection_file_says_how_to_make_it(tmp_path):
     with pytest.raises(FileNotFoundError, match="no selection file; run `taskseq select`"):
         read_selection(tmp_path / "none.json")
+
+
+def test_every_stage_builds_each_mrf_method_with_its_own_c(tmp_path):
+    """From the selection file to the methods the evaluation stages and `train` build: each ranked method at its
+    own C, the rest (the paper's ablations) at the full model's."""
+    path = tmp_path / "selection.json"
+    path.write_text(json.dumps({"C": 2, "settings": {"full": {"C": 2}, "dagger": {"C": 0.5}, "feasible": {"C": 8}}}))
+    params = load_params(argparse.Namespace(params=None, overrides=[], selection=path))
+    expected = {"only_edge": 2.0, "only_clique": 2.0, "full": 2.0, "relations": 2.0, "chained": 2.0, "dagger": 0.5,
+                "feasible": 8.0}
+    for learner in (params.train.learner, Replay.of(params).learner, train_stage.settings(params).train.learner,
+                    fold_models_stage.settings(params).learner):
+        made = {name: make() for name, make in mrf_methods(learner).items()}
+        assert {name: m.C for name, m in made.items()} == expected
+    assert made["feasible"].policy == "feasible" and made["dagger"].policy == "greedy"
+    assert made["feasible"].key([_ctx((GRASP, 0, -1))]) != made["dagger"].key([_ctx((GRASP, 0, -1))])  # C differs
+    with pytest.raises(ValueError, match="train.tuned cannot be set: each MRF method's C, chosen by the select"):
+        load_params(argparse.Namespace(params=None, overrides=["train.tuned=full"], selection=None))
+
+
+def test_an_unknown_policy_is_refused():
+    with pytest.raises(ValueError, match="method full: unknown policy 'cautious'; known: greedy, feasible"):
+        MRFMethod(policy="cautious")

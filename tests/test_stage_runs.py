@@ -10,10 +10,14 @@ from pathlib import Path
 import pytest
 
 from pipeline.cli import main
-from pipeline.evaluate.selection import best_candidate, rank_methods
+from pipeline.evaluate import selection
+from pipeline.evaluate.selection import best_candidate
 from pipeline.learn.estimator import StepScorer
+from pipeline.logs.benchmark import load_benchmark
 from pipeline.logs.ingest import load_logs
-from pipeline.settings import Folds, Learner
+from pipeline.logs.records import spec_from_dict, state_from_dict
+from pipeline.plan.planner import feasible, run_loop
+from pipeline.sim.tasks import Task
 from pipeline.stages import select as select_stage
 
 FOLDS = ["--set", "crossval.folds=2", "--set", "crossval.group_by=scenario", "--set", "crossval.seed=0"]
@@ -87,6 +91,31 @@ def test_train_ships_the_method_the_development_world_ranked_first(tiny, tmp_pat
     assert f"{tmp_path / 'old.json'}: no field 'method'" in capsys.readouterr().err
     assert main([*train, "--set", "train.method=fancy", "--model", str(tmp_path / "o.npz")]) == 2
     assert "unknown MRF methods ['fancy']" in capsys.readouterr().err
+
+
+def test_the_shipped_model_records_its_own_c_and_policy_and_plan_uses_them(tiny, benchmark_logs, tmp_path, capsys):
+    """The precondition-aware policy ranked first at its own C: the model file records method, C, rounds and
+    policy, and `taskseq plan` prints them and plans with that policy."""
+    ranked = {"C": 2.0, "settings": {"full": {"C": 2.0}, "feasible": {"C": 0.5}}, "method": "feasible",
+              "methods": [{"method": "feasible", "C": 0.5}, {"method": "full", "C": 2.0}]}
+    (tmp_path / "selection.json").write_text(json.dumps(ranked))
+    assert main(["--no-mlflow", "train", "--features", str(tiny / "features"), "--processed", str(tiny / "processed"),
+                 *LEARN, "--selection", str(tmp_path / "selection.json"), "--model", str(tmp_path / "f.npz")]) == 0
+    planner = StepScorer.load(tmp_path / "f.npz")
+    meta = planner.meta_
+    assert (meta["method"], meta["C"], meta["dagger_rounds"], meta["policy"]) == ("feasible", 0.5, 1, "feasible")
+    capsys.readouterr()
+    record = json.loads((benchmark_logs / "env01.jsonl").read_text().splitlines()[0])
+    task = f"{record['task']['name']}({','.join(record['task']['args'])})"
+    main(["plan", "--model", str(tmp_path / "f.npz"), "--env", str(benchmark_logs / "env01.jsonl"), "--task", task,
+          "--json"])
+    captured = capsys.readouterr()
+    assert "(method feasible: relations feature set, C 0.5" in captured.err and "DAgger rounds 1" in captured.err
+    assert "policy feasible" in captured.err
+    specs = {o["id"]: spec_from_dict(o) for o in record["objects"]}
+    state = state_from_dict(specs, record["steps"][0]["state"])
+    expected = run_loop(feasible(planner, 3), state, Task.parse(task), 20)
+    assert [s["action"] for s in json.loads(captured.out)["steps"]] == [str(a) for a in expected.actions]
 
 
 @pytest.fixture(scope="module")
@@ -204,8 +233,9 @@ def test_aggregate_and_report_over_worlds(evaluated, tiny):
 
 
 def test_select_sees_only_the_development_world(tiny, monkeypatch, tmp_path, capsys):
-    """Through the command line: the expert world used to choose C is drawn from dev_seed alone, no reported world
-    reaches it, and the file holds the candidate the documented rule prefers."""
+    """Through the command line: the world each method's C is chosen on is drawn from dev_seed alone, no reported
+    world reaches the fits or the runs, the file holds per method every C tried and the one the documented rule
+    prefers, and `train` then ships the method ranked first at its own C, with its policy."""
     drawn = []
 
     def spy_generate(world, output):
@@ -219,27 +249,54 @@ def test_select_sees_only_the_development_world(tiny, monkeypatch, tmp_path, cap
         read.append(Path(folder))
         return load_logs(folder)
 
+    seen = []  # the scenarios every fit and every cross-validation of the stage is given
+
+    def spy(function, scenarios_of):
+        def call(*args, **kwargs):
+            seen.append(frozenset(scenarios_of(args)))
+            return function(*args, **kwargs)
+
+        return call
+
     monkeypatch.setattr(select_stage, "generate", spy_generate)
     monkeypatch.setattr(select_stage, "load_logs", spy_load_logs)
+    monkeypatch.setattr(selection, "train_fold_models", spy(selection.train_fold_models, lambda a: a[3]))
+    monkeypatch.setattr(selection, "cross_validate", spy(selection.cross_validate, lambda a: a[3].scenarios))
     out = tmp_path / "selection.json"
     assert main(["--no-mlflow", "select", "--set", "world.seeds=[0, 3]", "--set", "world.dev_seed=100",
-                 "--set", "select.C=0.5 2", "--set", "select.methods=full relations", *FOLDS[:2], *LEARN,
-                 "--n-jobs", "1", "--data", str(tmp_path / "dev"), "--output", str(out)]) == 0
+                 "--set", "select.C=0.5 2", "--set", "select.methods=full relations", "--set",
+                 "select.max_extensions=1", *FOLDS[:2], *LEARN, "--n-jobs", "1", "--data", str(tmp_path / "dev"),
+                 "--output", str(out)]) == 0
     assert drawn == [100] and read == [tmp_path / "dev" / "raw"]  # C and the shipped method: the dev world only
+    dev_scenarios = frozenset(load_benchmark(tmp_path / "dev" / "processed").scenarios)
+    assert len(seen) >= 4 and set(seen) == {dev_scenarios}
     result = json.loads(out.read_text())
-    assert result["dev_seed"] == 100 and [c["C"] for c in result["candidates"]] == [0.5, 2.0]
-    assert result["C"] == best_candidate(result["candidates"])["C"]
-    assert f"chose C={result['C']:g} and method {result['method']}; written to {out}" in capsys.readouterr().out
-    assert {p.name for p in (tmp_path / "dev").iterdir()} == {"raw", "processed", "features"}
+    assert result["dev_seed"] == 100 and result["grid"] == [0.5, 2.0] and result["max_extensions"] == 1
+    for name in ("full", "relations"):
+        choice = result["settings"][name]
+        tried = [c["C"] for c in choice["candidates"]]
+        assert tried[:2] in ([0.5, 2.0], [0.125, 0.5]) and len(tried) == 2 + choice["extensions"]
+        assert choice["extensions"] == 1 and set(tried) - {0.5, 2.0} <= {0.125, 8.0}  # both edges end where they are
+        assert choice["C"] == best_candidate(choice["candidates"])["C"]
+        assert choice["capped"] == (choice["C"] in (min(tried), max(tried)))
+    assert result["C"] == result["settings"]["full"]["C"]
     assert [r["method"] for r in result["methods"]] in (["full", "relations"], ["relations", "full"])
-    assert result["method"] == result["methods"][0]["method"]
-    full = next(r for r in result["methods"] if r["method"] == "full")
-    chosen = next(c for c in result["candidates"] if c["C"] == result["C"])
-    assert full["sequence_arg"] == chosen["sequence_arg"]  # the full model at the chosen C, not cross-validated twice
+    first = result["methods"][0]
+    assert result["method"] == first["method"] and first["C"] == result["settings"][first["method"]]["C"]
+    assert f"chose method {result['method']} at C={first['C']:g}; written to {out}" in capsys.readouterr().out
+    assert {p.name for p in (tmp_path / "dev").iterdir()} == {"raw", "processed", "features"}
+    model = tmp_path / "shipped.npz"
+    assert main(["--no-mlflow", "train", "--features", str(tiny / "features"), *LEARN, "--selection", str(out),
+                 "--model", str(model)]) == 0
+    meta = StepScorer.load(model).meta_
+    assert (meta["method"], meta["C"], meta["policy"]) == (first["method"], first["C"], "greedy")
     code = main(["--no-mlflow", "select", "--set", "select.methods=full chance", "--data", str(tmp_path / "d"),
                  "--output", str(tmp_path / "s.json")])
     assert code == 2 and "unknown MRF methods ['chance']" in capsys.readouterr().err
     assert not (tmp_path / "d").exists()
+    code = main(["--no-mlflow", "select", "--set", "select.methods=relations dagger", "--data", str(tmp_path / "d"),
+                 "--output", str(tmp_path / "s.json")])
+    assert code == 2 and "select.methods must include full" in capsys.readouterr().err
     code = main(["--no-mlflow", "select", "--set", "world.seeds=[0, 100]", "--set", "world.dev_seed=100",
                  "--data", str(tmp_path / "d"), "--output", str(tmp_path / "s.json")])
     assert code == 2 and "also a reported seed" in capsys.readouterr().err
@@ -253,12 +310,3 @@ def test_a_bad_selection_file_is_named(tiny, tmp_path, capsys):
                  "--output", str(tmp_path)])
     assert code == 2 and f"{bad}: field 'C' must be a positive number" in capsys.readouterr().err
     assert not (tmp_path / "recipes.json").exists()
-
-
-def test_methods_are_ranked_by_sequence_arg_then_success_then_the_order_listed():
-    figures = {"full": (60.0, 80.0), "relations": (60.0, 85.0), "dagger": (70.0, 70.0), "chained": (60.0, 80.0)}
-    known = {m: {"sequence_arg": a, "success": s, "average_arg": 90.0} for m, (a, s) in figures.items()}
-    ranked = rank_methods(("full", "chained", "relations", "dagger"), Learner(), Folds(), [], [], None, 20, known)
-    assert [r["method"] for r in ranked] == ["dagger", "relations", "full", "chained"]
-    with pytest.raises(ValueError, match="unknown MRF methods"):
-        rank_methods(("full", "chance"), Learner(), Folds(), [], [], None, 20, known)

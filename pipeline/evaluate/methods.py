@@ -20,7 +20,7 @@ from ..imitation.dagger import fit_imitation
 from ..learn.estimator import StepScorer
 from ..learn.store import ModelStore, training_key
 from ..logs.benchmark import Benchmark
-from ..plan.planner import Program, plan, run_loop
+from ..plan.planner import POLICIES, Program, run_loop
 from ..plan.symbolic.executor import SymbolicPolicy, first_action
 from ..plan.symbolic.roles import ROLE_OF_TASK, RoleRanker, demonstrated_roles
 from ..settings import Crossval, Learner, Pddl
@@ -123,7 +123,9 @@ class MRFMethod:
     where it ended (`imitation.starts`); `dagger_rounds` rolls the planner out
     on the training scenarios that many times and adds the demonstrator's
     answers in the states it reached (`imitation.dagger`). Both need the
-    training scenarios at `fit`. With a `store` folder (written by the `fold_models`
+    training scenarios at `fit`. `policy` is how its programs pick a step
+    (`plan.planner.POLICIES`); it changes no weight, so it is not part of a
+    stored model's key. With a `store` folder (written by the `fold_models`
     stage), a model already trained on the same steps with the same settings
     is loaded, not retrained.
     """
@@ -138,6 +140,11 @@ class MRFMethod:
     name: str = "full"
     predicts_args: bool = True
     store: str | None = None
+    policy: str = "greedy"
+
+    def __post_init__(self) -> None:
+        if self.policy not in POLICIES:
+            raise ValueError(f"method {self.name}: unknown policy {self.policy!r}; known: {', '.join(POLICIES)}")
 
     def learner_params(self) -> dict[str, float | int]:
         """The settings that change the weights (and so address a stored model)."""
@@ -178,7 +185,7 @@ class MRFMethod:
         return self.planner_.predict(contexts)
 
     def run(self, scenario: Scenario, max_steps: int) -> Program:
-        return plan(self.planner_, scenario.initial, scenario.task, max_steps=max_steps)
+        return run_loop(POLICIES[self.policy](self.planner_), scenario.initial, scenario.task, max_steps)
 
 
 def _role_candidates(x: StepContext) -> tuple[np.ndarray, list[str]]:
@@ -250,21 +257,25 @@ def table1_methods(settings: Crossval, learner: Learner, horizon: int = Pddl.hor
     The built-in ones first, in the tables' order, then those the modules of
     `pipeline.methods` register (`pipeline.evaluate.registry`), by name.
     """
-    mrf = partial(MRFMethod, **learner.ssvm, store=store)
-    added = MethodSettings(settings, learner, horizon, store)
+    def mrf(name: str, **options: Any) -> Callable[[], MRFMethod]:
+        return partial(MRFMethod, **learner.of(name).ssvm, store=store, name=name, **options)
+
+    def added(name: str) -> MethodSettings:
+        return MethodSettings(settings, learner.of(name), horizon, store)
+
     return {
         "chance": partial(ChanceMethod, seed=settings.chance_seed),
         "multiclass": partial(MulticlassMethod, C=settings.multiclass_C),
         "symb_plan_svm": partial(SymbolicMethod, goals="svm", C=settings.ranking_C, horizon=horizon,
                                  name="symb_plan_svm"),
         "symb_plan_manual": partial(SymbolicMethod, goals="manual", horizon=horizon, name="symb_plan_manual"),
-        "only_edge": partial(mrf, features="edge", name="only_edge"),
-        "only_clique": partial(mrf, features="clique", name="only_clique"),
-        "full": partial(mrf, features="full", name="full"),
-        "relations": partial(mrf, features="relations", name="relations"),
-        "chained": partial(mrf, features="relations", chained_starts=True, name="chained"),
-        "dagger": partial(mrf, features="relations", dagger_rounds=learner.dagger_rounds, name="dagger"),
-        **{name: partial(method.make, added) for name, method in added_methods().items()},
+        "only_edge": mrf("only_edge", features="edge"),
+        "only_clique": mrf("only_clique", features="clique"),
+        "full": mrf("full", features="full"),
+        "relations": mrf("relations", features="relations"),
+        "chained": mrf("chained", features="relations", chained_starts=True),
+        "dagger": mrf("dagger", features="relations", dagger_rounds=learner.dagger_rounds),
+        **{name: partial(method.make, added(name)) for name, method in added_methods().items()},
     }
 
 
@@ -287,7 +298,7 @@ def method_params(name: str, method: Method) -> dict[str, Any]:
     out: dict[str, Any] = {"method": name}
     if isinstance(method, MRFMethod):
         out.update(feature_set=method.features, C=method.C, chained_starts=method.chained_starts,
-                   dagger_rounds=method.dagger_rounds)
+                   dagger_rounds=method.dagger_rounds, policy=method.policy)
     elif isinstance(method, MulticlassMethod):
         out.update(C=method.C)
     elif isinstance(method, SymbolicMethod):

@@ -1,18 +1,21 @@
-"""Choosing the MRF's slack weight C, and the shipped method, by cross-validation on a development world.
+"""Choosing each MRF method's slack weight C, and the shipped method, by cross-validation on a development world.
 
 The development world is a benchmark drawn with its own seed and never
-reported, so no figure is computed on folds its settings were chosen on. The
+reported, so no figure is computed on folds its settings were chosen on. Every
+method of the settings' list gets its own C: the grid is cross-validated, and
+while a method's best C is at an edge of the values tried, one more value
+beyond that edge is tried (the grid's spacing there), up to a cap. The
 criterion is the headline figure, closed-loop sequence accuracy (arg); ties go
-to the higher success rate, then to the smaller C (the simpler model). At the
-chosen C, the MRF methods named in the settings are ranked the same way, on
-the same folds (ties to the one listed first); the `train` stage ships the
-first of them.
+to the higher success rate, then to the smaller C (the simpler model). The
+methods, each at its own C, are then ranked the same way (ties to the one
+listed first); the `train` stage ships the first of them.
 """
 
 from __future__ import annotations
 
 import json
-from dataclasses import replace
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, replace
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -22,28 +25,15 @@ from ..features.dataset import StepMeta
 from ..logs.benchmark import Benchmark
 from ..settings import Folds, Learner
 from .crossval import cross_validate
+from .fold_models import train_fold_models, training_jobs
 from .methods import MRFMethod, mrf_methods
 from .metrics import summarize
 
-
-def select_C(grid: tuple[float, ...], learner: Learner, folds: Folds, contexts: list[StepContext],
-             meta: list[StepMeta], bench: Benchmark, max_steps: int, n_jobs: int = 1,
-             verbose: int = 0) -> dict[str, Any]:
-    """Cross-validate the full model for every C of `grid`; returns the choice and every candidate's figures."""
-    if not grid:
-        raise ValueError("select: the grid of C values is empty")
-    names = {f"C={c:g}": c for c in grid}
-    methods = {name: partial(MRFMethod, features="full", **replace(learner, C=c).ssvm, name=name)
-               for name, c in names.items()}
-    results = cross_validate(methods, contexts, meta, bench, n_folds=folds.folds, seed=folds.seed,
-                             group_by=folds.group_by, max_steps=max_steps, n_jobs=n_jobs, verbose=verbose)
-    summary = summarize(results, contexts, dict.fromkeys(names, True))
-    candidates = [{"C": c, "sequence_arg": summary[name]["sequence/arg"], "success": summary[name]["success"],
-                   "average_arg": summary[name]["steps"]["average/arg"]} for name, c in names.items()]
-    return {"C": best_candidate(candidates)["C"], "criterion": CRITERION, "candidates": candidates}
-
-
 CRITERION = "sequence_arg, then success, then the smaller C"
+FIGURES = ("sequence_arg", "success", "average_arg")
+
+# {method: the values of C to try} -> {method: {C: its figures}}
+Evaluate = Callable[[dict[str, tuple[float, ...]]], dict[str, dict[float, dict[str, float]]]]
 
 
 def best_candidate(candidates: list[dict[str, Any]]) -> dict[str, Any]:
@@ -54,26 +44,106 @@ def best_candidate(candidates: list[dict[str, Any]]) -> dict[str, Any]:
     return max(candidates, key=lambda r: (round(r["sequence_arg"], 9), round(r["success"], 9), -r["C"]))
 
 
+def _beyond(value: float, ratio: float) -> float:
+    """`value` times `ratio`, to 6 significant digits, so a value tried reads as it is written in the file."""
+    return float(f"{value * ratio:.6g}")
+
+
+def choose_C(methods: Sequence[str], grid: Sequence[float], evaluate: Evaluate,
+             max_extensions: int) -> dict[str, dict[str, Any]]:
+    """Each method's C: the grid for all methods at once, then, in rounds, one value beyond the edge for every
+    method whose best is at an edge, until none is or it has had `max_extensions` of them.
+
+    Returns per method: every C tried with its figures (in increasing C), the chosen C, the extensions made, and
+    `capped`, true when the cap ended the search with the best still at an edge.
+    """
+    grid = tuple(sorted(set(grid)))
+    if len(grid) < 2:
+        raise ValueError("select: the grid of C needs at least two values (its spacing is how it is extended)")
+    down, up = grid[1] / grid[0], grid[-1] / grid[-2]
+    tried: dict[str, dict[float, dict[str, float]]] = {m: {} for m in methods}
+    extensions = dict.fromkeys(methods, 0)
+    pending = {m: grid for m in methods}
+    while pending:
+        scores = evaluate(pending)
+        for m, values in pending.items():
+            tried[m].update({c: scores[m][c] for c in values})
+        pending = {}
+        for m in methods:
+            best = _choice(tried[m])
+            if best in (min(tried[m]), max(tried[m])) and extensions[m] < max_extensions:
+                pending[m] = (_beyond(best, up),) if best == max(tried[m]) else (_beyond(best, 1 / down),)
+                extensions[m] += 1
+    out = {}
+    for m in methods:
+        best = _choice(tried[m])
+        out[m] = {"C": best, "candidates": _rows(tried[m]), "extensions": extensions[m],
+                  "capped": best in (min(tried[m]), max(tried[m]))}
+    return out
+
+
+def _rows(tried: Mapping[float, Mapping[str, float]]) -> list[dict[str, float]]:
+    return [{"C": c, **{k: tried[c][k] for k in FIGURES}} for c in sorted(tried)]
+
+
+def _choice(tried: Mapping[float, Mapping[str, float]]) -> float:
+    return best_candidate(_rows(tried))["C"]
+
+
+def _named(make: Callable[[], MRFMethod], name: str, store: str | None) -> MRFMethod:
+    """An unfitted method under another name (a method at one C of several), loading its fits from `store`."""
+    return replace(make(), name=name, store=store)
+
+
+@dataclass(frozen=True)
+class DevData:
+    """The development world's steps and scenarios, and how they are cross-validated."""
+
+    contexts: list[StepContext]
+    meta: list[StepMeta]
+    bench: Benchmark
+    folds: Folds
+    max_steps: int
+
+
+def cross_validate_settings(pending: dict[str, tuple[float, ...]], learner: Learner, data: DevData, store: Path,
+                            n_jobs: int = 1, verbose: int = 0) -> dict[str, dict[float, dict[str, float]]]:
+    """Each method at each of its values of C, cross-validated on the same folds: every distinct model is fitted
+    once into the folder `store` (replaced), as the `fold_models` stage does (a DAgger model starts from the
+    model without DAgger; `feasible` is `dagger`'s models run with another policy), then every method is run
+    from it."""
+    makes = {}
+    for method, values in pending.items():
+        for c in values:
+            make = mrf_methods(replace(learner, C=c, tuned=()), names=[method])[method]
+            makes[(method, c)] = partial(_named, make, f"{method} C={c:g}", None)
+    by_name = {make().name: make for make in makes.values()}
+    folds = data.folds
+    jobs = training_jobs(by_name, data.meta, data.bench.scenarios, folds.folds, folds.seed, folds.group_by, ())
+    train_fold_models(by_name, data.contexts, data.meta, data.bench.scenarios, jobs, store, n_jobs, verbose)
+    stored = {name: partial(_named, make, name, str(store)) for name, make in by_name.items()}
+    results = cross_validate(stored, data.contexts, data.meta, data.bench, n_folds=folds.folds, seed=folds.seed,
+                             group_by=folds.group_by, max_steps=data.max_steps, n_jobs=n_jobs, verbose=verbose)
+    summary = summarize(results, data.contexts, dict.fromkeys(stored, True))
+    out: dict[str, dict[float, dict[str, float]]] = {m: {} for m in pending}
+    for (method, c), make in makes.items():
+        out[method][c] = _figures(summary, make().name)
+    return out
+
+
 def _figures(summary: dict[str, Any], name: str) -> dict[str, float]:
     return {"sequence_arg": summary[name]["sequence/arg"], "success": summary[name]["success"],
             "average_arg": summary[name]["steps"]["average/arg"]}
 
 
-def rank_methods(names: tuple[str, ...], learner: Learner, folds: Folds, contexts: list[StepContext],
-                 meta: list[StepMeta], bench: Benchmark, max_steps: int, known: dict[str, dict[str, float]],
-                 n_jobs: int = 1, verbose: int = 0) -> list[dict[str, Any]]:
-    """The MRF methods `names` at the learner's C, best first: each one's figures, cross-validated on the same
-    folds as the choice of C unless `known` already holds them (the full model at the chosen C)."""
-    if not names:
+def rank_methods(settings: Mapping[str, Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """The methods, each at its chosen C, best first: sequence arg, then success, then the order given."""
+    if not settings:
         raise ValueError("select: no MRF methods to rank (select.methods is empty)")
-    todo = {n: make for n, make in mrf_methods(learner, names=names).items() if n not in known}
-    figures = dict(known)
-    if todo:
-        results = cross_validate(todo, contexts, meta, bench, n_folds=folds.folds, seed=folds.seed,
-                                 group_by=folds.group_by, max_steps=max_steps, n_jobs=n_jobs, verbose=verbose)
-        summary = summarize(results, contexts, dict.fromkeys(todo, True))
-        figures.update({n: _figures(summary, n) for n in todo})
-    rows = [{"method": n, **{k: figures[n][k] for k in ("sequence_arg", "success", "average_arg")}} for n in names]
+    rows = []
+    for name, choice in settings.items():
+        figures = next(r for r in choice["candidates"] if r["C"] == choice["C"])
+        rows.append({"method": name, "C": choice["C"], **{k: figures[k] for k in FIGURES}})
     order = sorted(range(len(rows)), key=lambda i: (-round(rows[i]["sequence_arg"], 9),
                                                    -round(rows[i]["success"], 9), i))
     return [rows[i] for i in order]
@@ -99,10 +169,30 @@ def read_selected_method(path: Path | str) -> str:
     return value
 
 
-def read_selection(path: Path | str) -> float:
-    """The C a `select` stage chose, from its JSON file, with an error that names the file and field."""
-    path, data = _read(path)
-    value = data.get("C") if isinstance(data, dict) else None
+def _positive(path: Path, field: str, value: Any) -> float:
     if not isinstance(value, (int, float)) or isinstance(value, bool) or value <= 0:
-        raise ValueError(f"{path}: field 'C' must be a positive number, got {value!r}")
+        raise ValueError(f"{path}: field {field!r} must be a positive number, got {value!r}")
     return float(value)
+
+
+@dataclass(frozen=True)
+class Selection:
+    """What a `select` stage chose: the full model's C (also every MRF method's without its own), and each
+    ranked method's C. A file from before methods got their own C has no `settings`: every method takes `C`."""
+
+    C: float
+    tuned: tuple[tuple[str, float], ...]
+
+
+def read_selection(path: Path | str) -> Selection:
+    """The choice a `select` stage wrote to its JSON file, with an error that names the file and field."""
+    path, data = _read(path)
+    C = _positive(path, "C", data.get("C") if isinstance(data, dict) else None)
+    settings = data.get("settings", {})
+    if not isinstance(settings, dict):
+        raise ValueError(f"{path}: field 'settings' must map each method to its choice, got {settings!r}")
+    tuned = []
+    for method, choice in sorted(settings.items()):
+        tuned.append((method, _positive(path, f"settings.{method}.C",
+                                        choice.get("C") if isinstance(choice, dict) else None)))
+    return Selection(C, tuple(tuned))

@@ -3,8 +3,10 @@
 A model file from someone else cannot run code when it is loaded. The zip
 entries carry a fixed date, so the same weights give the same bytes (and the
 same hash in `dvc.lock`) on every run. Its metadata names the method of
-Table I it was trained as and that method's settings; files written before
-the method was recorded load as they did, and say so (`describe`).
+Table I it was trained as, that method's settings and the policy its
+programs pick steps with; files written before the method or the policy was
+recorded load as they did, and say so (`describe`): such a file plans with
+the greedy policy, the only one they were ever planned with.
 """
 
 from __future__ import annotations
@@ -53,15 +55,25 @@ def load_model(path: Path | str) -> tuple[MRFModel, np.ndarray, dict[str, Any]]:
     return model, w, meta
 
 
+DEFAULT_POLICY = "greedy"  # the policy of a file that records none: every file before policies were recorded
+
+
+def policy_of(meta: dict[str, Any]) -> str:
+    """The policy a model file's programs pick steps with (`plan.planner.POLICIES` names them)."""
+    return str(meta.get("policy", DEFAULT_POLICY))
+
+
 def describe(meta: dict[str, Any]) -> str:
     """One line on what a model file holds: its method and the settings it was trained with."""
     learner = ", ".join(f"{k} {meta[k]:g}" if isinstance(meta[k], float) else f"{k} {meta[k]}"
                         for k in ("C", "tol", "max_iter", "n_slacks") if k in meta)
+    policy = (f"policy {meta['policy']}" if "policy" in meta else
+              f"policy {DEFAULT_POLICY} (not recorded: a file from before policies were recorded)")
     if "method" not in meta:
         return (f"method not recorded (a model file from before methods were recorded): {meta['features']} feature "
-                f"set, {learner}")
+                f"set, {learner}, {policy}")
     extra = (f"chained starts {'yes' if meta.get('chained_starts') else 'no'}, "
-             f"DAgger rounds {meta.get('dagger_rounds', 0)}")
+             f"DAgger rounds {meta.get('dagger_rounds', 0)}, {policy}")
     why = f"; {meta['chosen_by']}" if meta.get("chosen_by") else ""
     return (f"{meta.get('label', meta['method'])} (method {meta['method']}: {meta['features']} feature set, {learner}, "
             f"{extra}{why})")

@@ -115,6 +115,10 @@ def feasible(planner: StepScorer, top_k: int = 3) -> Policy:
     return policy
 
 
+# The policies a learned planner can run with, by the name a model file records (`policy` in its metadata).
+POLICIES: dict[str, Callable[..., Policy]] = {"greedy": greedy, "feasible": feasible}
+
+
 def plan(planner: StepScorer, state: WorldState, task: Task, max_steps: int = 20,
          top_k: int = 3, perceive: Perceive | None = None, choose: Choose | None = None) -> Program:
     """Run the loop in the simulator until `done`, an infeasible step, or `max_steps` primitives.

@@ -31,7 +31,8 @@ class Stage:
 
 
 STAGES: dict[str, Stage] = {
-    "select": Stage("draw the development world and choose C on it by cross-validation", P.SelectPaths, True),
+    "select": Stage("draw the development world; cross-validate each MRF method there to choose its own C",
+                    P.SelectPaths, True),
     "generate": Stage("simulate the demonstrator and write demonstration logs (JSON Lines)", P.GeneratePaths,
                       per_world=True),
     "ingest": Stage("validate logs and write them as Parquet tables plus dataset metrics", P.IngestPaths,

@@ -25,7 +25,8 @@ def option(help: str, default: Any = MISSING, *, input: bool = False, kind: type
 
 
 def _selection() -> Any:
-    return option("take C from this file written by `taskseq select` (default: train.C of the settings)", None)
+    return option("take each MRF method's C from this file written by `taskseq select` (default: train.C of the "
+                  "settings for every method)", None)
 
 
 def _store() -> Any:
@@ -64,8 +65,8 @@ class TrainPaths:
     features: Path = option("feature folder", WORLD / "features", input=True)
     processed: Path | None = option("folder of Parquet tables: the training scenarios, which methods with chained "
                                     "starts or DAgger need (default: not read)", None, input=True)
-    selection: Path | None = option("the file `taskseq select` wrote: C, and the method when train.method is best "
-                                    "(default: train.C of the settings)", None)
+    selection: Path | None = option("the file `taskseq select` wrote: each method's C, and the method when "
+                                    "train.method is best (default: train.C of the settings)", None)
     model: Path = option("model file to write (.npz)")
     metrics: Path | None = option("training metrics (JSON; default: not written)", None)
     curve: Path | None = option("objective per iteration (CSV; default: not written)", None)

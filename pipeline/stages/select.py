@@ -1,18 +1,21 @@
-"""Stage `select`: draw the development world, choose C on it by cross-validation, rank the MRF methods at that C.
+"""Stage `select`: draw the development world, choose each MRF method's C on it by cross-validation, rank them.
 
 The development world goes through the same generate, ingest and feature
 steps as a reported world, into its own folder; only `selection.json` leaves
-it. Every reported figure then uses the chosen C, and the `train` stage ships
-the method ranked first.
+it. Every reported figure then uses each method's chosen C, and the `train`
+stage ships the method ranked first.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from ..evaluate.methods import mrf_methods
-from ..evaluate.selection import rank_methods, select_C
+from ..evaluate.selection import CRITERION, DevData, choose_C, cross_validate_settings, rank_methods
 from ..features.dataset import build_steps, write_features
 from ..io import write_json_atomic
 from ..logs.benchmark import Benchmark
@@ -53,30 +56,44 @@ def run(settings: Settings, paths: SelectPaths, tracker: Tracker = NO_RUN, n_job
     contexts, meta = build_steps([r.record for r in records])
     write_features(contexts, meta, data / "features")
     bench = Benchmark.from_records([r.record for r in records])
-    print(f"choosing C among {', '.join(f'{c:g}' for c in select.C)} on the development world (seed "
-          f"{world.dev_seed}, {len(bench.scenarios)} scenarios), {folds.folds} folds, {n_jobs} jobs")
-    result = select_C(select.C, settings.learner, folds, contexts, meta, bench, settings.max_steps,
-                      n_jobs=n_jobs, verbose=5)
-    best = next(c for c in result["candidates"] if c["C"] == result["C"])
-    known = {"full": {k: best[k] for k in ("sequence_arg", "success", "average_arg")}}
-    print(f"ranking {', '.join(select.methods)} at C={result['C']:g} on the same folds")
-    ranking = rank_methods(select.methods, replace(settings.learner, C=result["C"]), folds, contexts, meta, bench,
-                           settings.max_steps, known, n_jobs=n_jobs, verbose=5)
-    result = {**result, "dev_seed": world.dev_seed, "method": ranking[0]["method"], "methods": ranking,
+    dev = DevData(contexts, meta, bench, folds, settings.max_steps)
+    print(f"choosing C for {', '.join(select.methods)} among {' '.join(f'{c:g}' for c in select.C)} (extended at "
+          f"an edge, {select.max_extensions} times at most) on the development world (seed {world.dev_seed}, "
+          f"{len(bench.scenarios)} scenarios), {folds.folds} folds, {n_jobs} jobs")
+    rounds: list[float] = []  # each round's seconds
+    # the rounds' fold models (2.6 MB each, about 100 in the first round) are read by this stage alone: not kept
+    with tempfile.TemporaryDirectory(prefix="taskseq-select-") as scratch:
+
+        def evaluate(pending: dict[str, tuple[float, ...]]) -> dict[str, dict[float, dict[str, float]]]:
+            print(f"round {len(rounds)}: " + "; ".join(f"{m} C={' '.join(f'{c:g}' for c in v)}"
+                                                      for m, v in pending.items()))
+            start = time.perf_counter()
+            out = cross_validate_settings(pending, settings.learner, dev, Path(scratch) / str(len(rounds)), n_jobs,
+                                          verbose=5)
+            rounds.append(time.perf_counter() - start)
+            return out
+
+        chosen = choose_C(select.methods, select.C, evaluate, select.max_extensions)
+    ranking = rank_methods(chosen)
+    result = {"C": chosen["full"]["C"], "criterion": CRITERION, "dev_seed": world.dev_seed,
+              "grid": list(select.C), "max_extensions": select.max_extensions, "settings": chosen,
+              "method": ranking[0]["method"], "methods": ranking,
               "method_criterion": "sequence_arg, then success, then the order of select.methods"}
     write_json_atomic(output, result)
-    for c in result["candidates"]:
-        with tracker.child(f"C={c['C']:g}", {"C": c["C"]}) as child:
-            child.metrics({k: v for k, v in c.items() if k != "C"})
-    tracker.metrics({"C": result["C"]})
-    for c in result["candidates"]:
-        print(f"C={c['C']:<6g} sequence arg {c['sequence_arg']:5.1f}  success {c['success']:5.1f}  "
-              f"step arg {c['average_arg']:5.1f}")
+    for name, choice in chosen.items():
+        for c in choice["candidates"]:
+            with tracker.child(f"{name} C={c['C']:g}", {"method": name, "C": c["C"]}) as child:
+                child.metrics({k: v for k, v in c.items() if k != "C"})
+            print(f"{name:<10} C={c['C']:<8g} sequence arg {c['sequence_arg']:5.1f}  success {c['success']:5.1f}  "
+                  f"step arg {c['average_arg']:5.1f}")
+        capped = " (the cap stopped it at an edge)" if choice["capped"] else ""
+        print(f"{name:<10} chose C={choice['C']:g} after {choice['extensions']} extensions{capped}")
+    tracker.metrics({"C": result["C"], "seconds": sum(rounds),
+                     **{f"C.{name}": choice["C"] for name, choice in chosen.items()}})
     for r in ranking:
-        with tracker.child(f"method={r['method']}", {"method": r["method"], "C": result["C"]}) as child:
-            child.metrics({k: v for k, v in r.items() if k != "method"})
-        print(f"{r['method']:<12} sequence arg {r['sequence_arg']:5.1f}  success {r['success']:5.1f}  "
-              f"step arg {r['average_arg']:5.1f}")
+        print(f"{r['method']:<10} C={r['C']:<8g} sequence arg {r['sequence_arg']:5.1f}  success "
+              f"{r['success']:5.1f}  step arg {r['average_arg']:5.1f}")
     tracker.params({"method": result["method"]})
-    print(f"chose C={result['C']:g} and method {result['method']}; written to {output}")
+    print(f"{len(rounds)} rounds took {' + '.join(f'{s:.0f}' for s in rounds)} s; chose method "
+          f"{result['method']} at C={ranking[0]['C']:g}; written to {output}")
     return result

@@ -4,8 +4,9 @@ Its method is `train.method`: by default the MRF method the development
 world ranked first (`best`, read from the `select` stage's file), or any MRF
 method of Table I by name (`full` is the paper's model). A method that adds
 training data beyond the logs (chained starts, DAgger) needs the training
-scenarios, from the Parquet tables. The model file records the method and
-its settings.
+scenarios, from the Parquet tables. The model file records the method, its
+settings (its own C, as `select` chose it, and DAgger's rounds) and the
+policy its programs pick steps with, which `taskseq plan` uses.
 """
 
 from __future__ import annotations
@@ -39,7 +40,7 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
     t, people = params.train, params.people
     logs, use = Path(people.logs), people.train  # both read, so the keys read never depend on the values
     return Settings(Train(C=t.C, tol=t.tol, max_iter=t.max_iter, n_slacks=t.n_slacks, dagger_rounds=t.dagger_rounds,
-                          method=t.method), logs if use else None)
+                          tuned=t.tuned, method=t.method), logs if use else None)
 
 
 def shipped_method(settings: Train, paths: TrainPaths) -> tuple[str, str]:
@@ -72,7 +73,7 @@ def run(settings: Settings, paths: TrainPaths, tracker: Tracker = NO_RUN) -> dic
     planner = method.fit(contexts, meta, scenarios).planner_
     label = method_labels().get(name, name)
     planner.save(model, n_steps=len(contexts), method=name, label=label, chosen_by=chosen_by,
-                 chained_starts=method.chained_starts, dagger_rounds=method.dagger_rounds)
+                 chained_starts=method.chained_starts, dagger_rounds=method.dagger_rounds, policy=method.policy)
     ssvm = planner.ssvm_
     acc = step_accuracy(contexts, planner.predict(contexts))
     last = ssvm.history_[-1]
@@ -102,7 +103,7 @@ def run(settings: Settings, paths: TrainPaths, tracker: Tracker = NO_RUN) -> dic
         if path:
             tracker.artifact(path)
     state = "converged" if ssvm.converged_ else "stopped at max_iter"
-    print(f"trained {label} (method {name}, {chosen_by}) on {len(contexts)} steps: last fit {ssvm.n_iter_} "
-          f"iterations ({state}), {planner.fit_seconds_:.1f} s in all; teacher-forced training accuracy prim "
-          f"{acc['average/prim']:.1f}% arg {acc['average/arg']:.1f}%; saved {model}")
+    print(f"trained {label} (method {name}, C={method.C:g}, policy {method.policy}, {chosen_by}) on {len(contexts)} "
+          f"steps: last fit {ssvm.n_iter_} iterations ({state}), {planner.fit_seconds_:.1f} s in all; teacher-forced "
+          f"training accuracy prim {acc['average/prim']:.1f}% arg {acc['average/arg']:.1f}%; saved {model}")
     return out
