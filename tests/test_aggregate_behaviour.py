@@ -13,7 +13,7 @@ import pytest
 
 from pipeline.cli import main
 from pipeline.evaluate.failures import KINDS
-from pipeline.report.csvs import SEQUENCE_COLUMNS
+from pipeline.report.csvs import SEQUENCE_COLUMNS, csv_text
 from pipeline.report.seeds import mean_sd
 from pipeline.report.tables import COLUMNS
 from pipeline.settings import World
@@ -331,3 +331,23 @@ def test_a_table_only_some_worlds_lack_stops_the_stage_and_one_every_world_lacks
     group = {"noise.csv": "noise", "feedback.csv": "feedback", "recipes.json": "recipes"}.get(missing)
     assert group is None or groups.get(group, {}) == {}
     assert groups["crossval"]["full"]["sequence_arg"] == 75.0
+
+
+@pytest.mark.parametrize("family", ["paper", "procedural"])
+def test_failures_per_environment_and_task_of_each_world(tmp_path, family):
+    """World 0: env01's two programs exact; world 7: one of env01's two, the other a wrong object; world 3 ran none
+    (no column). Drawn rooms differ from seed to seed, so a drawn world's report compares tasks only."""
+    kinds = {0: ("exact", "exact"), 7: ("exact", "wrong_object")}
+    for seed, w in WORLD.items():
+        d = tmp_path / "worlds" / str(seed)
+        _write_world(d, w)
+        rows = [{"method": "full", "fold": 0, "scenario": f"env01/stir(obj3{i})", "task": "stir", "status": "done",
+                 "prim_correct": 1, "arg_correct": int(k == "exact"), "goal_reached": 1, "safe": 1,
+                 "success": int(k == "exact"), "failure": k, "program": ""} for i, k in enumerate(kinds.get(seed, ()))]
+        (d / "crossval_sequences.csv").write_text(csv_text(SEQUENCE_COLUMNS, rows))
+    aggregate.run(World(seeds=SEEDS, dev_seed=100, family=family),
+                  AggregatePaths(worlds=tmp_path / "worlds", output=tmp_path / "out"))
+    text = (tmp_path / "out" / "failures.md").read_text()
+    assert ("| env01 | 100.0 (2/2) | 50.0 (1/2), wrong object 1 |" in text) == (family == "paper")
+    assert "| stir | 100.0 (2/2) | 50.0 (1/2), wrong object 1 |" in text
+    assert "The full model per task and world seed: sequence arg, % (exact programs / programs)" in text

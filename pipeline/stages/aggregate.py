@@ -13,6 +13,7 @@ from typing import Any
 from ..evaluate.registry import method_labels
 from ..io import write_json_atomic, write_text_atomic
 from ..report import paper
+from ..report.breakdown import breakdown_markdown, group_outcomes
 from ..report.csvs import SEQUENCE_COLUMNS, csv_text, read_csv_rows
 from ..report.figures import line_plot_png
 from ..report.seeds import (
@@ -70,7 +71,12 @@ def run(settings: World, paths: AggregatePaths, tracker: Tracker = NO_RUN) -> di
     write_text_atomic(out / "failures.csv", csv_text(["world_seed", "method", "task", "kind", "programs"], failures))
     present = {r["method"] for r in failures}  # in Table I's order, the paper's rows first
     methods = [m for m in method_labels() if m in present] + sorted(present - set(method_labels()))
-    write_text_atomic(out / "failures.md", failures_markdown(failures, methods, len(world.seeds)))
+    programs = {seed: read_csv_rows(d / "crossval_sequences.csv") for seed, d in dirs.items()}
+    # a drawn world's rooms differ from seed to seed, so only the paper-shaped rooms compare per environment
+    groups = ("environment", "task") if world.family == "paper" else ("task",)
+    tables = [breakdown_markdown(group_outcomes(programs, "full", by), "The full model", by) for by in groups]
+    write_text_atomic(out / "failures.md", "\n".join([failures_markdown(failures, methods, len(world.seeds)),
+                                                      *filter(None, tables)]))
 
     noise, fb = [], []
     if _everywhere(dirs, "noise.csv"):  # worlds evaluated without noise or feedback runs have neither curve
@@ -80,7 +86,7 @@ def run(settings: World, paths: AggregatePaths, tracker: Tracker = NO_RUN) -> di
 
     # every program of every world in one table, for whoever reads programs rather than rates (DVC-cached)
     write_text_atomic(out / "crossval_sequences.csv", csv_text(["world_seed", *SEQUENCE_COLUMNS], [
-        {"world_seed": seed, **r} for seed, d in dirs.items() for r in read_csv_rows(d / "crossval_sequences.csv")]))
+        {"world_seed": seed, **r} for seed, rows in programs.items() for r in rows]))
 
     if _everywhere(dirs, "dataset.json"):  # the ingest stage's counts, where it ran into these folders
         write_json_atomic(out / "dataset.json", {str(s): d for s, d in json_over_seeds(dirs, "dataset.json").items()})
