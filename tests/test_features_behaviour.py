@@ -397,8 +397,8 @@ def test_the_model_sizes_and_names():
     assert len(families) == 1589 and families[0] == "ae" and families[-1] == "paae"
     assert [f for f, n in zip(families, names, strict=True) if n.startswith("ppt")] == ["ppt"] * (2 * 5 * 9 * 8)
     assert set(MRFModel("relations").family_of()) == {"ae", "pt", "aet", "pae", "ppt", "paae", "rel"}
-    with pytest.raises(ValueError, match=r"^features must be one of \['choice', 'clique', 'edge', 'full', 'relations'\], "
-                                         r"got 'nope'$"):
+    with pytest.raises(ValueError, match=r"^features must be one of \['choice', 'clique', 'edge', 'full', "
+                                         r"'relations'\], got 'nope'$"):
         MRFModel("nope")
 
 
