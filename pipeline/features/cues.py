@@ -38,10 +38,9 @@ _FLAGS = [_OBJ[f] for f in BINARY_ATTRIBUTES]
 
 
 def _least(values: np.ndarray, among: np.ndarray) -> np.ndarray:
-    """1.0 where an object of `among` has the smallest value of them, 0.0 elsewhere (all 0 when `among` is empty)."""
-    if not among.any():
-        return np.zeros(len(values))
-    return (among & (values == values[among].min())).astype(float)
+    """(n, k): 1.0 where object i is in `among[:, j]` and has the smallest of their `values` (all 0 when none is)."""
+    smallest = np.where(among, values[:, None], np.inf).min(axis=0)
+    return (among & (values[:, None] == smallest[None, :])).astype(float)
 
 
 def choice_cues(objects: np.ndarray, relations: np.ndarray) -> np.ndarray:
@@ -50,13 +49,10 @@ def choice_cues(objects: np.ndarray, relations: np.ndarray) -> np.ndarray:
     flag = {name: objects[:, _OBJ[name]] > 0.5 for name in ("container", "movable", "liquid", "holds_liquid")}
     empty = flag["container"] & flag["movable"] & ~flag["holds_liquid"]
     thin = flag["movable"] & ~flag["container"] & ~flag["liquid"]
-    volume, length = objects[:, _OBJ["volume"]], objects[:, _OBJ["max_wl"]]
-    columns = [_least(volume, empty & (relations[:, j] > 0.5)) for j in _VOLUME_GE]
-    columns += [_least(length, thin & (relations[:, j] > 0.5)) for j in _REACHES]
-    _, kind = np.unique(objects[:, _FLAGS] > 0.5, axis=0, return_inverse=True)
-    kind = kind.ravel()
-    distance = objects[:, _OBJ["distance"]]
-    nearest = np.full(kind.max() + 1, np.inf)
-    np.minimum.at(nearest, kind, distance)
-    columns.append((distance == nearest[kind]).astype(float))
-    return np.column_stack(columns)
+    flags = objects[:, _FLAGS] > 0.5
+    same_kind = (flags[:, None, :] == flags[None, :, :]).all(axis=2)  # (n, n), symmetric: column j is j's kind
+    return np.hstack([
+        _least(objects[:, _OBJ["volume"]], empty[:, None] & (relations[:, _VOLUME_GE] > 0.5)),
+        _least(objects[:, _OBJ["max_wl"]], thin[:, None] & (relations[:, _REACHES] > 0.5)),
+        _least(objects[:, _OBJ["distance"]], same_kind).diagonal()[:, None],
+    ])
