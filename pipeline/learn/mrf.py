@@ -404,7 +404,8 @@ class MRFModel(_Batched):
 
     `features` picks the families: "full", "edge" (ae, pt) or "clique" (aet, pae, ppt, paae), as in
     the paper; "relations" is "full" plus the relations of each argument to the step's reference
-    objects (`features.context.RELATION_COLUMNS`), an addition beyond the paper.
+    objects (`features.context.RELATION_COLUMNS`), an addition beyond the paper; "choice" is "relations"
+    plus the choice cues of each argument (`features.cues.CUE_COLUMNS`), another.
     """
 
     def __init__(self, features: str = "full") -> None:
