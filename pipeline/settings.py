@@ -79,7 +79,7 @@ class Select:
     """Settings chosen on the development world by cross-validation, never on a reported world."""
 
     C: tuple[float, ...] = (0.3, 1.0, 3.0, 10.0)  # slack weights tried for each MRF method (grid, extended at an edge)
-    methods: tuple[str, ...] = ("full", "relations", "chained", "dagger", "feasible")  # each tuned, then ranked
+    methods: tuple[str, ...] = ("full", "relations", "chained", "dagger", "feasible", "choice")  # tuned, then ranked
     max_extensions: int = 2  # grid values added beyond an edge per method at most (docs/planner-shipped.md)
 
     def __post_init__(self) -> None:

@@ -383,7 +383,7 @@ def test_the_factor_tables_of_one_step(steps):
 
 def test_the_model_sizes_and_names():
     sizes = {f: MRFModel(f).size_joint_feature for f in FEATURE_SETS}
-    assert sizes == {"full": 1589, "edge": 45, "clique": 1544, "relations": 7829}
+    assert sizes == {"full": 1589, "edge": 45, "clique": 1544, "relations": 7829, "choice": 7829 + 2 * 5 * 8 * 14}
     edge = MRFModel("edge")
     names = edge.feature_names()
     assert names[:5] == ["ae1[held]", "ae1[distance]", "ae2[held]", "ae2[distance]", "ae_pair[collide]"]
@@ -397,8 +397,8 @@ def test_the_model_sizes_and_names():
     assert len(families) == 1589 and families[0] == "ae" and families[-1] == "paae"
     assert [f for f, n in zip(families, names, strict=True) if n.startswith("ppt")] == ["ppt"] * (2 * 5 * 9 * 8)
     assert set(MRFModel("relations").family_of()) == {"ae", "pt", "aet", "pae", "ppt", "paae", "rel"}
-    with pytest.raises(ValueError, match=r"^features must be one of \['clique', 'edge', 'full', 'relations'\], "
-                                         r"got 'nope'$"):
+    with pytest.raises(ValueError, match=r"^features must be one of \['choice', 'clique', 'edge', 'full', "
+                                         r"'relations'\], got 'nope'$"):
         MRFModel("nope")
 
 
@@ -507,6 +507,7 @@ def test_the_default_model_is_the_full_one():
 
 def test_the_blocks_of_the_model():
     from pipeline.features.context import HISTORY_ARG_COLUMNS, TASK_REL_COLUMNS
+    from pipeline.features.cues import CUE_COLUMNS
     from pipeline.learn.mrf import REL_ROW, _blocks
     from pipeline.sim.tasks import TASKS
 
@@ -522,12 +523,13 @@ def test_the_blocks_of_the_model():
         ("paae1", "paae", (prims, HISTORY_ARG_COLUMNS)), ("paae2", "paae", (prims, HISTORY_ARG_COLUMNS)),
         ("rel1", "rel", (TASKS, prims, REL_ROW)), ("rel2", "rel", (TASKS, prims, REL_ROW)),
         ("rel_pair", "rel", (TASKS, prims, TASK_REL_COLUMNS, TASK_REL_COLUMNS)),
+        ("cue1", "cue", (TASKS, prims, CUE_COLUMNS)), ("cue2", "cue", (TASKS, prims, CUE_COLUMNS)),
     ]
     blocks = _blocks()
     assert [(b.name, b.family, b.labels) for b in blocks] == expected
     assert all(b.shape == tuple(len(labels) for labels in b.labels) for b in blocks)
     assert [b.size for b in blocks] == [math.prod(len(labels) for labels in e[2]) for e in expected]
-    assert sum(b.size for b in blocks) == MRFModel("relations").size_joint_feature
+    assert sum(b.size for b in blocks) == MRFModel("choice").size_joint_feature
 
 
 def test_a_volume_exactly_twice_the_references_counts_as_twice():

@@ -135,7 +135,7 @@ def evaluated(tiny) -> Path:
 def test_crossval_writes_table1_with_every_method_and_classified_programs(evaluated, tiny):
     summary = json.loads((evaluated / "crossval.json").read_text())
     assert set(summary) == {"chance", "multiclass", "symb_plan_svm", "symb_plan_manual", "only_edge",
-                            "only_clique", "full", "relations", "chained", "dagger", "feasible"}
+                            "only_clique", "full", "relations", "chained", "dagger", "choice", "feasible"}
     rows = list(csv.DictReader((evaluated / "crossval_sequences.csv").open()))
     full = [r for r in rows if r["method"] == "full"]
     assert len(full) == summary["full"]["n_scenarios"]
@@ -221,7 +221,7 @@ def test_aggregate_and_report_over_worlds(evaluated, tiny):
     assert float(avg["value"]) == pytest.approx(single["steps"]["average/arg"], abs=0.01)  # as Table I pools steps
     assert float(seq["low"]) <= float(seq["value"]) <= float(seq["high"])
     assert {r["method"] for r in csv.DictReader((out / "comparisons.csv").open())} == {"relations", "chained",
-                                                                                      "dagger", "feasible"}
+                                                                                      "dagger", "feasible", "choice"}
     assert main(["report", "--reports", str(out), "--output", str(out / "summary.md"),
                  "--plots-template", str(out / "page.html")]) == 0
     page = (out / "page.html").read_text()

@@ -39,7 +39,7 @@ class StepScorer:
     Parameters
     ----------
     features : str
-        "full", "edge", "clique" or "relations" (`mrf.FEATURE_SETS`).
+        "full", "edge", "clique", "relations" or "choice" (`mrf.FEATURE_SETS`).
     C : float
         Weight of the slack; like the three below, a setting of the learner
         (`ssvm.CuttingPlaneSSVM`) whose default is the pipeline's (`settings.Learner`).

@@ -50,6 +50,7 @@ from ..features.context import (
     StepContext,
     candidate_index,
 )
+from ..features.cues import CUE_COLUMNS, choice_cues
 from ..sim.primitives import ALL_PRIMITIVES
 from ..sim.tasks import TASKS
 from .products import matmul
@@ -57,8 +58,10 @@ from .products import matmul
 EDGE_FAMILIES = ("ae", "pt")
 CLIQUE_FAMILIES = ("aet", "pae", "ppt", "paae")
 RELATION_FAMILY = "rel"  # beyond the paper: relations of an argument to the step's reference objects
+CUE_FAMILY = "cue"  # beyond the paper: whether an argument stands out among like objects (`features.cues`)
 FEATURE_SETS = {"full": EDGE_FAMILIES + CLIQUE_FAMILIES, "edge": EDGE_FAMILIES, "clique": CLIQUE_FAMILIES,
-                "relations": EDGE_FAMILIES + CLIQUE_FAMILIES + (RELATION_FAMILY,)}
+                "relations": EDGE_FAMILIES + CLIQUE_FAMILIES + (RELATION_FAMILY,),
+                "choice": EDGE_FAMILIES + CLIQUE_FAMILIES + (RELATION_FAMILY, CUE_FAMILY)}
 
 N_TASK = len(TASKS)
 # An argument's row for the relation family, crossed with task and primitive: its relations to the
@@ -114,6 +117,8 @@ def _blocks() -> list[Block]:
     for s in (1, 2):
         out.append(Block(f"rel{s}", RELATION_FAMILY, (N_TASK, N_PRIM, len(REL_ROW)), (t, p, REL_ROW)))
     out.append(Block("rel_pair", RELATION_FAMILY, (N_TASK, N_PRIM, 4, 4), (t, p, TASK_REL_COLUMNS, TASK_REL_COLUMNS)))
+    for s in (1, 2):
+        out.append(Block(f"cue{s}", CUE_FAMILY, (N_TASK, N_PRIM, len(CUE_COLUMNS)), (t, p, CUE_COLUMNS)))
     return out
 
 
@@ -128,6 +133,7 @@ class StepBatch:
     task_rel: np.ndarray  # (S, N, 4)
     rel_rows: np.ndarray  # (S, N, len(REL_ROW)): relations, then task relations; relations 0 where absent
     # (S, N, 0) when the batch is built without relations
+    cue_rows: np.ndarray  # (S, N, len(CUE_COLUMNS)): the choice cues; (S, N, 0) when built without them
     hist: np.ndarray  # (S, N, 4)
     collide: np.ndarray  # (S, N, N)
     valid: np.ndarray  # (S, N) bool
@@ -139,34 +145,46 @@ class StepBatch:
     # (task, its steps, their rel_rows as one (steps * N, len(REL_ROW)) matrix): a weight block indexed by task
     # multiplies each task's rows in one matrix product
     by_task: list[tuple[int, np.ndarray, np.ndarray]]
+    # the same for the choice cues (`features.cues`), empty when the batch is built without them
+    cues_by_task: list[tuple[int, np.ndarray, np.ndarray]]
 
     @classmethod
-    def of(cls, steps: list[StepContext], relations: bool = True) -> StepBatch:
-        """The batch of `steps`; `relations=False` leaves out the relation rows (models without that family)."""
+    def of(cls, steps: list[StepContext], relations: bool = True, cues: bool = False) -> StepBatch:
+        """The batch of `steps`; `relations=False` leaves out the relation rows (models without that family),
+        `cues=True` adds the choice cues (which need the relations)."""
         S, N = len(steps), max(x.n for x in steps)
         K = len(OBJECT_COLUMNS)
         objects, rel, hist = np.zeros((S, N, K)), np.zeros((S, N, 4)), np.zeros((S, N, 4))
         rows_rel = np.zeros((S, N, len(RELATION_COLUMNS)))
+        rows_cue = np.zeros((S, N, len(CUE_COLUMNS)))
         collide, valid = np.zeros((S, N, N), dtype=bool), np.zeros((S, N), dtype=bool)
         for s, x in enumerate(steps):
             objects[s, : x.n], rel[s, : x.n], hist[s, : x.n] = x.objects, x.task_rel, x.history_equal()
             collide[s, : x.n, : x.n] = x.collide
             if relations and x.relations is not None:
                 rows_rel[s, : x.n] = x.relations
+                if cues:
+                    rows_cue[s, : x.n] = choice_cues(x.objects, x.relations)
             valid[s, : x.n] = True
         task = np.array([x.task for x in steps])
         prev = np.array([x.prev_prims for x in steps])
         pair_valid = valid[:, :, None] & valid[:, None, :] & ~np.eye(N, dtype=bool)[None]
         valid_neg = np.where(valid, 0.0, -np.inf)
         pair_neg = np.where(pair_valid, 0.0, -np.inf)
-        rel_rows, by_task = np.zeros((S, N, 0)), []
-        if relations:
-            rel_rows = rel_row(objects, rel, rows_rel)
-            for t in np.unique(task):
-                rows = np.flatnonzero(task == t)
-                by_task.append((int(t), rows, rel_rows[rows].reshape(len(rows) * N, -1)))
-        return cls(objects, rel, rel_rows, hist, collide, valid, pair_valid, valid_neg, pair_neg, task, prev,
-                   by_task)
+        rel_rows = rel_row(objects, rel, rows_rel) if relations else np.zeros((S, N, 0))
+        with_cues = relations and cues
+        cue_rows = rows_cue if with_cues else np.zeros((S, N, 0))
+        return cls(objects, rel, rel_rows, cue_rows, hist, collide, valid, pair_valid, valid_neg, pair_neg, task,
+                   prev, _by_task(task, rel_rows) if relations else [], _by_task(task, cue_rows) if with_cues else [])
+
+
+def _by_task(task: np.ndarray, rows: np.ndarray) -> list[tuple[int, np.ndarray, np.ndarray]]:
+    """Per task: its steps of the batch and their (S, N, k) `rows` as one (steps * N, k) matrix."""
+    out = []
+    for t in np.unique(task):
+        steps = np.flatnonzero(task == t)
+        out.append((int(t), steps, rows[steps].reshape(len(steps) * rows.shape[1], -1)))
+    return out
 
 
 @dataclass
@@ -194,7 +212,7 @@ class _Batched:
         cached = getattr(self, "_batch_cache", None)
         if cached is None or cached[0] is not X:
             self._check_relations(X)
-            cached = (X, StepBatch.of(list(X), RELATION_FAMILY in self.families))
+            cached = (X, StepBatch.of(list(X), RELATION_FAMILY in self.families, CUE_FAMILY in self.families))
             self._batch_cache = cached
         return cached[1]
 
@@ -234,9 +252,10 @@ class _Batched:
                 table += matmul(flat_objects, wt.T).reshape(S, N, N_PRIM)
             if (wt := self._w(w, f"paae{s}")) is not None:
                 table += matmul(flat_hist, wt.T).reshape(S, N, N_PRIM)
-            if (wt := self._w(w, f"rel{s}")) is not None:
-                for t, rows, flat_rel in b.by_task:
-                    table[rows] += matmul(flat_rel, wt[t].T).reshape(len(rows), N, N_PRIM)
+            for name, by_task in ((f"rel{s}", b.by_task), (f"cue{s}", b.cues_by_task)):
+                if (wt := self._w(w, name)) is not None:
+                    for t, rows, flat in by_task:
+                        table[rows] += matmul(flat, wt[t].T).reshape(len(rows), N, N_PRIM)
             U.append(table.transpose(0, 2, 1))
         pair = np.zeros((S, N, N))
         if (wt := self._w(w, "ae_pair")) is not None:
@@ -339,6 +358,7 @@ class _Batched:
             put(f"pae{s}", r, (p_sel,), obj)
             put(f"paae{s}", r, (p_sel,), b.hist[r, a_sel])
             put(f"rel{s}", r, (t_sel, p_sel), b.rel_rows[r, a_sel])  # (m, 0) rows, left out, without relations
+            put(f"cue{s}", r, (t_sel, p_sel), b.cue_rows[r, a_sel])  # likewise without cues
         r = rows_all[(y[:, 1] >= 0) & (y[:, 2] >= 0)]
         put("ae_pair", r, (), b.collide[r, y[r, 1], y[r, 2]].astype(float)[:, None])
         outer = b.task_rel[r, y[r, 1]][:, :, None] * b.task_rel[r, y[r, 2]][:, None, :]
@@ -384,7 +404,8 @@ class MRFModel(_Batched):
 
     `features` picks the families: "full", "edge" (ae, pt) or "clique" (aet, pae, ppt, paae), as in
     the paper; "relations" is "full" plus the relations of each argument to the step's reference
-    objects (`features.context.RELATION_COLUMNS`), an addition beyond the paper.
+    objects (`features.context.RELATION_COLUMNS`), an addition beyond the paper; "choice" is "relations"
+    plus the choice cues of each argument (`features.cues.CUE_COLUMNS`), another.
     """
 
     def __init__(self, features: str = "full") -> None:
@@ -456,6 +477,8 @@ class MRFModel(_Batched):
             put(f"aet_rel{s}", (g, slice(None)), x.task_rel[a])
             if RELATION_FAMILY in self.families:
                 put(f"rel{s}", (g, p, slice(None)), self._rel_rows(x)[a])
+            if CUE_FAMILY in self.families:
+                put(f"cue{s}", (g, p, slice(None)), choice_cues(x.objects, self._relations(x))[a])
             put(f"aet_obj{s}", (g, 0 if x.holding else 1, slice(None)), row)
             put(f"pae{s}", (p, slice(None)), row)
             put(f"paae{s}", (p, slice(None)), hist[a])
@@ -469,7 +492,7 @@ class MRFModel(_Batched):
         """P (N_PRIM,), U1 and U2 (N_PRIM, n), pair (N_PRIM, n, n): the score's factors, from `batch_tables`."""
         if RELATION_FAMILY in self.families:
             self._relations(x)
-        f = self.batch_tables(StepBatch.of([x], RELATION_FAMILY in self.families), w)
+        f = self.batch_tables(StepBatch.of([x], RELATION_FAMILY in self.families, CUE_FAMILY in self.families), w)
         pair = f.pair[0][None]
         if f.right.shape[-1]:  # the low-rank term, per primitive
             pair = pair + matmul(f.left[:, 0], f.right[0].T)

@@ -1,0 +1,21 @@
+"""ours + relations + choice cues: the relations model, with bits for the object that stands out among like ones.
+
+Where a task leaves the object open, the demonstrator takes the smallest
+empty vessel that holds the liquid, the shortest stirrer that sticks out of
+the cup, the bin nearest the object. The relation features compare each
+object with the task's objects one at a time; the cues (`features.cues`)
+add the comparison among the candidates: the smallest of the empty
+containers that hold enough, the shortest of the thin objects that reach out,
+the nearest of each kind. Feature set `choice` is `relations` plus these
+two blocks (`learn.mrf.CUE_FAMILY`).
+"""
+
+from __future__ import annotations
+
+from pipeline.evaluate.methods import MRFMethod
+from pipeline.evaluate.registry import MethodSettings, register
+
+
+@register("choice", label="ours + relations + choice cues")
+def make(settings: MethodSettings) -> MRFMethod:
+    return MRFMethod(features="choice", name="choice", store=settings.store, **settings.learner.ssvm)
