@@ -158,3 +158,30 @@ def test_a_drawn_objects_logged_attributes_follow_from_its_size_and_flags(tmp_pa
                 flag_sets.setdefault(kind.name, set()).add(flags)
     assert sum(len(s) for s in flag_sets.values()) > 10
     assert any(len(s) > 1 for s in flag_sets.values())  # one kind, objects with different drawn flags
+
+
+def test_with_drawn_reported_worlds_the_stage_runs_and_says_no_transfer_was_measured(tmp_path):
+    """`world.family: procedural` makes the reported world of a seed the very world this stage draws for it, so
+    there is nothing to transfer from; the stage still writes every table and says why the transfer is missing."""
+    common = ["--set", "world.family=procedural", "--set", "procedural.environments=2", *LEARN]
+    reported = tmp_path / "worlds" / "0"
+    assert main(["--no-mlflow", "generate", "--world-seed", "0", "--output", str(reported / "raw"), *common]) == 0
+    assert main(["--no-mlflow", "ingest", "--input", str(reported / "raw"), "--output",
+                 str(reported / "processed")]) == 0
+    assert main(["--no-mlflow", "features", "--input", str(reported / "processed"), "--output",
+                 str(reported / "features")]) == 0
+    (tmp_path / "selection.json").write_text(json.dumps({"C": 2.0}))
+    out = tmp_path / "reports"
+    settings = ["--set", "world.seeds=[0]", "--set", "crossval.folds=2", "--set", "noise.methods=full",
+                "--set", "noise.rates=0", "--set", "noise.draws=1", "--set", "feedback.methods=full",
+                "--set", "feedback.k=2", "--set", "feedback.n=0", "--set", "scenes.transfer=full", *common]
+    assert main(["--no-mlflow", "scenes", "--selection", str(tmp_path / "selection.json"), "--paper",
+                 str(tmp_path / "worlds"), "--data", str(tmp_path / "data"), "--output", str(out), *settings,
+                 "--n-jobs", "1"]) == 0
+    assert "Not measured" in (out / "transfer.md").read_text() and "procedural" in (out / "transfer.md").read_text()
+    assert list(csv.DictReader((out / "transfer.csv").open())) == []
+    assert not (tmp_path / "data" / "drawn" / "0" / "transfer.csv").exists()
+    for part in ("paper", "drawn"):
+        assert 0.0 <= json.loads((out / part / "crossval_means.json").read_text())["full"]["sequence_arg"] <= 100.0
+    assert scenes.settings(Params.load(None, ["world.family=procedural"])).paper_shaped is False
+    assert scenes.settings(Params.load(None, [])).paper_shaped is True

@@ -40,6 +40,10 @@ from .paths import (
 )
 
 TRANSFER = ("sequence_arg", "sequence_prim", "success", "goal_reached")
+# the reported worlds are drawn (world.family procedural): the drawn world of a seed is then the reported world
+# itself, scenario for scenario, so nothing is trained on one and tested on the other
+NO_TRANSFER = ("Not measured: the reported worlds are drawn (`world.family: procedural`), so a seed's drawn world "
+               "is its reported world and no paper-shaped world is there to train on.\n")
 
 
 @dataclass(frozen=True)
@@ -52,6 +56,7 @@ class Settings:
     feedback: feedback.Settings
     transfer: tuple[str, ...]  # MRF methods trained on the paper-shaped world and run on the drawn one
     learner: Learner
+    paper_shaped: bool = True  # the reported worlds are the paper's rooms; drawn ones leave no transfer to measure
 
 
 def settings(params: Params, world_seed: int | None = None) -> Settings:
@@ -68,6 +73,7 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
         feedback=feedback.Settings(params.feedback, replay),
         transfer=params.scenes.transfer,
         learner=learner,
+        paper_shaped=params.world.family == "paper",
     )
 
 
@@ -87,14 +93,16 @@ def run(settings: Settings, paths: ScenesPaths, tracker: Tracker = NO_RUN, n_job
     dirs = world_dirs(data / "drawn", settings.seeds)
     draws = json_over_seeds(dirs, "world.json")
     write_json_atomic(out / "drawn" / "worlds.json", {str(s): d for s, d in draws.items()})
-    per_seed, over_seeds = curve_over_seeds(dirs, "transfer.csv", ["method"], TRANSFER)
+    per_seed, over_seeds = curve_over_seeds(dirs, "transfer.csv", ["method"], TRANSFER) if settings.paper_shaped \
+        else ([], [])
     write_text_atomic(out / "transfer_seeds.csv",
                       csv_text(["world_seed", "method", *TRANSFER], per_seed, dict.fromkeys(TRANSFER, 2)))
     columns = ["method"] + [c for v in TRANSFER for c in (v, f"{v}_sd")]
     write_text_atomic(out / "transfer.csv", csv_text(columns, over_seeds, dict.fromkeys(columns[1:], 2)))
-    write_text_atomic(out / "transfer.md", transfer_markdown(over_seeds, len(settings.seeds)))
+    table = transfer_markdown(over_seeds, len(settings.seeds)) if settings.paper_shaped else NO_TRANSFER
+    write_text_atomic(out / "transfer.md", table)
     tracker.metrics({f"transfer.{r['method']}.{k}": r[k] for r in over_seeds for k in TRANSFER})
-    print(transfer_markdown(over_seeds, len(settings.seeds)))
+    print(table)
     return {"transfer": over_seeds}
 
 
@@ -111,7 +119,8 @@ def _held_out_rooms(settings: Settings, paths: ScenesPaths, world: Path, here: P
 
 def _drawn_world(settings: Settings, paths: ScenesPaths, seed: int, here: Path, tracker: Tracker,
                  n_jobs: int) -> None:
-    """The per-world stages on the drawn world `seed`, into `here`, then the transfer from the paper-shaped one."""
+    """The per-world stages on the drawn world `seed`, into `here`, then the transfer from the paper-shaped one
+    (when the reported worlds are paper-shaped)."""
     raw, processed, feats = here / "raw", here / "processed", here / "features"
     generate.run(replace(settings.world, seed=seed), GeneratePaths(output=raw, metrics=here / "world.json"), tracker)
     ingest.run(None, IngestPaths(input=raw, output=processed, metrics=here / "dataset.json"), tracker)
@@ -119,7 +128,8 @@ def _drawn_world(settings: Settings, paths: ScenesPaths, seed: int, here: Path, 
     evaluation = _held_out_rooms(settings, paths, here, here, tracker, n_jobs)
     noise.run(settings.noise, evaluation, tracker, n_jobs)
     feedback.run(settings.feedback, evaluation, tracker, n_jobs)
-
+    if not settings.paper_shaped:
+        return
     paper = Path(paths.paper) / str(seed)
     train = (*read_features(paper / "features"), load_benchmark(paper / "processed"))
     test = (*read_features(feats), load_benchmark(processed))
