@@ -340,7 +340,8 @@ def test_settings_default_to_the_pipelines_and_round_trip():
 
 
 @pytest.mark.parametrize(("bad", "message"), [
-    ({"features": "nope"}, r"^features must be one of \['clique', 'edge', 'full', 'relations'\], got 'nope'$"),
+    ({"features": "nope"},
+     r"^features must be one of \['choice', 'clique', 'edge', 'full', 'relations'\], got 'nope'$"),
     ({"C": 0.0}, "C and tol must be positive"), ({"tol": 0.0}, "C and tol must be positive"),
     ({"C": float("nan")}, "C and tol must be positive"), ({"max_iter": 0}, "max_iter at least 1"),
     ({"n_slacks": -1}, r"n_slacks at least 0 \(one per step\): \{'features': 'edge'"),
