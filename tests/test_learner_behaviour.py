@@ -692,3 +692,23 @@ def test_a_fit_past_the_gram_limit_reaches_the_optimum(monkeypatch):
     gram = CuttingPlaneSSVM(model, C=0.3, tol=1e-7, n_slacks=0).fit(X, Y)
     assert explicit.converged_ and gram.converged_
     assert explicit.primal_objective_ == pytest.approx(gram.primal_objective_, rel=1e-6)
+
+
+def test_the_gram_limit_is_inclusive_both_ways():
+    """A set of exactly `gram_limit` cuts keeps its Gram matrix, one more drops it; pruned back to exactly the
+    limit, the next solve forms it again."""
+    deltas, losses, groups = sparse_cuts(9, 6, 5, 3)
+    ws = WorkingSet(5, 3, 1.0, gram_limit=4)
+    ws.add(deltas[:4], losses[:4], groups[:4], iteration=1)
+    assert ws._gram is not None
+    ws.add(deltas[4:], losses[4:], groups[4:], iteration=2)
+    assert ws._gram is None
+    ws.solve(1e-9)
+    keep = np.zeros(6, dtype=bool)
+    keep[np.argsort(-ws.alpha, kind="stable")[:4]] = True
+    ws._last_active[:6] = np.where(keep, 10, 0)
+    ws._alpha[:6][~keep] = 0.0  # as if only four cuts had weight: pruning leaves exactly the limit
+    ws.prune(10, 1)
+    assert len(ws) == 4 and ws._gram is None
+    ws.solve(1e-9)
+    assert ws._gram is not None
