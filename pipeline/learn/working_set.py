@@ -286,6 +286,22 @@ def _compact(gram: np.ndarray, keep: np.ndarray) -> None:
 
 
 @njit(cache=True)
+def _members(groups: np.ndarray, n_groups: int) -> tuple[np.ndarray, np.ndarray]:
+    """The cuts of every group in index order: group g's are members[start[g]:start[g + 1]]."""
+    start = np.zeros(n_groups + 1, np.int64)
+    for k in range(groups.shape[0]):
+        start[groups[k] + 1] += 1
+    for g in range(n_groups):
+        start[g + 1] += start[g]
+    members = np.empty(groups.shape[0], np.int64)
+    fill = start[:n_groups].copy()
+    for k in range(groups.shape[0]):
+        members[fill[groups[k]]] = k
+        fill[groups[k]] += 1
+    return start, members
+
+
+@njit(cache=True)
 def _gradients(gram: np.ndarray, losses: np.ndarray, alpha: np.ndarray, grad: np.ndarray) -> None:
     """grad[:K] = L - Gram a, summed over the cuts with weight only (the optimum is sparse)."""
     K = losses.shape[0]
@@ -325,17 +341,7 @@ def _pairwise_steps(gram: np.ndarray, losses: np.ndarray, groups: np.ndarray, al
     spare = np.full(B, C)
     for k in range(K):
         spare[groups[k]] -= alpha[k]
-    # the cuts of each group, in index order
-    start = np.zeros(B + 1, np.int64)
-    for k in range(K):
-        start[groups[k] + 1] += 1
-    for g in range(B):
-        start[g + 1] += start[g]
-    members = np.empty(K, np.int64)
-    fill = start[:B].copy()
-    for k in range(K):
-        members[fill[groups[k]]] = k
-        fill[groups[k]] += 1
+    start, members = _members(groups, B)  # the cuts of each group, in index order
     is_active = np.ones(K, np.bool_)
     active = np.arange(K)
     n_active, shrunk, since_shrink = K, False, 0
@@ -543,16 +549,7 @@ def _sweeps(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, losses: n
     """
     K = losses.shape[0]
     B = n_groups
-    start = np.zeros(B + 1, np.int64)  # the cuts of each group, in index order
-    for k in range(K):
-        start[groups[k] + 1] += 1
-    for g in range(B):
-        start[g + 1] += start[g]
-    members = np.empty(K, np.int64)
-    fill = start[:B].copy()
-    for k in range(K):
-        members[fill[groups[k]]] = k
-        fill[groups[k]] += 1
+    start, members = _members(groups, B)  # the cuts of each group, in index order
     widest = 0
     for g in range(B):
         widest = max(widest, start[g + 1] - start[g])
