@@ -79,7 +79,8 @@ class Select:
     """Settings chosen on the development world by cross-validation, never on a reported world."""
 
     C: tuple[float, ...] = (0.3, 1.0, 3.0, 10.0)  # slack weights tried for each MRF method (grid, extended at an edge)
-    methods: tuple[str, ...] = ("full", "relations", "chained", "dagger", "feasible", "choice")  # tuned, then ranked
+    methods: tuple[str, ...] = ("full", "relations", "chained", "dagger", "feasible", "choice", "choice_feasible",
+                                "noise_trained")  # tuned, then ranked
     max_extensions: int = 2  # grid values added beyond an edge per method at most (docs/planner-shipped.md)
 
     def __post_init__(self) -> None:
@@ -102,6 +103,8 @@ class Learner:
     max_iter: int = 2000  # cutting-plane iterations at most
     n_slacks: int = 0  # slack groups, one cut each per iteration (0: one per step, n-slack; 1: classic 1-slack)
     dagger_rounds: int = 1  # DAgger rounds (roll out, ask the demonstrator, refit) of the `dagger` method
+    noise_rate: float = 0.1  # of `noise_trained`: each binary attribute flipped with this probability in a copy
+    noise_copies: int = 3  # of `noise_trained`: copies of the training steps seen with flipped attributes
     tuned: tuple[tuple[str, float], ...] = ()  # (method, C) that `select` chose per MRF method; the rest take C
 
     def of(self, method: str) -> Learner:
@@ -123,7 +126,8 @@ class Train(Learner):
     @property
     def learner(self) -> Learner:
         """The learner without the feature set: what every evaluated MRF method takes."""
-        return Learner(self.C, self.tol, self.max_iter, self.n_slacks, self.dagger_rounds, self.tuned)
+        return Learner(self.C, self.tol, self.max_iter, self.n_slacks, self.dagger_rounds, self.noise_rate,
+                       self.noise_copies, self.tuned)
 
 
 @dataclass(frozen=True)
@@ -154,7 +158,7 @@ class Crossval(Folds):
 
 @dataclass(frozen=True)
 class Noise:
-    methods: tuple[str, ...] = ("full", "relations")  # Table I methods run under noise
+    methods: tuple[str, ...] = ("full", "relations", "choice", "noise_trained")  # Table I methods run under noise
     rates: tuple[float, ...] = (0.0, 0.1, 0.2, 0.3, 0.4)  # probability of flipping each binary attribute
     draws: int = 3  # noise draws per rate
     seed: int = 0  # seed of the noise draws

@@ -65,7 +65,7 @@ GROUPS = {
     "primitives": Group(("pipeline/sim/primitives.py", "pipeline/sim/tasks.py"),
                         ("tests/test_preconditions_behaviour.py", "tests/test_primitives.py",
                          "tests/test_tasks_behaviour.py")),
-    "planner": Group(("pipeline/plan/planner.py", "pipeline/evaluate/robustness.py"),
+    "planner": Group(("pipeline/plan/planner.py", "pipeline/evaluate/robustness.py", "pipeline/features/perception.py"),
                      ("tests/test_feedback_behaviour.py", "tests/test_robustness_behaviour.py",
                       "tests/test_feasible.py")),
     "features": Group(("pipeline/features/context.py", "pipeline/learn/mrf.py"),

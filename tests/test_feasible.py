@@ -61,4 +61,11 @@ def test_the_feasible_steps_method_is_a_labelled_row_sharing_the_dagger_models()
     feasible_method, dagger = methods["feasible"](), methods["dagger"]()
     assert feasible_method.learner_params() == dagger.learner_params()
     assert feasible_method.features == dagger.features == "relations"
-    assert list(methods)[-1] == "feasible"  # added rows come after the built-in ones
+    assert list(methods).index("feasible") > list(methods).index("dagger")  # added rows after the built-in ones
+
+
+def test_the_choice_cues_with_feasible_steps_share_the_choice_cue_models():
+    methods = table1_methods(Crossval(), Learner(C=2.0, tuned=(("choice", 3.0), ("choice_feasible", 3.0))))
+    both, choice = methods["choice_feasible"](), methods["choice"]()
+    assert both.learner_params() == choice.learner_params() and both.features == choice.features == "choice"
+    assert (both.policy, choice.policy) == ("feasible", "greedy")

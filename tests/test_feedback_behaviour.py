@@ -13,7 +13,6 @@ import pytest
 
 from pipeline.evaluate.crossval import judge
 from pipeline.evaluate.robustness import (
-    BINARY_COLUMNS,
     FeedbackCondition,
     NoiseCondition,
     _replay,
@@ -22,6 +21,7 @@ from pipeline.evaluate.robustness import (
     observer,
 )
 from pipeline.features.context import step_context
+from pipeline.features.perception import BINARY_COLUMNS
 from pipeline.plan.planner import DONE, plan
 from pipeline.settings import Feedback, Folds
 from pipeline.sim.primitives import Action

@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 
 from pipeline.evaluate.methods import MRFMethod
-from pipeline.evaluate.robustness import BINARY_COLUMNS, flip_masks, noisy_perception, observer
+from pipeline.evaluate.robustness import observer
 from pipeline.features.context import step_context
+from pipeline.features.perception import BINARY_COLUMNS, flip_masks, noisy_perception
 from pipeline.logs.benchmark import Benchmark
 from pipeline.plan.planner import plan
 from pipeline.sim.primitives import Action

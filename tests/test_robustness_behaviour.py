@@ -7,17 +7,15 @@ import pytest
 
 from pipeline.evaluate.crossval import SequenceOutcome
 from pipeline.evaluate.robustness import (
-    BINARY_COLUMNS,
     FeedbackCondition,
     NoiseCondition,
     feedback_steps,
-    flip_masks,
     noise_curve,
     noise_runs,
-    noisy_perception,
     rates,
 )
 from pipeline.features.context import OBJECT_COLUMNS, step_context
+from pipeline.features.perception import BINARY_COLUMNS, flip_masks, noisy_perception
 from pipeline.settings import Feedback, Noise
 from pipeline.sim.objects import BINARY_ATTRIBUTES
 from pipeline.sim.tasks import Task

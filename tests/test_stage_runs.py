@@ -135,7 +135,8 @@ def evaluated(tiny) -> Path:
 def test_crossval_writes_table1_with_every_method_and_classified_programs(evaluated, tiny):
     summary = json.loads((evaluated / "crossval.json").read_text())
     assert set(summary) == {"chance", "multiclass", "symb_plan_svm", "symb_plan_manual", "only_edge",
-                            "only_clique", "full", "relations", "chained", "dagger", "choice", "feasible"}
+                            "only_clique", "full", "relations", "chained", "dagger", "choice", "feasible",
+                            "choice_feasible", "noise_trained"}
     rows = list(csv.DictReader((evaluated / "crossval_sequences.csv").open()))
     full = [r for r in rows if r["method"] == "full"]
     assert len(full) == summary["full"]["n_scenarios"]
@@ -148,11 +149,11 @@ def test_crossval_writes_table1_with_every_method_and_classified_programs(evalua
 def test_noise_at_rate_zero_equals_the_clean_cross_validation(evaluated):
     summary = json.loads((evaluated / "crossval.json").read_text())
     curve = list(csv.DictReader((evaluated / "noise.csv").open()))
-    assert [(r["method"], r["rate"]) for r in curve] == [("full", "0.0"), ("full", "0.3"), ("relations", "0.0"),
-                                                         ("relations", "0.3")]
+    methods = ("full", "relations", "choice", "noise_trained")
+    assert [(r["method"], r["rate"]) for r in curve] == [(m, rate) for m in methods for rate in ("0.0", "0.3")]
     for r in curve[::2]:
         assert float(r["sequence_arg"]) == pytest.approx(summary[r["method"]]["sequence/arg"], abs=0.01)
-    assert len(list(csv.DictReader((evaluated / "noise_runs.csv").open()))) == 8
+    assert len(list(csv.DictReader((evaluated / "noise_runs.csv").open()))) == 16
 
 
 def test_feedback_at_every_step_is_never_worse_than_none(evaluated):
@@ -167,7 +168,7 @@ def test_every_evaluation_stage_keeps_each_program_it_ran(evaluated):
     summary = json.loads((evaluated / "crossval.json").read_text())
     n = summary["full"]["n_scenarios"]
     noise = list(csv.DictReader((evaluated / "noise_sequences.csv").open()))
-    assert len(noise) == 2 * 2 * 2 * n  # methods x rates x draws x scenarios
+    assert len(noise) == 4 * 2 * 2 * n  # methods x rates x draws x scenarios
     clean = [r for r in noise if r["method"] == "full" and r["rate"] == "0.0" and r["draw"] == "0"]
     assert 100 * sum(r["arg_correct"] == "1" for r in clean) / n == pytest.approx(summary["full"]["sequence/arg"])
     feedback = list(csv.DictReader((evaluated / "feedback_sequences.csv").open()))
@@ -199,7 +200,8 @@ def test_aggregate_and_report_over_worlds(evaluated, tiny):
     header = (out / "plots" / "feedback.csv").read_text().splitlines()
     assert header[0] == "n,ours - full top 2,ours + relations top 2" and [h.split(",")[0] for h in header[1:]] == [
         "0", "all"]
-    assert (out / "plots" / "noise.csv").read_text().startswith("rate,ours - full,ours + relations\n")
+    assert (out / "plots" / "noise.csv").read_text().startswith(
+        "rate,ours - full,ours + relations,ours + relations + choice cues,ours + relations + noisy training\n")
     every = list(csv.DictReader((out / "crossval_sequences.csv").open()))
     assert {r["world_seed"] for r in every} == {"0", "5"} and len(every) == 2 * len(
         list(csv.DictReader((evaluated / "crossval_sequences.csv").open())))
@@ -220,8 +222,8 @@ def test_aggregate_and_report_over_worlds(evaluated, tiny):
     avg = next(r for r in intervals if (r["method"], r["figure"]) == ("full", "average_arg"))
     assert float(avg["value"]) == pytest.approx(single["steps"]["average/arg"], abs=0.01)  # as Table I pools steps
     assert float(seq["low"]) <= float(seq["value"]) <= float(seq["high"])
-    assert {r["method"] for r in csv.DictReader((out / "comparisons.csv").open())} == {"relations", "chained",
-                                                                                      "dagger", "feasible", "choice"}
+    assert {r["method"] for r in csv.DictReader((out / "comparisons.csv").open())} == {
+        "relations", "chained", "dagger", "feasible", "choice", "choice_feasible", "noise_trained"}
     assert main(["report", "--reports", str(out), "--output", str(out / "summary.md"),
                  "--plots-template", str(out / "page.html")]) == 0
     page = (out / "page.html").read_text()

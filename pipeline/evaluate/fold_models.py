@@ -65,7 +65,8 @@ def _fit(makes: tuple[MakeMRF, ...], contexts: list[StepContext], meta: list[Ste
 def _expected_cost(method: MRFMethod, n_steps: int) -> float:
     """A fit's time against an edge-only fit of as many steps (medians of `folds.json`): long ones start first."""
     cost = {"edge": 1.0, "clique": 1.5, "full": 1.5}.get(method.features, 2.5) * n_steps
-    return cost * (2.0 if method.chained_starts else 1.0) * (2.0 if method.dagger_rounds else 1.0)
+    return (cost * (2.0 if method.chained_starts else 1.0) * (2.0 if method.dagger_rounds else 1.0)
+            * (1 + method.noise_copies))
 
 
 def train_fold_models(methods: Mapping[str, MakeMRF], contexts: list[StepContext], meta: list[StepMeta],

@@ -16,6 +16,7 @@ import numpy as np
 
 from ..features.context import N_PRIM, OBJECT_COLUMNS, StepContext, candidate_index, step_context
 from ..features.dataset import StepMeta
+from ..features.perception import noisy_copies
 from ..imitation.dagger import fit_imitation
 from ..learn.estimator import StepScorer
 from ..learn.store import ModelStore, training_key
@@ -123,7 +124,9 @@ class MRFMethod:
     where it ended (`imitation.starts`); `dagger_rounds` rolls the planner out
     on the training scenarios that many times and adds the demonstrator's
     answers in the states it reached (`imitation.dagger`). Both need the
-    training scenarios at `fit`. `policy` is how its programs pick a step
+    training scenarios at `fit`. `noise_copies` adds that many copies of the
+    training steps seen with each binary attribute flipped with probability
+    `noise_rate` (`features.perception.noisy_copies`). `policy` is how its programs pick a step
     (`plan.planner.POLICIES`); it changes no weight, so it is not part of a
     stored model's key. With a `store` folder (written by the `fold_models`
     stage), a model already trained on the same steps with the same settings
@@ -137,6 +140,8 @@ class MRFMethod:
     n_slacks: int = Learner.n_slacks
     chained_starts: bool = False
     dagger_rounds: int = 0
+    noise_rate: float = 0.0
+    noise_copies: int = 0
     name: str = "full"
     predicts_args: bool = True
     store: str | None = None
@@ -149,7 +154,8 @@ class MRFMethod:
     def learner_params(self) -> dict[str, float | int]:
         """The settings that change the weights (and so address a stored model)."""
         return {"C": self.C, "tol": self.tol, "max_iter": self.max_iter, "n_slacks": self.n_slacks,
-                "chained_starts": self.chained_starts, "dagger_rounds": self.dagger_rounds}
+                "chained_starts": self.chained_starts, "dagger_rounds": self.dagger_rounds,
+                **({"noise_rate": self.noise_rate, "noise_copies": self.noise_copies} if self.noise_copies else {})}
 
     def key(self, contexts: list[StepContext]) -> str:
         return training_key(self.features, self.learner_params(), contexts)
@@ -169,16 +175,17 @@ class MRFMethod:
         if stored is not None:
             self.planner_ = stored
             return self
+        steps = contexts + noisy_copies(contexts, meta, self.noise_rate, self.noise_copies)[0]
         if self.chained_starts or self.dagger_rounds:
             if scenarios is None:
                 raise ValueError(f"method {self.name}: chained starts and DAgger need the training scenarios")
             training = [scenarios[s] for s in dict.fromkeys(m.scenario_id for m in meta)]
             if base is None and self.dagger_rounds and self.store:  # the model without DAgger, stored or not
                 base = replace(self, dagger_rounds=0).fit(contexts, meta, scenarios).planner_
-            self.planner_ = fit_imitation(self.estimator(), contexts, training, self.dagger_rounds,
+            self.planner_ = fit_imitation(self.estimator(), steps, training, self.dagger_rounds,
                                           self.chained_starts, base=base)
         else:
-            self.planner_ = self.estimator().fit(contexts)
+            self.planner_ = self.estimator().fit(steps)
         return self
 
     def predict_steps(self, contexts: list[StepContext], meta=None, demos=None) -> list[Y]:

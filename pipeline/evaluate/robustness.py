@@ -8,41 +8,21 @@ the same 113 scenarios with the same models.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ..features.context import OBJECT_COLUMNS, StepContext
+from ..features.context import StepContext
 from ..features.dataset import StepMeta
+from ..features.perception import flip_masks, noisy_perception
 from ..plan.planner import plan
 from ..settings import Feedback, Folds, Noise
-from ..sim.objects import BINARY_ATTRIBUTES
 from ..sim.primitives import Action
 from ..sim.scenarios import Scenario
 from .crossval import SequenceOutcome, judge, scenario_folds, training_index
 from .dispatch import Shared, run_jobs
 from .methods import MRFMethod
-
-BINARY_COLUMNS = np.array([OBJECT_COLUMNS.index(a) for a in BINARY_ATTRIBUTES])
-
-
-def flip_masks(object_ids: list[str], rate: float, rng: np.random.Generator) -> dict[str, np.ndarray]:
-    """For each object, which binary attributes the robot perceives wrongly in this run."""
-    return {o: rng.random(len(BINARY_COLUMNS)) < rate for o in object_ids}
-
-
-def noisy_perception(masks: dict[str, np.ndarray]):
-    """A `perceive` hook that flips the masked binary attributes of every object, every step alike."""
-
-    def perceive(ctx: StepContext) -> StepContext:
-        objects = ctx.objects.copy()
-        for i, o in enumerate(ctx.object_ids):
-            cols = BINARY_COLUMNS[masks[o]]
-            objects[i, cols] = 1.0 - objects[i, cols]
-        return replace(ctx, objects=objects)
-
-    return perceive
 
 
 def observer(demonstrations: tuple[tuple[Action, ...], ...], n_feedback: int):

@@ -72,8 +72,10 @@ def describe(meta: dict[str, Any]) -> str:
     if "method" not in meta:
         return (f"method not recorded (a model file from before methods were recorded): {meta['features']} feature "
                 f"set, {learner}, {policy}")
+    noisy = (f"{meta['noise_copies']} noisy copies at flip rate {meta['noise_rate']:g}, "
+             if meta.get("noise_copies") else "")
     extra = (f"chained starts {'yes' if meta.get('chained_starts') else 'no'}, "
-             f"DAgger rounds {meta.get('dagger_rounds', 0)}, {policy}")
+             f"DAgger rounds {meta.get('dagger_rounds', 0)}, {noisy}{policy}")
     why = f"; {meta['chosen_by']}" if meta.get("chosen_by") else ""
     return (f"{meta.get('label', meta['method'])} (method {meta['method']}: {meta['features']} feature set, {learner}, "
             f"{extra}{why})")

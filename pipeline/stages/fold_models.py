@@ -59,6 +59,7 @@ def run(settings: Settings, paths: FoldModelsPaths, tracker: Tracker = NO_RUN, n
         with tracker.child(f"{r['features']} {uses[0]['training_set']}", {
                 "method": ",".join(dict.fromkeys(u["method"] for u in uses)), "feature_set": r["features"],
                 "C": r["C"], "chained_starts": r["chained_starts"], "dagger_rounds": r["dagger_rounds"],
+                **{k: r[k] for k in ("noise_rate", "noise_copies") if k in r},
                 "training_set": uses[0]["training_set"], "steps": r["steps"]}) as child:
             child.metrics({"iterations": r["iterations"], "seconds": r["seconds"],
                            "primal_objective": r["primal_objective"], "dual_objective": r["dual_objective"]})

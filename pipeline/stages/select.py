@@ -39,7 +39,8 @@ class Settings:
 def settings(params: Params, world_seed: int | None = None) -> Settings:
     t, c = params.train, params.crossval
     return Settings(params.world, params.procedural, params.select,
-                    Learner(tol=t.tol, max_iter=t.max_iter, n_slacks=t.n_slacks, dagger_rounds=t.dagger_rounds),
+                    Learner(tol=t.tol, max_iter=t.max_iter, n_slacks=t.n_slacks, dagger_rounds=t.dagger_rounds,
+                            noise_rate=t.noise_rate, noise_copies=t.noise_copies),
                     c.fold_settings, c.max_steps)
 
 

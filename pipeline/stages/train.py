@@ -40,7 +40,8 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
     t, people = params.train, params.people
     logs, use = Path(people.logs), people.train  # both read, so the keys read never depend on the values
     return Settings(Train(C=t.C, tol=t.tol, max_iter=t.max_iter, n_slacks=t.n_slacks, dagger_rounds=t.dagger_rounds,
-                          tuned=t.tuned, method=t.method), logs if use else None)
+                          noise_rate=t.noise_rate, noise_copies=t.noise_copies, tuned=t.tuned, method=t.method),
+                    logs if use else None)
 
 
 def shipped_method(settings: Train, paths: TrainPaths) -> tuple[str, str]:
@@ -73,7 +74,9 @@ def run(settings: Settings, paths: TrainPaths, tracker: Tracker = NO_RUN) -> dic
     planner = method.fit(contexts, meta, scenarios).planner_
     label = method_labels().get(name, name)
     planner.save(model, n_steps=len(contexts), method=name, label=label, chosen_by=chosen_by,
-                 chained_starts=method.chained_starts, dagger_rounds=method.dagger_rounds, policy=method.policy)
+                 chained_starts=method.chained_starts, dagger_rounds=method.dagger_rounds, policy=method.policy,
+                 **({"noise_rate": method.noise_rate, "noise_copies": method.noise_copies} if method.noise_copies
+                    else {}))
     ssvm = planner.ssvm_
     acc = step_accuracy(contexts, planner.predict(contexts))
     last = ssvm.history_[-1]
