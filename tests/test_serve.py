@@ -265,6 +265,22 @@ def test_assist_accepting_a_proposal_is_no_correction(client, data):
     assert record["corrected"] == list(range(len(actions) + 1))
 
 
+def test_assist_ranks_with_the_policy_the_model_file_records(data, tmp_path):
+    """A model trained with the feasible policy proposes only steps that can run, as `taskseq plan` runs it; the
+    same weights recorded as greedy propose their best scores, steps the simulator refuses among them."""
+    weights = np.random.default_rng(0).normal(size=MRFModel("full").size_joint_feature)
+    proposals = {}
+    for policy in ("greedy", "feasible"):
+        path = tmp_path / f"{policy}.npz"
+        StepScorer.from_weights("full", weights).save(path, policy=policy)
+        client = create_app(data, path).test_client()
+        start(client, mode="assist")
+        page = client.get("/assist").get_data(as_text=True)
+        assert page.count('name="choice"') == 3
+        proposals[policy] = page.count("refused: ")
+    assert proposals["feasible"] == 0 and proposals["greedy"] > 0
+
+
 def test_assist_names_a_missing_model(data):
     client = create_app(data, data / "none.npz").test_client()
     resp = start(client, mode="assist")

@@ -17,6 +17,8 @@ from flask import Flask, Response, g, redirect, render_template, request
 
 from ..features.context import step_context
 from ..learn.estimator import StepScorer
+from ..learn.persist import policy_of
+from ..plan.planner import POLICIES
 from ..sim.catalog import ENVIRONMENTS, OBJECTS_BY_ID
 from ..sim.primitives import ALL_PRIMITIVES, ARITY, Action, PreconditionError, execute
 from ..sim.tasks import TASK_ARITY, goal_reached
@@ -62,7 +64,10 @@ class Served:
         self._planner_lock = threading.Lock()  # one scoring at a time: the model caches per batch
 
     def candidates(self, activity: Activity) -> list[Candidate]:
-        """The planner's top k for the next step, best first, each marked with whether it can run."""
+        """The planner's top k for the next step, best first, each marked with whether it can run.
+
+        They are ranked by the policy the model file records (`greedy`: the best scores; `feasible`: the best
+        scores among the steps that can run), as `taskseq plan` would run the model."""
         with self._planner_lock:
             if self._planner is None:
                 try:
@@ -70,7 +75,8 @@ class Served:
                 except (FileNotFoundError, ValueError) as err:
                     raise Refused(f"the planner cannot be loaded: {err}", 503) from None
             ctx = step_context(activity.state, activity.task, activity.actions)
-            ranked = self._planner.top_k(ctx, self.top_k)
+            policy = POLICIES[policy_of(self._planner.meta_)](self._planner, self.top_k)
+            ranked = policy(ctx, activity.state)
         out = []
         for y, score in ranked:
             action = ctx.action(y)
