@@ -96,12 +96,35 @@ def test_the_observer_only_follows_a_demonstration_the_history_agrees_with():
 class ScriptedMethod:
     """What `_replay` trains per fold, with the scripted planner (fresh for every program)."""
 
+    policy = "greedy"
+
     @property
     def planner_(self) -> ScriptedPlanner:
         return ScriptedPlanner()
 
     def fit(self, contexts, meta, scenarios=None) -> ScriptedMethod:
         return self
+
+
+class GraspMugFirst:
+    """Offers a grasp of the mug, out of reach (it cannot run), before the demonstration's step t."""
+
+    def __init__(self) -> None:
+        self.calls = 0
+
+    def top_k(self, ctx, k: int):
+        t, self.calls = self.calls, self.calls + 1
+        ranked = [Action.parse(f"grasp({MUG})"), DEMO[t] if t < len(DEMO) else Action("done")]
+        return [(ctx.encode(a), float(-i)) for i, a in enumerate(ranked)][:k]
+
+
+@pytest.mark.parametrize(("policy", "status", "actions"), [("greedy", "infeasible", [f"grasp({MUG})"]),
+                                                           ("feasible", DONE, [str(a) for a in DEMO])])
+def test_noise_and_feedback_runs_pick_steps_with_the_methods_policy(scenario, policy, status, actions):
+    method = type("Method", (ScriptedMethod,), {"policy": policy, "planner_": property(lambda self: GraspMugFirst())})
+    for condition in (NoiseCondition(0.0, 0), FeedbackCondition(2, 0)):
+        [(_, outcome)] = _replay(method, [], [], {scenario.id: scenario}, {scenario.id}, [condition], 20, 0)
+        assert (outcome.status, list(outcome.actions)) == (status, actions)
 
 
 def test_feedback_rows_count_the_programs_the_observer_corrected(scenario):

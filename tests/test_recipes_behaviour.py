@@ -71,8 +71,25 @@ class Scripted:
 
 
 class Method:
-    def __init__(self, planner) -> None:
+    def __init__(self, planner, policy: str = "greedy") -> None:
         self.planner_ = planner
+        self.policy = policy
+
+
+class ReleaseFirst:
+    """Offers `release` of the task's first object (nothing is held: it cannot run) first, then `done`."""
+
+    def top_k(self, ctx, k):
+        offer = [Action("release", (ctx.object_ids[int(np.argmax(ctx.task_rel[:, 0]))],)), DONE]
+        return [(ctx.encode(a), float(-i)) for i, a in enumerate(offer)][:k]
+
+
+def test_a_recipe_picks_steps_with_the_methods_policy():
+    recipe = RECIPES[0]
+    greedy = run_recipe(Method(ReleaseFirst()), recipe, feedback=False)
+    feasible = run_recipe(Method(ReleaseFirst(), "feasible"), recipe, feedback=False)
+    assert greedy.programs[0][1] == "infeasible"  # the release was sent
+    assert feasible.programs[0][1] == "done"  # the release was refused before it was sent: `done` is next
 
 
 def script_of(recipe) -> list[Action]:
@@ -186,6 +203,7 @@ class Recorder:
 
     fits: list = []
     made: list = []
+    policy = "greedy"
 
     def fit(self, contexts, meta, scenarios):
         self.blas_threads = {pool["num_threads"] for pool in threadpool_info()}

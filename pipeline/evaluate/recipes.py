@@ -17,7 +17,7 @@ from threadpoolctl import threadpool_limits
 
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
-from ..plan.planner import plan
+from ..plan.planner import POLICIES, run_loop
 from ..settings import Recipes
 from ..sim.catalog import ENVIRONMENTS_BY_ID, build_environment
 from ..sim.demonstrator import NoDemonstration, choose_vessel, demonstrate
@@ -96,8 +96,9 @@ class RecipeOutcome:
 
 def run_recipe(method: MRFMethod, recipe: Recipe, feedback: bool, max_steps: int = 20,
                observer_k: int = Recipes.observer_k) -> RecipeOutcome:
-    """Each program from where the last one left the world; with `feedback`, the observer picks the
-    demonstrator's step among the planner's `observer_k` best at the start of each program."""
+    """Each program from where the last one left the world, its steps picked by the method's policy; with
+    `feedback`, the observer picks the demonstrator's step among the planner's `observer_k` best at the start
+    of each program."""
     initial = state = build_environment(ENVIRONMENTS_BY_ID[recipe.env_id])
     programs = []
     for next_task in recipe.programs:
@@ -109,7 +110,8 @@ def run_recipe(method: MRFMethod, recipe: Recipe, feedback: bool, max_steps: int
             except (NoDemonstration, PreconditionError):
                 demos = ()
             choose = observer(demos, 1)
-        program = plan(method.planner_, state, task, max_steps=max_steps, top_k=observer_k, choose=choose)
+        program = run_loop(POLICIES[method.policy](method.planner_, observer_k), state, task, max_steps,
+                           choose=choose)
         programs.append((str(task), program.status, program.success))
         state = program.final
         if not program.success:

@@ -1,8 +1,9 @@
-"""Closed-loop sequence accuracy of the full model under attribute noise and with an observer's feedback.
+"""Closed-loop sequence accuracy of MRF methods under attribute noise and with an observer's feedback.
 
-Both train the full model once per cross-validation fold and replay the test
+Both train each method once per cross-validation fold and replay the test
 scenarios of that fold under each condition, so every condition is judged on
-the same 113 scenarios with the same models.
+the same scenarios with the same models; programs pick steps with the
+method's own policy, as its Table I programs do.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from threadpoolctl import threadpool_limits
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
 from ..features.perception import flip_masks, noisy_perception
-from ..plan.planner import plan
+from ..plan.planner import POLICIES, run_loop
 from ..settings import Feedback, Folds, Noise
 from ..sim.primitives import Action
 from ..sim.scenarios import Scenario
@@ -83,8 +84,8 @@ def _replay(make, contexts, meta, scenarios, test, conditions, max_steps, seed):
             else:
                 top_k = c.k
                 choose = observer(sc.demonstrations, c.n)
-            program = plan(method.planner_, sc.initial, sc.task, max_steps=max_steps, top_k=top_k,
-                           perceive=perceive, choose=choose)
+            policy = POLICIES[method.policy](method.planner_, top_k)  # as the method's own programs pick steps
+            program = run_loop(policy, sc.initial, sc.task, max_steps, perceive, choose)
             out.append((c, judge(sc, program)))
     return out
 
