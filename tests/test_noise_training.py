@@ -80,6 +80,12 @@ def test_a_bad_rate_or_number_of_copies_is_named(steps, rate, copies, message):
         noisy_copies(contexts, meta, rate, copies)
 
 
+def test_steps_and_meta_of_different_lengths_are_refused(steps):
+    contexts, meta = steps
+    with pytest.raises(ValueError, match="zip"):
+        noisy_copies(contexts, meta[:-1], 0.1, 1)
+
+
 def test_the_method_trains_on_its_steps_and_their_copies_under_a_key_of_its_own(steps):
     contexts, meta = steps
     plain = MRFMethod(features="relations", C=1.0, tol=0.05, max_iter=5)
