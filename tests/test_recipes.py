@@ -34,6 +34,7 @@ class Fake:
     """Records what it was trained on; plans with zero weights."""
 
     seen: list = []
+    policy = "greedy"
 
     def fit(self, contexts, meta, scenarios=None):
         Fake.seen.append({m.scenario_id.split("/")[0] for m in meta})
