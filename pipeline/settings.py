@@ -107,6 +107,13 @@ class Learner:
     noise_copies: int = 3  # of `noise_trained`: copies of the training steps seen with flipped attributes
     tuned: tuple[tuple[str, float], ...] = ()  # (method, C) that `select` chose per MRF method; the rest take C
 
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.noise_rate <= 1.0:
+            raise ValueError(f"train.noise_rate must lie in [0, 1] (a probability of flipping an attribute), got "
+                             f"{self.noise_rate}")
+        if self.noise_copies < 0:
+            raise ValueError(f"train.noise_copies must be at least 0, got {self.noise_copies}")
+
     def of(self, method: str) -> Learner:
         """The learner of one MRF method: with the C `select` chose for it, when it chose one."""
         return replace(self, C=dict(self.tuned).get(method, self.C), tuned=())

@@ -8,7 +8,7 @@ import pytest
 from pipeline.evaluate.methods import MRFMethod, mrf_methods
 from pipeline.features.perception import BINARY_COLUMNS, noisy_copies
 from pipeline.learn.persist import describe
-from pipeline.settings import Learner
+from pipeline.settings import Learner, Params
 
 
 @pytest.fixture(scope="module")
@@ -113,3 +113,12 @@ def test_a_model_file_says_how_many_noisy_copies_it_trained_on():
             "noise_copies": 2}
     assert "2 noisy copies at flip rate 0.1" in describe(meta)
     assert "noisy" not in describe({**meta, "noise_copies": 0})
+
+
+@pytest.mark.parametrize(("setting", "message"), [("train.noise_rate=1.5", r"train.noise_rate must lie in \[0, 1\]"),
+                                                  ("train.noise_rate=-0.1", r"train.noise_rate must lie in \[0, 1\]"),
+                                                  ("train.noise_copies=-1", "train.noise_copies must be at least 0")])
+def test_noisy_training_settings_are_checked_where_params_are_read(setting, message):
+    with pytest.raises(ValueError, match=message):
+        Params.load(None, [setting])
+    assert Params.load(None, ["train.noise_rate=1.0", "train.noise_copies=0"]).train.learner.noise_copies == 0
