@@ -14,7 +14,7 @@ from .learn.persist import describe, policy_of
 from .logs.records import load_schema, spec_from_dict, state_from_dict
 from .logs.validate import LogError, check_record, check_references, check_schema, log_files, read_records
 from .logs.validate import _field as field_name  # the log checks' way of writing a field's path
-from .plan.planner import POLICIES, Program, run_loop
+from .plan.planner import POLICIES, Policy, Program, run_loop
 from .sim.state import WorldState
 from .sim.tasks import Task
 
@@ -93,21 +93,27 @@ def _check_environment(path: Path, env: Any) -> None:
 LIQUID_TASKS = ("pour", "pour_to", "stir")  # tasks whose first argument is a liquid
 
 
+def recorded_policy(planner: StepScorer, model_path: Path, top_k: int) -> Policy:
+    """The loaded model as the policy its file records (greedy when it records none), offering `top_k`
+    candidates; a policy this version does not know is refused with the file's name."""
+    name = policy_of(planner.meta_)
+    if name not in POLICIES:
+        raise ValueError(f"{model_path}: policy {name!r} is not one this version plans with ({', '.join(POLICIES)})")
+    return POLICIES[name](planner, top_k)
+
+
 def plan_task(model_path: Path, env: Path, record: int, task_text: str, max_steps: int,
               top_k: int) -> tuple[Program, dict[str, str], str]:
     """The program the model plans for the task in that environment, the objects' names, and what the model is
     (its method, settings and policy, `persist.describe`); the program is planned with the policy the file
     records (greedy when it records none)."""
     planner = StepScorer.load(model_path)
-    policy = policy_of(planner.meta_)
-    if policy not in POLICIES:
-        raise ValueError(f"{model_path}: policy {policy!r} is not one this version plans with "
-                         f"({', '.join(POLICIES)})")
+    policy = recorded_policy(planner, model_path, top_k)
     objects, state_dict = load_environment(env, record)
     specs = {o["id"]: spec_from_dict(o) for o in objects}
     state = state_from_dict(specs, state_dict)
     task = parse_task(task_text, state)
-    program = run_loop(POLICIES[policy](planner, top_k), state, task, max_steps)
+    program = run_loop(policy, state, task, max_steps)
     return program, {o: s.name for o, s in specs.items()}, describe(planner.meta_)
 
 

@@ -62,12 +62,9 @@ def main(argv: list[str] | None = None) -> int:
     C = dict(read_selection(args.selection).tuned).get("relations", params.train.C)
     contexts, meta = read_features(args.data / "features")
     bench = load_benchmark(args.data / "processed")
-    pairs = [(r, c) for r in args.flip_rates for c in args.copies]
-    makes = {f"{r:g}x{c}": partial(MRFMethod, features="relations", C=C, tol=params.train.tol,
-                                   max_iter=params.train.max_iter, n_slacks=params.train.n_slacks,
-                                   noise_rate=r, noise_copies=c, name=f"{r:g}x{c}") for r, c in pairs}
-    makes["none"] = partial(MRFMethod, features="relations", C=C, tol=params.train.tol,
-                            max_iter=params.train.max_iter, n_slacks=params.train.n_slacks, name="none")
+    relations = partial(MRFMethod, features="relations", **{**params.train.learner.ssvm, "C": C})
+    settings = {f"{r:g}x{c}": (r, c) for r in args.flip_rates for c in args.copies} | {"none": (0.0, 0)}
+    makes = {name: partial(relations, noise_rate=r, noise_copies=c, name=name) for name, (r, c) in settings.items()}
     conditions = [NoiseCondition(r, d) for r in noise.rates for d in range(noise.draws)]
     print(f"{len(makes)} settings x {crossval.folds} folds on the development world ({len(bench.scenarios)} "
           f"scenarios), relations at C = {C:g}, noise rates {' '.join(f'{r:g}' for r in noise.rates)}, "
@@ -77,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     for name, results in outcomes.items():
         curve = noise_curve(noise, noise_runs(noise, results))
-        rate, copies = (0.0, 0) if name == "none" else (float(name.split("x")[0]), int(name.split("x")[1]))
+        rate, copies = settings[name]
         rows.append({"flip_rate": rate, "copies": copies, **{f"arg@{p['rate']:g}": p["sequence_arg"] for p in curve},
                      "mean_arg": float(np.mean([p["sequence_arg"] for p in curve])),
                      "mean_success": float(np.mean([p["success"] for p in curve]))})

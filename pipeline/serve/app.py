@@ -17,12 +17,11 @@ from flask import Flask, Response, g, redirect, render_template, request
 
 from ..features.context import step_context
 from ..learn.estimator import StepScorer
-from ..learn.persist import policy_of
-from ..plan.planner import POLICIES
+from ..plan.planner import Policy
 from ..sim.catalog import ENVIRONMENTS, OBJECTS_BY_ID
 from ..sim.primitives import ALL_PRIMITIVES, ARITY, Action, PreconditionError, execute
 from ..sim.tasks import TASK_ARITY, goal_reached
-from ..tools import LIQUID_TASKS, parse_task
+from ..tools import LIQUID_TASKS, parse_task, recorded_policy
 from .environments import SAFE_NAME, file_environment, named_files, read_named, world_environment
 from .scene import support_tree, top_view
 from .sessions import ASSIST, DEMONSTRATE, MODES, Activity, Session, SessionStore
@@ -60,7 +59,7 @@ class Served:
         self.top_k = top_k
         self.sessions = SessionStore()
         self.writer = RecordWriter(self.people)
-        self._planner: StepScorer | None = None
+        self._policy: Policy | None = None  # the model, loaded at the first proposal, as its recorded policy
         self._planner_lock = threading.Lock()  # one scoring at a time: the model caches per batch
 
     def candidates(self, activity: Activity) -> list[Candidate]:
@@ -69,14 +68,13 @@ class Served:
         They are ranked by the policy the model file records (`greedy`: the best scores; `feasible`: the best
         scores among the steps that can run), as `taskseq plan` would run the model."""
         with self._planner_lock:
-            if self._planner is None:
+            if self._policy is None:
                 try:
-                    self._planner = StepScorer.load(self.model)
+                    self._policy = recorded_policy(StepScorer.load(self.model), self.model, self.top_k)
                 except (FileNotFoundError, ValueError) as err:
                     raise Refused(f"the planner cannot be loaded: {err}", 503) from None
             ctx = step_context(activity.state, activity.task, activity.actions)
-            policy = POLICIES[policy_of(self._planner.meta_)](self._planner, self.top_k)
-            ranked = policy(ctx, activity.state)
+            ranked = self._policy(ctx, activity.state)
         out = []
         for y, score in ranked:
             action = ctx.action(y)
