@@ -121,4 +121,5 @@ def test_a_model_file_says_how_many_noisy_copies_it_trained_on():
 def test_noisy_training_settings_are_checked_where_params_are_read(setting, message):
     with pytest.raises(ValueError, match=message):
         Params.load(None, [setting])
-    assert Params.load(None, ["train.noise_rate=1.0", "train.noise_copies=0"]).train.learner.noise_copies == 0
+    for rate in ("0.0", "1.0"):  # both ends of the range are probabilities
+        assert Params.load(None, [f"train.noise_rate={rate}", "train.noise_copies=0"]).train.learner.noise_copies == 0
