@@ -80,7 +80,7 @@ class Select:
 
     C: tuple[float, ...] = (0.3, 1.0, 3.0, 10.0)  # slack weights tried for each MRF method (grid, extended at an edge)
     methods: tuple[str, ...] = ("full", "relations", "chained", "dagger", "feasible", "choice", "choice_feasible",
-                                "noise_trained")  # tuned, then ranked
+                                "choice_lookahead", "choice_chained_lookahead", "noise_trained")  # tuned, then ranked
     max_extensions: int = 2  # grid values added beyond an edge per method at most (docs/planner-shipped.md)
 
     def __post_init__(self) -> None:
@@ -185,7 +185,7 @@ class Feedback:
 
 @dataclass(frozen=True)
 class Recipes:
-    methods: tuple[str, ...] = ("full", "chained")  # Table I methods that chain programs into recipes
+    methods: tuple[str, ...] = ("full", "chained", "choice_chained_lookahead")  # Table I methods that chain programs
     observer_k: int = 3  # candidates the observer picks among at the start of each program (feedback runs)
 
 

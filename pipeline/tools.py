@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -14,7 +15,7 @@ from .learn.persist import describe, policy_of
 from .logs.records import load_schema, spec_from_dict, state_from_dict
 from .logs.validate import LogError, check_record, check_references, check_schema, log_files, read_records
 from .logs.validate import _field as field_name  # the log checks' way of writing a field's path
-from .plan.planner import POLICIES, Policy, Program, run_loop
+from .plan.planner import POLICIES, Policy, Program, learned_policy, run_loop
 from .sim.state import WorldState
 from .sim.tasks import Task
 
@@ -93,13 +94,13 @@ def _check_environment(path: Path, env: Any) -> None:
 LIQUID_TASKS = ("pour", "pour_to", "stir")  # tasks whose first argument is a liquid
 
 
-def recorded_policy(planner: StepScorer, model_path: Path, top_k: int) -> Policy:
-    """The loaded model as the policy its file records (greedy when it records none), offering `top_k`
-    candidates; a policy this version does not know is refused with the file's name."""
+def recorded_policy(planner: StepScorer, model_path: Path, top_k: int) -> Callable[[Task], Policy]:
+    """The loaded model as the policy its file records (greedy when it records none), for a task, offering
+    `top_k` candidates; a policy this version does not know is refused with the file's name, at once."""
     name = policy_of(planner.meta_)
     if name not in POLICIES:
         raise ValueError(f"{model_path}: policy {name!r} is not one this version plans with ({', '.join(POLICIES)})")
-    return POLICIES[name](planner, top_k)
+    return lambda task: learned_policy(name, planner, task, top_k)
 
 
 def plan_task(model_path: Path, env: Path, record: int, task_text: str, max_steps: int,
@@ -108,12 +109,12 @@ def plan_task(model_path: Path, env: Path, record: int, task_text: str, max_step
     (its method, settings and policy, `persist.describe`); the program is planned with the policy the file
     records (greedy when it records none)."""
     planner = StepScorer.load(model_path)
-    policy = recorded_policy(planner, model_path, top_k)
+    policy_for = recorded_policy(planner, model_path, top_k)
     objects, state_dict = load_environment(env, record)
     specs = {o["id"]: spec_from_dict(o) for o in objects}
     state = state_from_dict(specs, state_dict)
     task = parse_task(task_text, state)
-    program = run_loop(policy, state, task, max_steps)
+    program = run_loop(policy_for(task), state, task, max_steps)
     return program, {o: s.name for o, s in specs.items()}, describe(planner.meta_)
 
 

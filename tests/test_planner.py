@@ -169,7 +169,8 @@ def test_plan_command_says_which_method_and_settings_it_runs(small_fit, benchmar
     assert "policy greedy (not recorded" in captured.err  # a file from before policies: greedy, as it always ran
     fit.save(tmp_path / "odd.npz", method="relations", policy="cautious")
     assert main(["plan", "--model", str(tmp_path / "odd.npz"), *env]) == 2
-    assert f"{tmp_path / 'odd.npz'}: policy 'cautious' is not one this version plans with (greedy, feasible)" in (
+    known = "(greedy, feasible, lookahead)"
+    assert f"{tmp_path / 'odd.npz'}: policy 'cautious' is not one this version plans with {known}" in (
         capsys.readouterr().err)
 
 

@@ -197,7 +197,8 @@ def test_every_stage_builds_each_mrf_method_with_its_own_c(tmp_path):
     path.write_text(json.dumps({"C": 2, "settings": {"full": {"C": 2}, "dagger": {"C": 0.5}, "feasible": {"C": 8}}}))
     params = load_params(argparse.Namespace(params=None, overrides=[], selection=path))
     expected = {"only_edge": 2.0, "only_clique": 2.0, "full": 2.0, "relations": 2.0, "chained": 2.0, "dagger": 0.5,
-                "choice": 2.0, "feasible": 8.0, "choice_feasible": 2.0, "noise_trained": 2.0}
+                "choice": 2.0, "feasible": 8.0, "choice_feasible": 2.0, "choice_lookahead": 2.0,
+                "choice_chained_lookahead": 2.0, "noise_trained": 2.0}
     for learner in (params.train.learner, Replay.of(params).learner, train_stage.settings(params).train.learner,
                     fold_models_stage.settings(params).learner):
         made = {name: make() for name, make in mrf_methods(learner).items()}

@@ -283,10 +283,10 @@ def test_assist_ranks_with_the_policy_the_model_file_records(data, tmp_path):
 
 def test_assist_names_a_policy_this_version_does_not_plan_with(data, tmp_path):
     path = tmp_path / "odd.npz"
-    StepScorer.from_weights("full", np.zeros(MRFModel("full").size_joint_feature)).save(path, policy="lookahead")
+    StepScorer.from_weights("full", np.zeros(MRFModel("full").size_joint_feature)).save(path, policy="cautious")
     client = create_app(data, path).test_client()
     page = client.get(start(client, mode="assist").headers["Location"])
-    assert "the planner cannot be loaded" in message(page) and "policy 'lookahead'" in message(page)
+    assert "the planner cannot be loaded" in message(page) and "policy 'cautious'" in message(page)
 
 
 def test_assist_names_a_missing_model(data):

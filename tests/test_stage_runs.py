@@ -136,7 +136,7 @@ def test_crossval_writes_table1_with_every_method_and_classified_programs(evalua
     summary = json.loads((evaluated / "crossval.json").read_text())
     assert set(summary) == {"chance", "multiclass", "symb_plan_svm", "symb_plan_manual", "only_edge",
                             "only_clique", "full", "relations", "chained", "dagger", "choice", "feasible",
-                            "choice_feasible", "noise_trained"}
+                            "choice_feasible", "choice_lookahead", "choice_chained_lookahead", "noise_trained"}
     rows = list(csv.DictReader((evaluated / "crossval_sequences.csv").open()))
     full = [r for r in rows if r["method"] == "full"]
     assert len(full) == summary["full"]["n_scenarios"]
@@ -211,7 +211,8 @@ def test_aggregate_and_report_over_worlds(evaluated, tiny):
     failures = (out / "failures.md").read_text()
     assert "The full model per task" in failures and "| environment | world 0 | world 5 |" in failures
     recipes = json.loads((out / "recipes.json").read_text())["methods"]
-    assert recipes.keys() == {"full", "chained"} and recipes["full"]["per_seed"].keys() == {"0", "5"}
+    assert recipes.keys() == {"full", "chained", "choice_chained_lookahead"}
+    assert recipes["full"]["per_seed"].keys() == {"0", "5"}
     (out / "selection.json").write_text(json.dumps({"C": 2.0, "dev_seed": 100, "criterion": "sequence_arg",
                                                     "candidates": [{"C": 2.0, "sequence_arg": 50.0}]}))
     assert main(["stats", "--set", "world.seeds=[0, 5]", "--set", "stats.resamples=200",
@@ -223,7 +224,8 @@ def test_aggregate_and_report_over_worlds(evaluated, tiny):
     assert float(avg["value"]) == pytest.approx(single["steps"]["average/arg"], abs=0.01)  # as Table I pools steps
     assert float(seq["low"]) <= float(seq["value"]) <= float(seq["high"])
     assert {r["method"] for r in csv.DictReader((out / "comparisons.csv").open())} == {
-        "relations", "chained", "dagger", "feasible", "choice", "choice_feasible", "noise_trained"}
+        "relations", "chained", "dagger", "feasible", "choice", "choice_feasible", "choice_lookahead",
+        "choice_chained_lookahead", "noise_trained"}
     assert main(["report", "--reports", str(out), "--output", str(out / "summary.md"),
                  "--plots-template", str(out / "page.html")]) == 0
     page = (out / "page.html").read_text()

@@ -21,7 +21,7 @@ from ..imitation.dagger import fit_imitation
 from ..learn.estimator import StepScorer
 from ..learn.store import ModelStore, training_key
 from ..logs.benchmark import Benchmark
-from ..plan.planner import POLICIES, Program, run_loop
+from ..plan.planner import POLICIES, Program, learned_policy, run_loop
 from ..plan.symbolic.executor import SymbolicPolicy, first_action
 from ..plan.symbolic.roles import ROLE_OF_TASK, RoleRanker, demonstrated_roles
 from ..settings import Crossval, Learner, Pddl
@@ -192,7 +192,8 @@ class MRFMethod:
         return self.planner_.predict(contexts)
 
     def run(self, scenario: Scenario, max_steps: int) -> Program:
-        return run_loop(POLICIES[self.policy](self.planner_), scenario.initial, scenario.task, max_steps)
+        policy = learned_policy(self.policy, self.planner_, scenario.task)
+        return run_loop(policy, scenario.initial, scenario.task, max_steps)
 
 
 def _role_candidates(x: StepContext) -> tuple[np.ndarray, list[str]]:

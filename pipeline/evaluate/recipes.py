@@ -17,7 +17,7 @@ from threadpoolctl import threadpool_limits
 
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
-from ..plan.planner import POLICIES, run_loop
+from ..plan.planner import learned_policy, run_loop
 from ..settings import Recipes
 from ..sim.catalog import ENVIRONMENTS_BY_ID, build_environment
 from ..sim.demonstrator import NoDemonstration, choose_vessel, demonstrate
@@ -110,7 +110,7 @@ def run_recipe(method: MRFMethod, recipe: Recipe, feedback: bool, max_steps: int
             except (NoDemonstration, PreconditionError):
                 demos = ()
             choose = observer(demos, 1)
-        program = run_loop(POLICIES[method.policy](method.planner_, observer_k), state, task, max_steps,
+        program = run_loop(learned_policy(method.policy, method.planner_, task, observer_k), state, task, max_steps,
                            choose=choose)
         programs.append((str(task), program.status, program.success))
         state = program.final

@@ -17,7 +17,7 @@ from threadpoolctl import threadpool_limits
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
 from ..features.perception import flip_masks, noisy_perception
-from ..plan.planner import POLICIES, run_loop
+from ..plan.planner import learned_policy, run_loop
 from ..settings import Feedback, Folds, Noise
 from ..sim.primitives import Action
 from ..sim.scenarios import Scenario
@@ -84,7 +84,8 @@ def _replay(make, contexts, meta, scenarios, test, conditions, max_steps, seed):
             else:
                 top_k = c.k
                 choose = observer(sc.demonstrations, c.n)
-            policy = POLICIES[method.policy](method.planner_, top_k)  # as the method's own programs pick steps
+            # as the method's own programs pick steps, imagined ones seen through the same perception
+            policy = learned_policy(method.policy, method.planner_, sc.task, top_k, perceive)
             program = run_loop(policy, sc.initial, sc.task, max_steps, perceive, choose)
             out.append((c, judge(sc, program)))
     return out

@@ -121,6 +121,16 @@ class StepContext:
         args = tuple(self.object_ids[a] for a in (a1, a2) if a >= 0)
         return Action(ALL_PRIMITIVES[p], args)
 
+    def history(self) -> list[Action]:
+        """The steps this context remembers (the last two at most), oldest first: `step_context` given them
+        and the same world and task makes the same context again."""
+        out = []
+        for k in (1, 0):
+            if self.prev_prims[k] != NO_PRIM:
+                args = tuple(self.object_ids[a] for a in self.prev_args[2 * k: 2 * k + 2] if a >= 0)
+                out.append(Action(ALL_PRIMITIVES[self.prev_prims[k]], args))
+        return out
+
     def encode(self, action: Action) -> tuple[int, int, int]:
         index = {o: i for i, o in enumerate(self.object_ids)}
         try:

@@ -5,6 +5,5 @@ listed (`pipeline.evaluate.registry.added_methods`), and registers its method
 with `@register(name, label)`. From then on the method has a row in Table I
 (per world and over worlds), a child run in MLflow, and, when it is an MRF
 method, its fold models in the model store. `docs/extending.md` walks through
-adding one. The package ships empty: the reproduction's tables hold the
-paper's methods and the project's own additions (`pipeline.evaluate.methods`).
+adding one.
 """

@@ -94,6 +94,18 @@ def greedy(planner: StepScorer, top_k: int = 3) -> Policy:
     return lambda ctx, state: planner.top_k(ctx, top_k)
 
 
+def _runnable(planner: StepScorer, ctx: StepContext, state: WorldState, limit: int) -> Ranked:
+    """The planner's best `limit` candidates among `done` and the steps whose preconditions hold, best first."""
+    out = []
+    for y, score in planner.top_k(ctx, len(candidate_index(ctx.n)[0])):
+        action = ctx.action(y)
+        if action.primitive == DONE or try_execute(state, action) is not None:
+            out.append((y, score))
+            if len(out) == limit:
+                break
+    return out
+
+
 def feasible(planner: StepScorer, top_k: int = 3) -> Policy:
     """The learned planner's `top_k` best candidates among the steps that can run in the world as it is.
 
@@ -102,21 +114,75 @@ def feasible(planner: StepScorer, top_k: int = 3) -> Policy:
     this policy asks them down the ranking, so a step whose preconditions fail
     is never proposed, and the model's scores decide among the rest.
     """
+    return lambda ctx, state: _runnable(planner, ctx, state, top_k)
+
+
+# Chosen on the development world (scripts/lookahead_grid.py; docs/model.md, "Safety lookahead"): the best
+# sequence arg of depth 2, 4, 6, 8, 12 x width 2, 3, 5, the smaller of two ties.
+LOOKAHEAD_DEPTH = 4
+LOOKAHEAD_WIDTH = 3
+
+
+def lookahead(planner: StepScorer, task: Task, top_k: int = 3, perceive: Perceive | None = None,
+              depth: int = LOOKAHEAD_DEPTH, width: int = LOOKAHEAD_WIDTH) -> Policy:
+    """`feasible`, but a step is taken only if the plan it starts breaks no safety rule in the next `depth` steps.
+
+    The learned score picks each step by itself, so it can walk into a state
+    where its best continuation is unsafe (a cup left on a shelf, then poured
+    into there). Before sending a step, the robot imagines what follows with
+    its model of the primitives (`sim.primitives.execute`) and its own
+    planner: from the state the step leads to, `depth` more steps, each the
+    best runnable one, stopping at `done`. Of the `width` best runnable
+    candidates it takes the first whose imagined steps, itself included,
+    break no rule of `sim.safety`; when every one of them does, the best.
+    Imagined steps are seen through `perceive` as real ones are (attribute
+    noise flips an object's attributes alike at every step). The other
+    proposals follow in score order, so an observer still sees `top_k`.
+    """
+    seen = perceive or (lambda ctx: ctx)
+
+    def harms(state: WorldState, history: list[Action], action: Action) -> bool:
+        for k in range(depth + 1):
+            if violations(state, action):
+                return True
+            if k == depth:
+                return False
+            state = execute(state, action)
+            history = [*history[-1:], action]
+            imagined = seen(step_context(state, task, history))
+            action = imagined.action(_runnable(planner, imagined, state, 1)[0][0])
+            if action.primitive == DONE:
+                return False
+        return False
+
     def policy(ctx: StepContext, state: WorldState) -> Ranked:
-        out = []
-        for y, score in planner.top_k(ctx, len(candidate_index(ctx.n)[0])):
-            action = ctx.action(y)
-            if action.primitive == DONE or try_execute(state, action) is not None:
-                out.append((y, score))
-                if len(out) == top_k:
-                    break
-        return out
+        runnable = _runnable(planner, ctx, state, max(top_k, width))
+        history = ctx.history()
+        pick = next((i for i, (y, _) in enumerate(runnable[:width])
+                     if ctx.action(y).primitive == DONE or not harms(state, history, ctx.action(y))), 0)
+        return ([runnable[pick]] + runnable[:pick] + runnable[pick + 1:])[:top_k]
 
     return policy
 
 
 # The policies a learned planner can run with, by the name a model file records (`policy` in its metadata).
-POLICIES: dict[str, Callable[..., Policy]] = {"greedy": greedy, "feasible": feasible}
+POLICIES = ("greedy", "feasible", "lookahead")
+
+
+def learned_policy(name: str, planner: StepScorer, task: Task, top_k: int = 3,
+                   perceive: Perceive | None = None) -> Policy:
+    """The policy called `name` (one of `POLICIES`) for one program of `task`, offering `top_k` candidates.
+
+    `perceive` is the hook the program's steps are seen through; only a policy
+    that imagines steps of its own (`lookahead`) needs it.
+    """
+    if name == "greedy":
+        return greedy(planner, top_k)
+    if name == "feasible":
+        return feasible(planner, top_k)
+    if name == "lookahead":
+        return lookahead(planner, task, top_k, perceive)
+    raise ValueError(f"unknown policy {name!r}; known: {', '.join(POLICIES)}")
 
 
 def plan(planner: StepScorer, state: WorldState, task: Task, max_steps: int = 20,

@@ -9,6 +9,7 @@ post/redirect/get, so reloading a page never repeats a step.
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -20,7 +21,7 @@ from ..learn.estimator import StepScorer
 from ..plan.planner import Policy
 from ..sim.catalog import ENVIRONMENTS, OBJECTS_BY_ID
 from ..sim.primitives import ALL_PRIMITIVES, ARITY, Action, PreconditionError, execute
-from ..sim.tasks import TASK_ARITY, goal_reached
+from ..sim.tasks import TASK_ARITY, Task, goal_reached
 from ..tools import LIQUID_TASKS, parse_task, recorded_policy
 from .environments import SAFE_NAME, file_environment, named_files, read_named, world_environment
 from .scene import support_tree, top_view
@@ -59,22 +60,23 @@ class Served:
         self.top_k = top_k
         self.sessions = SessionStore()
         self.writer = RecordWriter(self.people)
-        self._policy: Policy | None = None  # the model, loaded at the first proposal, as its recorded policy
+        self._policy_for: Callable[[Task], Policy] | None = None  # the model as its recorded policy, loaded once
         self._planner_lock = threading.Lock()  # one scoring at a time: the model caches per batch
 
     def candidates(self, activity: Activity) -> list[Candidate]:
         """The planner's top k for the next step, best first, each marked with whether it can run.
 
         They are ranked by the policy the model file records (`greedy`: the best scores; `feasible`: the best
-        scores among the steps that can run), as `taskseq plan` would run the model."""
+        scores among the steps that can run; `lookahead`: those, checked for the safety of what follows), as
+        `taskseq plan` would run the model."""
         with self._planner_lock:
-            if self._policy is None:
+            if self._policy_for is None:
                 try:
-                    self._policy = recorded_policy(StepScorer.load(self.model), self.model, self.top_k)
+                    self._policy_for = recorded_policy(StepScorer.load(self.model), self.model, self.top_k)
                 except (FileNotFoundError, ValueError) as err:
                     raise Refused(f"the planner cannot be loaded: {err}", 503) from None
             ctx = step_context(activity.state, activity.task, activity.actions)
-            ranked = self._policy(ctx, activity.state)
+            ranked = self._policy_for(activity.task)(ctx, activity.state)
         out = []
         for y, score in ranked:
             action = ctx.action(y)

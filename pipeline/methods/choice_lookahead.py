@@ -1,0 +1,23 @@
+"""ours + relations + choice cues + safety lookahead: the choice-cue models, imagining what a step leads to.
+
+The same fold models as `ours + relations + choice cues` (the store holds
+them once), run with the `lookahead` policy (`plan.planner.lookahead`): among
+the runnable steps, the best-scored one whose next few imagined steps, each
+the model's own best runnable choice, break no safety rule. The failures it
+answers are programs in which every single step looked right and the plan as
+a whole was unsafe: a vessel on a shelf poured into where it stands, because
+the step that would have fetched it first scored just below the step that
+grasps the jug. It asks more of the robot than `feasible` does: a model of
+its primitives' effects to imagine with, and the kitchen's safety rules.
+"""
+
+from __future__ import annotations
+
+from pipeline.evaluate.methods import MRFMethod
+from pipeline.evaluate.registry import MethodSettings, register
+
+
+@register("choice_lookahead", label="ours + relations + choice cues + safety lookahead")
+def make(settings: MethodSettings) -> MRFMethod:
+    return MRFMethod(features="choice", name="choice_lookahead", store=settings.store, policy="lookahead",
+                     **settings.learner.ssvm)
