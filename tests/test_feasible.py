@@ -9,7 +9,7 @@ from pipeline.evaluate.methods import table1_methods
 from pipeline.features.context import candidate_index, step_context
 from pipeline.learn.estimator import StepScorer
 from pipeline.logs.records import parse_record, state_from_dict
-from pipeline.plan.planner import DONE, INFEASIBLE, feasible, greedy, run_loop
+from pipeline.plan.planner import DONE, INFEASIBLE, feasible, greedy, learned_policy, run_loop
 from pipeline.settings import Crossval, Learner
 from pipeline.sim.primitives import try_execute
 
@@ -36,11 +36,12 @@ def test_a_precondition_aware_planner_never_proposes_a_step_that_cannot_run(scen
     for scorer in _scorers(benchmark_steps):
         for state, task in scenarios:
             greedy_infeasible += run_loop(greedy(scorer), state, task, 8).status == INFEASIBLE
-            program = run_loop(feasible(scorer), state, task, 8)
-            assert program.status != INFEASIBLE
-            for before, step in zip(program.states, program.steps, strict=False):
-                for action in [step.action, *(a for a, _ in step.alternatives)]:
-                    assert action.primitive == DONE or try_execute(before, action) is not None, action
+            for name in ("feasible", "lookahead"):  # the policies that ask the controllers
+                program = run_loop(learned_policy(name, scorer, task), state, task, 8)
+                assert program.status != INFEASIBLE
+                for before, step in zip(program.states, program.steps, strict=False):
+                    for action in [step.action, *(a for a, _ in step.alternatives)]:
+                        assert action.primitive == DONE or try_execute(before, action) is not None, (name, action)
     assert greedy_infeasible > 10  # the same scorers without the check do propose such steps
 
 
@@ -69,3 +70,12 @@ def test_the_choice_cues_with_feasible_steps_share_the_choice_cue_models():
     both, choice = methods["choice_feasible"](), methods["choice"]()
     assert both.learner_params() == choice.learner_params() and both.features == choice.features == "choice"
     assert (both.policy, choice.policy) == ("feasible", "greedy")
+
+
+def test_the_lookahead_rows_are_the_choice_cue_models_with_the_lookahead():
+    methods = table1_methods(Crossval(), Learner(C=2.0, tuned=(("choice", 3.0), ("choice_lookahead", 3.0))))
+    look, choice = methods["choice_lookahead"](), methods["choice"]()
+    assert look.learner_params() == choice.learner_params() and look.features == "choice"
+    assert look.policy == "lookahead"
+    chained = methods["choice_chained_lookahead"]()
+    assert (chained.features, chained.chained_starts, chained.policy) == ("choice", True, "lookahead")

@@ -1,0 +1,153 @@
+"""The safety lookahead: a step is taken only if the plan it starts stays safe, as the planner itself would go on.
+
+The scorer here is scripted by the last step, so the plans each policy makes
+are known in advance: in env02 the glass a pour(milk) needs stands on a
+shelf, and the script prefers grasping the carton right away (then pouring
+over the shelf) to fetching the glass first, as the demonstrator does.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from pipeline.features.context import candidate_index, step_context
+from pipeline.plan.planner import DONE, POLICIES, feasible, greedy, learned_policy, lookahead, run_loop
+from pipeline.sim.catalog import ENVIRONMENTS_BY_ID, build_environment
+from pipeline.sim.demonstrator import demonstrate
+from pipeline.sim.primitives import Action, execute, try_execute
+from pipeline.sim.tasks import Task
+
+GLASS, CARTON, COUNTER = "obj15", "obj21", "obj03"
+TASK = Task.parse("pour(obj28)")  # the milk, in the carton; the glass stands on a shelf
+RUSH = ["move_close(obj15)", "grasp(obj21)", "hold_above(obj21,obj15)", "follow_traj_pour(obj21,obj15)"]
+FETCH = ["move_close(obj15)", "grasp(obj15)", "place_above(obj15,obj03)", "release(obj15)", "grasp(obj21)",
+         "move_close(obj15)", "hold_above(obj21,obj15)", "follow_traj_pour(obj21,obj15)"]
+
+
+class ScriptedScorer:
+    """A planner whose ranking depends on the last two steps only: `script["step step"]` best first, then `done`,
+    then every other candidate in index order. `seen` counts the contexts it scored."""
+
+    def __init__(self, script: dict[str | None, list[str]]) -> None:
+        self.script, self.seen = script, 0
+
+    def top_k(self, ctx, k):
+        self.seen += 1
+        history = ctx.history()
+        wanted = [ctx.encode(Action.parse(a)) for a in self.script.get(" ".join(map(str, history)), [])]
+        done = ctx.encode(Action(DONE))
+        rest = [y for y in zip(*(a.tolist() for a in candidate_index(ctx.n)), strict=True)
+                if tuple(y) not in wanted and tuple(y) != done]
+        ranked = [*wanted, done, *map(tuple, rest)]
+        return [(y, float(-i)) for i, y in enumerate(ranked)][:k]
+
+
+def _script() -> dict[str, list[str]]:
+    """After the last two steps of either plan, its next step; after reaching the glass the carton comes first,
+    the glass second; after a pour, `done`."""
+    script: dict[str, list[str]] = {}
+    for plan in (FETCH, RUSH):  # RUSH's first decision overrides FETCH's, the rest do not meet
+        for k in range(len(plan)):
+            script[" ".join(plan[max(0, k - 2):k])] = [plan[k]]
+    script[RUSH[0]] = [RUSH[1], FETCH[1]]
+    return script
+
+
+@pytest.fixture(scope="module")
+def room():
+    state = build_environment(ENVIRONMENTS_BY_ID["env02"])
+    assert state.over_shelf(GLASS) and state.container_of("obj28") == CARTON
+    assert [str(a) for a in demonstrate(state, TASK)[0]] == FETCH  # the script's safe plan is the demonstration
+    return state
+
+
+def test_the_script_rushes_into_a_pour_over_the_shelf_when_each_step_is_taken_alone(room):
+    program = run_loop(feasible(ScriptedScorer(_script())), room, TASK)
+    assert [str(a) for a in program.actions] == RUSH
+    assert program.steps[-1].unsafe == ["over_shelf"] and not program.success
+
+
+def test_the_lookahead_fetches_the_glass_off_the_shelf_first(room):
+    # depth 2: grasping the carton is followed by the hold and the pour, which breaks a rule
+    program = run_loop(lookahead(ScriptedScorer(_script()), TASK, depth=2), room, TASK)
+    assert [str(a) for a in program.actions] == FETCH
+    assert program.safe and program.success
+    # it refused the carton at step 1 and took the next runnable step; the carton is still offered, second
+    assert str(program.steps[1].alternatives[0][0]) == "grasp(obj21)"
+
+
+def test_a_lookahead_too_short_to_reach_the_pour_sees_it_too_late(room):
+    # one imagined step after grasping the carton is the hold above the glass, so the carton is grasped; at the
+    # hold, the pour is one step on, and the safe choice left among the three best is to stop
+    program = run_loop(lookahead(ScriptedScorer(_script()), TASK, depth=1), room, TASK)
+    assert [str(a) for a in program.actions] == RUSH[:2] and program.status == DONE
+    assert program.safe and not program.success
+
+
+def test_a_longer_lookahead_sees_the_harm_from_the_first_step_and_stops_rather_than_do_it(room):
+    # imagined with the planner's best runnable steps, the first step leads to the pour over the shelf (four
+    # steps on); of the three best runnable candidates, `done` is the one that breaks no rule
+    for depth in (3, 4):
+        program = run_loop(lookahead(ScriptedScorer(_script()), TASK, depth=depth), room, TASK)
+        assert program.actions == [] and program.status == DONE and program.safe
+
+
+def test_only_the_width_best_candidates_are_considered_and_the_best_is_taken_when_none_is_safe(room):
+    # width 1: the best runnable candidate is the only one, so its unsafe plan is taken all the same
+    program = run_loop(lookahead(ScriptedScorer(_script()), TASK, depth=2, width=1), room, TASK)
+    assert [str(a) for a in program.actions] == RUSH
+    program = run_loop(lookahead(ScriptedScorer(_script()), TASK, depth=2, width=2), room, TASK)
+    assert [str(a) for a in program.actions] == FETCH
+
+
+def test_it_proposes_only_runnable_steps_in_score_order_after_its_pick(room):
+    scorer = ScriptedScorer(_script())
+    state = execute(room, Action.parse(FETCH[0]))
+    ctx = step_context(state, TASK, [Action.parse(FETCH[0])])
+    picked = lookahead(scorer, TASK, top_k=3, depth=2)(ctx, state)
+    runnable = feasible(scorer, top_k=3)(ctx, state)
+    assert [str(ctx.action(y)) for y, _ in picked] == [FETCH[1], RUSH[1], str(ctx.action(runnable[2][0]))]
+    assert sorted(picked) == sorted(runnable)  # the same three, the safe one moved to the front
+    for y, _ in picked:
+        assert ctx.action(y).primitive == DONE or try_execute(state, ctx.action(y)) is not None
+
+
+def test_imagined_steps_are_seen_through_the_programs_perception(room):
+    seen = []
+
+    def perceive(ctx):
+        seen.append(ctx)
+        return ctx
+
+    scorer = ScriptedScorer(_script())
+    program = run_loop(learned_policy("lookahead", scorer, TASK, perceive=perceive), room, TASK,
+                       perceive=perceive)
+    assert program.status == DONE
+    assert len(seen) > 1 and scorer.seen == len(seen)  # every context the scorer saw, imagined ones too, was perceived
+
+
+def test_a_context_remembers_the_steps_that_make_it_again(room):
+    state, history = room, []
+    for text in FETCH[:4]:
+        ctx = step_context(state, TASK, history)
+        assert ctx.history() == history[-2:]
+        again = step_context(state, TASK, ctx.history())
+        assert (again.prev_prims, again.prev_args) == (ctx.prev_prims, ctx.prev_args)
+        action = Action.parse(text)
+        state, history = execute(state, action), [*history, action]
+
+
+def test_a_policy_is_built_by_name_and_an_unknown_name_is_refused(room):
+    scorer = ScriptedScorer(_script())
+    assert POLICIES == ("greedy", "feasible", "lookahead")
+    ctx = step_context(room, TASK, [])
+    state = execute(room, Action.parse(FETCH[0]))
+    later = step_context(state, TASK, [Action.parse(FETCH[0])])
+    made = {name: [learned_policy(name, scorer, TASK)(c, s) for c, s in ((ctx, room), (later, state))]
+            for name in POLICIES}
+    assert made["greedy"] == [greedy(scorer)(c, s) for c, s in ((ctx, room), (later, state))]
+    assert made["feasible"] == [feasible(scorer)(c, s) for c, s in ((ctx, room), (later, state))]
+    assert made["lookahead"] == [lookahead(scorer, TASK)(c, s) for c, s in ((ctx, room), (later, state))]
+    assert made["lookahead"][0] != made["feasible"][0]  # at the start the lookahead stops (see above)
+    with pytest.raises(ValueError, match="unknown policy 'cautious'; known: greedy, feasible, lookahead"):
+        learned_policy("cautious", scorer, TASK)
