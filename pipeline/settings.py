@@ -82,8 +82,13 @@ class Select:
     methods: tuple[str, ...] = ("full", "relations", "chained", "dagger", "feasible", "choice", "choice_feasible",
                                 "choice_lookahead", "choice_chained_lookahead", "noise_trained")  # tuned, then ranked
     max_extensions: int = 2  # grid values added beyond an edge per method at most (docs/planner-shipped.md)
+    # rooms of the development world when world.family is procedural (the paper family has its 13): a large
+    # benchmark chooses its settings on a world of this size, not on one as large as the reported ones
+    environments: int = 13
 
     def __post_init__(self) -> None:
+        if self.environments < 1:
+            raise ValueError(f"select.environments must be at least 1, got {self.environments}")
         if len(self.C) < 2 or min(self.C) <= 0:
             raise ValueError(f"select.C must list at least two positive values (the grid's spacing is how it is "
                              f"extended), got {' '.join(f'{c:g}' for c in self.C)}")

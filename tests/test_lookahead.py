@@ -8,6 +8,8 @@ over the shelf) to fetching the glass first, as the demonstrator does.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import pytest
 
 from pipeline.features.context import candidate_index, step_context
@@ -26,13 +28,13 @@ FETCH = ["move_close(obj15)", "grasp(obj15)", "place_above(obj15,obj03)", "relea
 
 class ScriptedScorer:
     """A planner whose ranking depends on the last two steps only: `script["step step"]` best first, then `done`,
-    then every other candidate in index order. `seen` counts the contexts it scored."""
+    then every other candidate in index order. `contexts` are the contexts it scored, in order."""
 
-    def __init__(self, script: dict[str | None, list[str]]) -> None:
-        self.script, self.seen = script, 0
+    def __init__(self, script: dict[str, list[str]]) -> None:
+        self.script, self.contexts = script, []
 
     def top_k(self, ctx, k):
-        self.seen += 1
+        self.contexts.append(ctx)
         history = ctx.history()
         wanted = [ctx.encode(Action.parse(a)) for a in self.script.get(" ".join(map(str, history)), [])]
         done = ctx.encode(Action(DONE))
@@ -113,17 +115,52 @@ def test_it_proposes_only_runnable_steps_in_score_order_after_its_pick(room):
 
 
 def test_imagined_steps_are_seen_through_the_programs_perception(room):
-    seen = []
+    perceived = []
 
     def perceive(ctx):
-        seen.append(ctx)
-        return ctx
+        perceived.append(replace(ctx))  # a copy: the scorer must be given what perception returned
+        return perceived[-1]
 
     scorer = ScriptedScorer(_script())
     program = run_loop(learned_policy("lookahead", scorer, TASK, perceive=perceive), room, TASK,
                        perceive=perceive)
     assert program.status == DONE
-    assert len(seen) > 1 and scorer.seen == len(seen)  # every context the scorer saw, imagined ones too, was perceived
+    # every context the scorer saw, imagined ones too, is one perception returned
+    assert len(perceived) > 1 and [id(c) for c in scorer.contexts] == [id(c) for c in perceived]
+
+
+def _at(plan: list[str], room):
+    """The world after the steps of `plan`, and the context of the next decision."""
+    state, history = room, []
+    for text in plan:
+        state, history = execute(state, Action.parse(text)), [*history, Action.parse(text)]
+    return state, step_context(state, TASK, history)
+
+
+def test_a_candidate_that_itself_breaks_a_rule_is_refused_and_stopping_is_never_imagined_on(room):
+    state, ctx = _at(RUSH[:3], room)  # holding the carton above the glass on the shelf: next comes the pour
+    script = _script()
+    script[f"{RUSH[2]} done()"] = [RUSH[3]]  # were stopping imagined on, the pour would follow it
+    for depth in (0, 1):
+        ranked = lookahead(ScriptedScorer(script), TASK, depth=depth)(ctx, state)
+        assert [str(ctx.action(y)) for y, _ in ranked[:2]] == ["done()", RUSH[3]]
+
+
+def test_imagining_stops_at_an_imagined_done(room):
+    # after the hold, the script stops, and only after stopping would it pour: the hold is safe to take
+    script = _script()
+    script[f"{RUSH[2]} done()"] = [RUSH[3]]
+    script[" ".join(RUSH[1:3])] = ["done"]
+    state, ctx = _at(RUSH[:2], room)
+    ranked = lookahead(ScriptedScorer(script), TASK, depth=4)(ctx, state)
+    assert str(ctx.action(ranked[0][0])) == RUSH[2]
+
+
+def test_a_safe_candidate_beyond_the_proposals_shown_is_still_found(room):
+    # one proposal shown (top_k 1), three candidates checked: the glass, second by score, is taken
+    state, ctx = _at(RUSH[:1], room)
+    ranked = lookahead(ScriptedScorer(_script()), TASK, top_k=1, depth=2, width=3)(ctx, state)
+    assert [str(ctx.action(y)) for y, _ in ranked] == [FETCH[1]]
 
 
 def test_a_context_remembers_the_steps_that_make_it_again(room):

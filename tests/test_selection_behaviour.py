@@ -23,7 +23,7 @@ from pipeline.evaluate.selection import (
 )
 from pipeline.features.context import StepContext
 from pipeline.logs.benchmark import Benchmark
-from pipeline.settings import Folds, Learner, Replay
+from pipeline.settings import Folds, Learner, Params, Replay
 from pipeline.sim.primitives import ALL_PRIMITIVES
 from pipeline.stages import fold_models as fold_models_stage
 from pipeline.stages import train as train_stage
@@ -212,3 +212,9 @@ def test_every_stage_builds_each_mrf_method_with_its_own_c(tmp_path):
 def test_an_unknown_policy_is_refused():
     with pytest.raises(ValueError, match="method full: unknown policy 'cautious'; known: greedy, feasible"):
         MRFMethod(policy="cautious")
+
+
+def test_the_development_worlds_size_is_checked_where_params_are_read():
+    with pytest.raises(ValueError, match="select.environments must be at least 1, got 0"):
+        Params.load(None, ["select.environments=0"])
+    assert Params.load(None, ["select.environments=1"]).select.environments == 1

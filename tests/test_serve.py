@@ -266,11 +266,12 @@ def test_assist_accepting_a_proposal_is_no_correction(client, data):
 
 
 def test_assist_ranks_with_the_policy_the_model_file_records(data, tmp_path):
-    """A model trained with the feasible policy proposes only steps that can run, as `taskseq plan` runs it; the
-    same weights recorded as greedy propose their best scores, steps the simulator refuses among them."""
+    """A model trained with the feasible or lookahead policy proposes only steps that can run, as `taskseq plan`
+    runs it; the same weights recorded as greedy propose their best scores, steps the simulator refuses among
+    them."""
     weights = np.random.default_rng(0).normal(size=MRFModel("full").size_joint_feature)
     proposals = {}
-    for policy in ("greedy", "feasible"):
+    for policy in ("greedy", "feasible", "lookahead"):
         path = tmp_path / f"{policy}.npz"
         StepScorer.from_weights("full", weights).save(path, policy=policy)
         client = create_app(data, path).test_client()
@@ -278,7 +279,7 @@ def test_assist_ranks_with_the_policy_the_model_file_records(data, tmp_path):
         page = client.get("/assist").get_data(as_text=True)
         assert page.count('name="choice"') == 3
         proposals[policy] = page.count("refused: ")
-    assert proposals["feasible"] == 0 and proposals["greedy"] > 0
+    assert proposals["feasible"] == proposals["lookahead"] == 0 and proposals["greedy"] > 0
 
 
 def test_assist_names_a_policy_this_version_does_not_plan_with(data, tmp_path):

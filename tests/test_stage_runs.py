@@ -244,7 +244,7 @@ def test_select_sees_only_the_development_world(tiny, monkeypatch, tmp_path, cap
     drawn = []
 
     def spy_generate(world, output):
-        drawn.append(world.seed)
+        drawn.append((world.seed, world.procedural.environments))
         shutil.copytree(tiny / "raw", output)
         return {}, None
 
@@ -270,9 +270,10 @@ def test_select_sees_only_the_development_world(tiny, monkeypatch, tmp_path, cap
     out = tmp_path / "selection.json"
     assert main(["--no-mlflow", "select", "--set", "world.seeds=[0, 3]", "--set", "world.dev_seed=100",
                  "--set", "select.C=0.5 2", "--set", "select.methods=full relations", "--set",
-                 "select.max_extensions=1", *FOLDS[:2], *LEARN, "--n-jobs", "1", "--data", str(tmp_path / "dev"),
-                 "--output", str(out)]) == 0
-    assert drawn == [100] and read == [tmp_path / "dev" / "raw"]  # C and the shipped method: the dev world only
+                 "select.max_extensions=1", "--set", "procedural.environments=130", "--set", "select.environments=2",
+                 *FOLDS[:2], *LEARN, "--n-jobs", "1", "--data", str(tmp_path / "dev"), "--output", str(out)]) == 0
+    # C and the shipped method: the dev world only, of its own size (a large benchmark tunes on a small world)
+    assert drawn == [(100, 2)] and read == [tmp_path / "dev" / "raw"]
     dev_scenarios = frozenset(load_benchmark(tmp_path / "dev" / "processed").scenarios)
     assert len(seen) >= 4 and set(seen) == {dev_scenarios}
     result = json.loads(out.read_text())

@@ -29,7 +29,8 @@ INFEASIBLE = "infeasible"
 class PlanStep:
     action: Action
     score: float
-    alternatives: list[tuple[Action, float]]  # the next best candidates, best first
+    alternatives: list[tuple[Action, float]]  # the policy's other proposals in its order (a lookahead may have
+    # passed over better-scored ones)
     unsafe: list[str] = field(default_factory=list)  # safety rules the action breaks
 
 
@@ -138,22 +139,27 @@ def lookahead(planner: StepScorer, task: Task, top_k: int = 3, perceive: Perceiv
     Imagined steps are seen through `perceive` as real ones are (attribute
     noise flips an object's attributes alike at every step). The other
     proposals follow in score order, so an observer still sees `top_k`.
+
+    The imagined continuation is the planner's plain best runnable step, not
+    this policy's own later choices, and stopping counts as safe: a step that
+    a safe plan and an unsafe one share is refused when the unsafe one scores
+    higher, and the robot may stop rather than take it (`tests/test_lookahead.py`
+    scripts such a room). A longer `depth` sees more harm and refuses more
+    for it; the development world chose 4.
     """
     seen = perceive or (lambda ctx: ctx)
 
     def harms(state: WorldState, history: list[Action], action: Action) -> bool:
-        for k in range(depth + 1):
+        for _ in range(depth):
             if violations(state, action):
                 return True
-            if k == depth:
-                return False
             state = execute(state, action)
             history = [*history[-1:], action]
             imagined = seen(step_context(state, task, history))
             action = imagined.action(_runnable(planner, imagined, state, 1)[0][0])
             if action.primitive == DONE:
                 return False
-        return False
+        return bool(violations(state, action))
 
     def policy(ctx: StepContext, state: WorldState) -> Ranked:
         runnable = _runnable(planner, ctx, state, max(top_k, width))

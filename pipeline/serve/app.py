@@ -64,7 +64,7 @@ class Served:
         self._planner_lock = threading.Lock()  # one scoring at a time: the model caches per batch
 
     def candidates(self, activity: Activity) -> list[Candidate]:
-        """The planner's top k for the next step, best first, each marked with whether it can run.
+        """The planner's top k for the next step, in the policy's order, each marked with whether it can run.
 
         They are ranked by the policy the model file records (`greedy`: the best scores; `feasible`: the best
         scores among the steps that can run; `lookahead`: those, checked for the safety of what follows), as

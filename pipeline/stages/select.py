@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -51,7 +51,8 @@ def run(settings: Settings, paths: SelectPaths, tracker: Tracker = NO_RUN, n_job
                          "be chosen on a world that is never reported")
     mrf_methods(settings.learner, names=select.methods)  # an unknown name stops here, before minutes of work
     data, output = paths.data, paths.output
-    generate(Generate(world.dev_seed, world.family, settings.procedural), data / "raw")
+    rooms = replace(settings.procedural, environments=select.environments)  # the development world's own size
+    generate(Generate(world.dev_seed, world.family, rooms), data / "raw")
     tables, records = load_logs(data / "raw")
     write_tables(tables, data / "processed")
     contexts, meta = build_steps([r.record for r in records])
