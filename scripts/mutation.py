@@ -67,7 +67,7 @@ GROUPS = {
                          "tests/test_tasks_behaviour.py")),
     "planner": Group(("pipeline/plan/planner.py", "pipeline/evaluate/robustness.py", "pipeline/features/perception.py"),
                      ("tests/test_feedback_behaviour.py", "tests/test_robustness_behaviour.py",
-                      "tests/test_feasible.py", "tests/test_noise_training.py")),
+                      "tests/test_feasible.py", "tests/test_noise_training.py", "tests/test_lookahead.py")),
     "features": Group(("pipeline/features/context.py", "pipeline/learn/mrf.py"),
                       ("tests/test_features_behaviour.py",)),
     "learner": Group(("pipeline/learn/ssvm.py", "pipeline/learn/working_set.py", "pipeline/learn/estimator.py"),
