@@ -198,7 +198,8 @@ class Recipes:
 class Scenes:
     """Rooms never seen in training (`scenes` stage): the drawn world of each reported seed, rooms held out whole."""
 
-    transfer: tuple[str, ...] = ("full", "relations", "dagger")  # MRF methods also trained on the paper-shaped world
+    # MRF methods also trained on the paper-shaped world and run in the drawn one
+    transfer: tuple[str, ...] = ("full", "relations", "dagger", "choice_lookahead", "choice_chained_lookahead")
 
 
 @dataclass(frozen=True)

@@ -54,8 +54,10 @@ def test_the_smallest_empty_container_that_holds_enough_is_the_vessel_the_demons
     state = kitchen()
     cues = cues_of(state, "pour(obj03)")
     # obj07 (1.6x) holds tea and the bottle holds the milk: neither counts; obj04 holds too little beyond 1.2x
-    assert [cues[f"smallest_empty_ge_{r}x_object"] for r in ("1", "1.25", "1.5", "1.75", "2", "2.5", "3", "4")] == [
-        ["obj04"], ["obj05"], ["obj05"], ["obj05"], ["obj05"], ["obj06"], ["obj06"], []]
+    # (exactly 1.2x counts as at least 1.2x)
+    ratios = ("1", "1.1", "1.2", "1.3", "1.4", "1.5", "1.6", "1.7", "1.8", "1.9", "2", "2.5", "3", "4")
+    assert [cues[f"smallest_empty_ge_{r}x_object"] for r in ratios] == [
+        ["obj04"], ["obj04"], ["obj04"], *[["obj05"]] * 8, ["obj06"], ["obj06"], []]
     assert choose_vessel(state, "obj03") == "obj05"  # the demonstrator's rule: capacity 0.6 of the box
 
 
@@ -68,6 +70,24 @@ def test_the_shortest_thin_object_reaching_out_of_the_container_is_the_demonstra
     # the container of pour's liquid is the 0.25 m bottle: only the ruler reaches out of it
     assert cues_of(state, "pour(obj03)")["shortest_over_container_by_0.04m"] == ["obj12"]
     assert not cues_of(state, "pour(obj03)")["shortest_over_container_by_0.06m"]
+
+
+def test_a_flat_object_is_no_stirrer_however_long():
+    """A book lying flat (its middle side more than half its longest) reaches out of the cup as far as a spoon would,
+    and is shorter than the long stirrer; the cue passes over it."""
+    state = kitchen()
+    book = ObjectSpec("obj13", "obj13", "item", (0.16, 0.12, 0.02), frozenset({"movable", "box"}))
+    state = WorldState({**state.specs, "obj13": book}, {**state.poses, "obj13": (-0.45, 0.2, 0.75)},
+                       {**state.support, "obj13": ("obj01", ON)}, robot=state.robot)
+    cues = cues_of(state, "stir(obj08)")  # 0.1 m deep: obj10 reaches 5 cm out, the book 6, obj11 12
+    assert cues["shortest_over_container_by_0.06m"] == ["obj11"]
+    assert cues["shortest_over_container_by_0.04m"] == ["obj10"]
+    assert choose_stirrer(state, "obj07") == "obj10"
+    # a middle side of exactly half the longest still counts as elongated
+    stick = ObjectSpec("obj14", "obj14", "item", (0.2, 0.1, 0.01), frozenset({"movable", "box"}))
+    state = WorldState({**kitchen().specs, "obj14": stick}, {**kitchen().poses, "obj14": (-0.45, 0.2, 0.75)},
+                       {**kitchen().support, "obj14": ("obj01", ON)}, robot=kitchen().robot)
+    assert cues_of(state, "stir(obj08)")["shortest_over_container_by_0.06m"] == ["obj14"]
 
 
 def test_the_nearest_of_each_kind_is_marked():

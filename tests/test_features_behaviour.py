@@ -26,6 +26,7 @@ from pipeline.features.context import (
     scale_attribute,
     step_context,
 )
+from pipeline.features.cues import CUE_COLUMNS
 from pipeline.learn.mrf import FEATURE_SETS, MRFModel, StepBatch, rel_row
 from pipeline.sim.primitives import ALL_PRIMITIVES, ARITY, Action, execute
 from pipeline.sim.state import INSIDE, ON, WorldState
@@ -244,6 +245,20 @@ def test_history_of_one_step_and_of_none():
     assert step_context(state, task, []).gold is None
 
 
+def test_a_context_gives_back_the_last_two_steps_it_remembers_oldest_first():
+    state = pour_world()
+    task = Task("stir", ("obj27",))
+    assert step_context(state, task, []).history() == []
+    one = [Action("hold_above", ("obj14", "obj15"))]
+    assert step_context(state, task, one).history() == one
+    steps = [Action("done"), Action("grasp", ("obj14",)), Action("place_above", ("obj14", "obj15")),
+             Action("release", ("obj14",))]
+    assert step_context(state, task, steps).history() == steps[-2:]
+    assert step_context(state, task, steps[:3]).history() == steps[1:3]
+    first = step_context(state, task, []).object_ids[0]  # index 0 is an object like any other
+    assert step_context(state, task, [Action("move_close", (first,))]).history() == [Action("move_close", (first,))]
+
+
 def hand_step(rng: np.random.Generator, n: int, task: int, prev=(NO_PRIM, NO_PRIM), prev_args=(-1, -1, -1, -1),
               holding: bool = False, relations_: bool = True) -> StepContext:
     objects = rng.uniform(size=(n, len(OBJECT_COLUMNS)))
@@ -383,7 +398,7 @@ def test_the_factor_tables_of_one_step(steps):
 
 def test_the_model_sizes_and_names():
     sizes = {f: MRFModel(f).size_joint_feature for f in FEATURE_SETS}
-    assert sizes == {"full": 1589, "edge": 45, "clique": 1544, "relations": 7829, "choice": 7829 + 2 * 5 * 8 * 14}
+    assert sizes == {"full": 1589, "edge": 45, "clique": 1544, "relations": 7829, "choice": 7829 + 2 * 5 * 8 * 20}
     edge = MRFModel("edge")
     names = edge.feature_names()
     assert names[:5] == ["ae1[held]", "ae1[distance]", "ae2[held]", "ae2[distance]", "ae_pair[collide]"]
@@ -439,6 +454,12 @@ def test_a_padded_batch_never_picks_padding(steps):
     assert not batch.rel_rows[1, 4:].any()
     assert StepBatch.of(steps, relations=False).rel_rows.shape == (6, 5, 0)
     assert StepBatch.of(steps, relations=False).by_task == []
+    # the choice cues only when asked for (and only with the relations they are read from)
+    for without in (batch, StepBatch.of(steps, relations=True, cues=False), StepBatch.of(steps, False, True)):
+        assert without.cue_rows.shape == (6, 5, 0) and without.cues_by_task == []
+    with_cues = StepBatch.of(steps, relations=True, cues=True)
+    assert with_cues.cue_rows.shape == (6, 5, len(CUE_COLUMNS))
+    assert len(with_cues.cues_by_task) == len(batch.by_task) == len({x.task for x in steps})
     model = MRFModel("relations")
     w = -np.abs(np.random.default_rng(5).normal(size=model.size_joint_feature))  # padding at zero would win
     assert model.batch_inference(steps, w) == [model.inference(x, w) for x in steps]
@@ -507,7 +528,6 @@ def test_the_default_model_is_the_full_one():
 
 def test_the_blocks_of_the_model():
     from pipeline.features.context import HISTORY_ARG_COLUMNS, TASK_REL_COLUMNS
-    from pipeline.features.cues import CUE_COLUMNS
     from pipeline.learn.mrf import REL_ROW, _blocks
     from pipeline.sim.tasks import TASKS
 

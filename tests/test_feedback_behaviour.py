@@ -279,6 +279,28 @@ def test_noise_draws_depend_on_the_scenario_not_on_the_fold_layout(two_scenarios
     assert all(len(set(b)) == 2 for b in draws.values())  # the two noise draws of a scenario differ
 
 
+def test_each_program_gets_its_policy_for_its_task_seen_as_its_condition_says(two_scenarios, monkeypatch):
+    """A lookahead needs the program's task and its perception (under noise it imagines with the same errors)."""
+    from pipeline.evaluate import robustness
+
+    calls = []
+
+    def spy(name, planner, task, top_k=3, perceive=None):
+        calls.append((task, top_k, perceive))
+        return real(name, planner, task, top_k, perceive)
+
+    real = robustness.learned_policy
+    monkeypatch.setattr(robustness, "learned_policy", spy)
+    conditions = [NoiseCondition(0.5, 0), FeedbackCondition(2, 20)]
+    evaluate_conditions({"full": SeeingMethod}, [], [], two_scenarios, conditions, Folds(folds=2), max_steps=20,
+                        seed=0, n_jobs=1)
+    tasks = sorted(str(sc.task) for sc in two_scenarios.values())
+    assert sorted(str(task) for task, _, _ in calls) == sorted(tasks * 2)
+    noisy = [(k, p) for _, k, p in calls if p is not None]
+    assert [k for k, _ in noisy] == [3, 3] and all(callable(p) for _, p in noisy)
+    assert sorted(k for _, k, p in calls if p is None) == [2, 2]  # feedback: the observer's k, true perception
+
+
 class Wanderer(ScriptedPlanner):
     """Never stops: offers a detour to the mug or back to the cup, in turn; the demonstration's step fourth."""
 

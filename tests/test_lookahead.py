@@ -186,5 +186,7 @@ def test_a_policy_is_built_by_name_and_an_unknown_name_is_refused(room):
     assert made["feasible"] == [feasible(scorer)(c, s) for c, s in ((ctx, room), (later, state))]
     assert made["lookahead"] == [lookahead(scorer, TASK)(c, s) for c, s in ((ctx, room), (later, state))]
     assert made["lookahead"][0] != made["feasible"][0]  # at the start the lookahead stops (see above)
+    for k in (1, 2):  # each offers as many proposals as asked for
+        assert [len(learned_policy(name, scorer, TASK, top_k=k)(later, state)) for name in POLICIES] == [k] * 3
     with pytest.raises(ValueError, match="unknown policy 'cautious'; known: greedy, feasible, lookahead"):
         learned_policy("cautious", scorer, TASK)

@@ -185,3 +185,15 @@ def test_with_drawn_reported_worlds_the_stage_runs_and_says_no_transfer_was_meas
         assert 0.0 <= json.loads((out / part / "crossval_means.json").read_text())["full"]["sequence_arg"] <= 100.0
     assert scenes.settings(Params.load(None, ["world.family=procedural"])).paper_shaped is False
     assert scenes.settings(Params.load(None, [])).paper_shaped is True
+
+
+def test_the_summary_names_the_drawn_worlds_size(tmp_path):
+    from pipeline.report.summary import _scenes
+
+    drawn = tmp_path / "scenes" / "drawn"
+    drawn.mkdir(parents=True)
+    (drawn / "crossval_means.json").write_text(json.dumps({"full": {"sequence_arg": 50.0, "success": 60.0}}))
+    (drawn / "worlds.json").write_text(json.dumps({"0": {"environments": 130}, "3": {"environments": 130}}))
+    text = "\n".join(_scenes(tmp_path, {"full": {"sequence_arg": 55.0}}, {"full": "ours - full"}))
+    assert "a world of 130 rooms drawn by the same seed" in text
+    assert "| ours - full | 55.0 ± 0.0 | - | 50.0 ± 0.0 (60.0) | - |" in text

@@ -46,6 +46,7 @@ def _fake_fold_runs(calls):
     returns figures that depend on the method's own C only."""
     def train_fold_models(methods, contexts, meta, scenarios, jobs, output, n_jobs, verbose):
         calls.append(("fit", sorted((name, make().C, make().store) for name, make in methods.items()), output))
+        calls.append({"fit data": (contexts, meta, scenarios), "jobs": jobs, "workers": (n_jobs, verbose)})
 
     def cross_validate(methods, contexts, meta, bench, n_folds, seed, group_by, max_steps, n_jobs, verbose):
         calls.append({"data": (contexts, meta, bench), "n_folds": n_folds, "seed": seed, "group_by": group_by,
@@ -70,18 +71,28 @@ def test_each_method_is_cross_validated_at_each_of_its_own_values_of_c(monkeypat
     fit, cv = _fake_fold_runs(calls)
     monkeypatch.setattr(selection, "train_fold_models", fit)
     monkeypatch.setattr(selection, "cross_validate", cv)
-    monkeypatch.setattr(selection, "training_jobs", lambda *args: "the jobs")
+    planned = []
+
+    def training_jobs(methods, meta, scenarios, n_folds, seed, group_by, chained):
+        planned.append((sorted(methods), meta, scenarios, n_folds, seed, group_by, chained))
+        return "the jobs"
+
+    monkeypatch.setattr(selection, "training_jobs", training_jobs)
     contexts, meta = [_ctx((GRASP, 0, -1)), _ctx((GRASP, 0, -1))], ["m0", "m1"]
-    bench = Benchmark([], {}, {}, {})
-    data = DevData(contexts, meta, bench, Folds(folds=3, seed=4), 9)
+    bench = Benchmark([], {"s": "a scenario"}, {}, {})
+    data = DevData(contexts, meta, bench, Folds(folds=3, seed=4, group_by="environment"), 9)
     store = tmp_path / "models"
-    out = cross_validate_settings({"full": (0.5, 2.0), "feasible": (8.0,)}, Learner(C=99.0, tol=0.02, max_iter=7),
-                                  data, store, n_jobs=3, verbose=2)
+    # each value of C is tried as it is, not an earlier choice of the method's own C
+    learner = Learner(C=99.0, tol=0.02, max_iter=7, tuned=(("full", 77.0), ("feasible", 66.0)))
+    out = cross_validate_settings({"full": (0.5, 2.0), "feasible": (8.0,)}, learner, data, store, n_jobs=3, verbose=2)
+    # every model the three settings need, planned on the development world's folds (no chained starts there)
+    assert planned == [(["feasible C=8", "full C=0.5", "full C=2"], meta, bench.scenarios, 3, 4, "environment", ())]
     assert calls[0] == ("fit", [("feasible C=8", 8.0, None), ("full C=0.5", 0.5, None), ("full C=2", 2.0, None)],
                         store)  # fitted without a store, into it
-    assert calls[1] == {"data": (contexts, meta, bench), "n_folds": 3, "seed": 4, "group_by": Folds().group_by,
+    assert calls[1] == {"fit data": (contexts, meta, bench.scenarios), "jobs": "the jobs", "workers": (3, 2)}
+    assert calls[2] == {"data": (contexts, meta, bench), "n_folds": 3, "seed": 4, "group_by": "environment",
                         "max_steps": 9, "workers": (3, 2)}
-    assert calls[2:] == [("full C=0.5", 0.5, 0.02, 7, "greedy", str(store)), ("full C=2", 2.0, 0.02, 7, "greedy",
+    assert calls[3:] == [("full C=0.5", 0.5, 0.02, 7, "greedy", str(store)), ("full C=2", 2.0, 0.02, 7, "greedy",
                                                                              str(store)),
                          ("feasible C=8", 8.0, 0.02, 7, "feasible", str(store))]  # then run from it
     assert out == {"full": {0.5: {"sequence_arg": 50.0, "success": 100.0, "average_arg": 50.0},
@@ -139,7 +150,8 @@ def test_ties_go_to_the_smaller_c_and_a_one_value_grid_is_refused():
                             for m, v in pending.items()}
     chosen = choose_C(["full"], (1.0, 3.0), flat, max_extensions=1)
     assert chosen["full"]["C"] == 0.333333 and chosen["full"]["capped"]  # the smaller edge, so extended downwards once
-    with pytest.raises(ValueError, match="at least two values"):
+    with pytest.raises(ValueError, match=r"^select: the grid of C needs at least two values \(its spacing is how it "
+                                         r"is extended\)$"):
         choose_C(["full"], (3.0,), flat, max_extensions=1)
 
 
@@ -152,8 +164,40 @@ def test_methods_are_ranked_each_at_its_own_c_by_sequence_arg_then_success_then_
     ranked = rank_methods(settings)
     assert [(r["method"], r["C"]) for r in ranked] == [("dagger", 3.0), ("relations", 1.0), ("full", 1.0),
                                                        ("chained", 1.0)]
-    with pytest.raises(ValueError, match="select.methods is empty"):
+    with pytest.raises(ValueError, match=r"^select: no MRF methods to rank \(select.methods is empty\)$"):
         rank_methods({})
+
+
+def _ranked(figures: dict[str, tuple[float, float]]) -> list[str]:
+    """The ranking of methods chosen at C = 1 with these (sequence arg, success); at C = 3, worse figures."""
+    return [r["method"] for r in rank_methods({m: {"C": 1.0, "candidates": [
+        {"C": 3.0, "sequence_arg": 0.0, "success": 0.0, "average_arg": 0.0},
+        {"C": 1.0, "sequence_arg": a, "success": s, "average_arg": 90.0}]} for m, (a, s) in figures.items()})]
+
+
+def test_a_ranking_reads_each_methods_figures_at_its_chosen_c_and_ties_within_rounding():
+    assert _ranked({"a": (60.0, 50.0), "b": (70.0, 40.0)}) == ["b", "a"]
+    # figures that differ past the ninth decimal are equal (sums of the same programs in another order)
+    assert _ranked({"a": (60.0 + 4e-10, 50.0), "b": (60.0, 90.0)}) == ["b", "a"]
+    assert _ranked({"b": (60.0, 80.0), "a": (60.0, 80.0 + 4e-10)}) == ["b", "a"]  # a tie: the order listed
+    # but not whole points apart
+    assert _ranked({"a": (60.4, 50.0), "b": (60.0, 90.0)}) == ["a", "b"]
+    assert _ranked({"a": (60.0, 80.4), "b": (60.0, 80.0)}) == ["a", "b"]
+    assert _ranked({"b": (60.0, 80.0), "a": (60.0, 80.4)}) == ["a", "b"]
+
+
+def test_the_method_ranked_first_is_read_back_or_the_file_says_what_is_missing(tmp_path):
+    from pipeline.evaluate.selection import read_selected_method
+
+    path = tmp_path / "selection.json"
+    path.write_text(json.dumps({"C": 3, "method": "choice_lookahead"}))
+    assert read_selected_method(path) == "choice_lookahead"
+    for data in ({"C": 3}, {"C": 3, "method": ""}, {"C": 3, "method": 7}, [3]):
+        path.write_text(json.dumps(data))
+        with pytest.raises(ValueError, match=f"^{path}: no field 'method' \\(the method ranked first\\); the file "
+                                             "predates the ranking of methods: run `taskseq select` again, or name "
+                                             "the method with --set train.method=NAME$"):
+            read_selected_method(path)
 
 
 def test_read_selection_returns_each_methods_c(tmp_path):

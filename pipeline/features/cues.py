@@ -8,10 +8,17 @@ score over them can prefer "holds at least 1.75 times the liquid" but not
 the room. The cues are those comparisons among objects, each a bit per object:
 
 - `smallest_empty_ge_<r>x_object`: the smallest (by volume) empty movable
-  container whose volume is at least r times the task object's;
-- `shortest_over_container_by_<m>m`: the shortest (longest side) movable
-  object that is neither a container nor a liquid and whose longest side is
-  at least m over the height of the container holding the task object;
+  container whose volume is at least r times the task object's, for r in
+  steps of a tenth from 1 to 2 (then 2.5, 3, 4): how much of a vessel a
+  liquid may fill is for the learner to find, and steps of a quarter (the
+  relation columns') put the smallest vessel that holds it at the wrong step
+  for 15 of 105 pour scenarios of the development worlds, a tenth for 5;
+- `shortest_over_container_by_<m>m`: the shortest (longest side) elongated
+  movable object (neither a container nor a liquid, its middle side at most
+  half its longest) whose longest side is at least m over the height of the
+  container holding the task object. Without "elongated", a book lying flat
+  counts as a stick, and is the shortest one long enough in 5 of 100 stir
+  scenarios;
 - `nearest_of_kind`: the nearest to the robot of the objects sharing its
   binary attributes.
 
@@ -23,16 +30,22 @@ columns are computed from the stored features, so no feature file changes.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from .context import BINARY_ATTRIBUTES, LENGTH_MARGINS, OBJECT_COLUMNS, RELATION_COLUMNS, VOLUME_RATIOS
+from .context import BINARY_ATTRIBUTES, LENGTH_MARGINS, OBJECT_COLUMNS, RELATION_COLUMNS
 
-CUE_COLUMNS = (*(f"smallest_empty_ge_{r:g}x_object" for r in VOLUME_RATIOS),
+CUE_VOLUME_RATIOS = (*(round(1.0 + k / 10, 1) for k in range(11)), 2.5, 3.0, 4.0)
+ELONGATED = 0.5  # middle side over longest side, at most: a stick, not a slab or a box
+CUE_COLUMNS = (*(f"smallest_empty_ge_{r:g}x_object" for r in CUE_VOLUME_RATIOS),
                *(f"shortest_over_container_by_{m:g}m" for m in LENGTH_MARGINS),
                "nearest_of_kind")
 
 _OBJ = {c: i for i, c in enumerate(OBJECT_COLUMNS)}
-_VOLUME_GE = [RELATION_COLUMNS.index(f"volume_ge_{r:g}x_object") for r in VOLUME_RATIOS]
+_LOG_RATIO = RELATION_COLUMNS.index("log_volume_ratio_object")  # log10(volume ratio) / 2, clipped to [-1, 1]
+# a ratio within rounding of a step counts as reaching it (1.2 litres against 1 is "at least 1.2 times")
+_LOG_STEPS = np.array([math.log10(r) / 2.0 for r in CUE_VOLUME_RATIOS]) - 1e-12
 _REACHES = [RELATION_COLUMNS.index(f"length_over_height_ge_{m:g}m_container") for m in LENGTH_MARGINS]
 _FLAGS = [_OBJ[f] for f in BINARY_ATTRIBUTES]
 
@@ -48,11 +61,11 @@ def choice_cues(objects: np.ndarray, relations: np.ndarray) -> np.ndarray:
     relations. Volumes and lengths are compared on their scaled values, which keep their order."""
     flag = {name: objects[:, _OBJ[name]] > 0.5 for name in ("container", "movable", "liquid", "holds_liquid")}
     empty = flag["container"] & flag["movable"] & ~flag["holds_liquid"]
-    thin = flag["movable"] & ~flag["container"] & ~flag["liquid"]
+    thin = flag["movable"] & ~flag["container"] & ~flag["liquid"] & (objects[:, _OBJ["median_over_max"]] <= ELONGATED)
     flags = objects[:, _FLAGS] > 0.5
     same_kind = (flags[:, None, :] == flags[None, :, :]).all(axis=2)  # (n, n), symmetric: column j is j's kind
     return np.hstack([
-        _least(objects[:, _OBJ["volume"]], empty[:, None] & (relations[:, _VOLUME_GE] > 0.5)),
+        _least(objects[:, _OBJ["volume"]], empty[:, None] & (relations[:, [_LOG_RATIO]] >= _LOG_STEPS[None, :])),
         _least(objects[:, _OBJ["max_wl"]], thin[:, None] & (relations[:, _REACHES] > 0.5)),
         _least(objects[:, _OBJ["distance"]], same_kind).diagonal()[:, None],
     ])

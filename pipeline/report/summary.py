@@ -154,8 +154,11 @@ def _scenes(reports: Path, paper_shaped: dict[str, Any], labels: dict[str, str])
         return []
     transfer_path = reports / "scenes" / "transfer.csv"
     transfer = {r["method"]: r for r in csv.DictReader(transfer_path.open())} if transfer_path.exists() else {}
+    worlds = _load(reports / "scenes" / "drawn" / "worlds.json") or {}
+    rooms = sorted({w["environments"] for w in worlds.values()})
+    size = f"of {' or '.join(map(str, rooms))} rooms " if rooms else ""
     out = ["## Rooms never seen in training (sequence arg, mean ± sd over world seeds)", "",
-           "Folds that hold out whole rooms, in the paper-shaped world and in a world of 13 rooms drawn by the same "
+           f"Folds that hold out whole rooms, in the paper-shaped world and in a world {size}drawn by the same "
            "seed (furniture, objects and sizes the catalog never had); the last two columns train on every step of "
            "the paper-shaped world and run in the drawn one. Success (goal reached safely) in brackets.", "",
            "| method | scenario folds | paper-shaped rooms held out | drawn rooms held out | "
