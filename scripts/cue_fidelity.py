@@ -6,7 +6,9 @@ vessel that holds the liquid, the shortest stirrer that sticks out of the
 cup, the bin nearest the object). This script draws each world seed's
 scenarios, computes the cues of the first step of every pour, stir and
 throw-away scenario, and counts, per cue column, the scenarios whose cue marks
-the demonstrator's object and no other. It refuses the reported world seeds of
+the demonstrator's object and no other (for bins, `nearest_of_kind` marks one
+object of every kind: whether the demonstrator's bin is among those marked).
+It refuses the reported world seeds of
 `params.yaml`: a cue is designed on the development worlds only.
 
     python scripts/cue_fidelity.py --seeds 100 101 102 103 104

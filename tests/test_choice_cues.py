@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.evaluate.methods import table1_methods
-from pipeline.features.context import step_context
-from pipeline.features.cues import CUE_COLUMNS, choice_cues
+from pipeline.features.context import RELATION_COLUMNS, step_context
+from pipeline.features.cues import CUE_COLUMNS, CUE_VOLUME_RATIOS, choice_cues
 from pipeline.settings import Crossval, Learner
 from pipeline.sim.demonstrator import choose_stirrer, choose_vessel
 from pipeline.sim.objects import ObjectSpec
@@ -59,6 +59,18 @@ def test_the_smallest_empty_container_that_holds_enough_is_the_vessel_the_demons
     assert [cues[f"smallest_empty_ge_{r}x_object"] for r in ratios] == [
         ["obj04"], ["obj04"], ["obj04"], *[["obj05"]] * 8, ["obj06"], ["obj06"], []]
     assert choose_vessel(state, "obj03") == "obj05"  # the demonstrator's rule: capacity 0.6 of the box
+
+
+def test_the_task_object_is_never_its_own_smallest_container():
+    """A cup to move or throw away is compared with the other cups, not with itself (its own ratio is 1)."""
+    cues = cues_of(kitchen(), "pick_and_place(obj04,obj01)")
+    assert cues["smallest_empty_ge_1x_object"] == ["obj05"]  # 1.8 times obj04; obj06 is 2.7 times
+    assert cues_of(kitchen(), "throw_away(obj06)")["smallest_empty_ge_1x_object"] == []  # none as large as obj06
+    # without the task's object among the rows there is nothing to compare with
+    ctx = step_context(kitchen(), Task.parse("pour(obj03)"), [])
+    relations = ctx.relations.copy()
+    relations[:, [c.endswith("_object") for c in RELATION_COLUMNS]] = 0.0
+    assert not choice_cues(ctx.objects, relations)[:, :len(CUE_VOLUME_RATIOS)].any()
 
 
 def test_the_shortest_thin_object_reaching_out_of_the_container_is_the_demonstrators_stirrer():

@@ -44,6 +44,7 @@ CUE_COLUMNS = (*(f"smallest_empty_ge_{r:g}x_object" for r in CUE_VOLUME_RATIOS),
 
 _OBJ = {c: i for i, c in enumerate(OBJECT_COLUMNS)}
 _LOG_RATIO = RELATION_COLUMNS.index("log_volume_ratio_object")  # log10(volume ratio) / 2, clipped to [-1, 1]
+_IS_OBJECT = RELATION_COLUMNS.index("is_object")  # the task's object itself: its own relation columns are 0
 # a ratio within rounding of a step counts as reaching it (1.2 litres against 1 is "at least 1.2 times")
 _LOG_STEPS = np.array([math.log10(r) / 2.0 for r in CUE_VOLUME_RATIOS]) - 1e-12
 _REACHES = [RELATION_COLUMNS.index(f"length_over_height_ge_{m:g}m_container") for m in LENGTH_MARGINS]
@@ -60,7 +61,10 @@ def choice_cues(objects: np.ndarray, relations: np.ndarray) -> np.ndarray:
     """(n, len(CUE_COLUMNS)) from one step's (n, len(OBJECT_COLUMNS)) object rows and (n, len(RELATION_COLUMNS))
     relations. Volumes and lengths are compared on their scaled values, which keep their order."""
     flag = {name: objects[:, _OBJ[name]] > 0.5 for name in ("container", "movable", "liquid", "holds_liquid")}
-    empty = flag["container"] & flag["movable"] & ~flag["holds_liquid"]
+    # the task's object is no candidate for itself, and without it there is nothing to compare volumes with (the
+    # log ratio is 0 in its own row and in every row when it is missing, which would read as "at least 1x")
+    is_object = relations[:, _IS_OBJECT] > 0.5
+    empty = flag["container"] & flag["movable"] & ~flag["holds_liquid"] & ~is_object & is_object.any()
     thin = flag["movable"] & ~flag["container"] & ~flag["liquid"] & (objects[:, _OBJ["median_over_max"]] <= ELONGATED)
     flags = objects[:, _FLAGS] > 0.5
     same_kind = (flags[:, None, :] == flags[None, :, :]).all(axis=2)  # (n, n), symmetric: column j is j's kind
