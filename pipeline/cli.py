@@ -15,7 +15,7 @@ import os
 import sys
 from collections.abc import Sequence
 
-from . import stopping
+from . import allocator, stopping
 from .commands import TOOLS
 from .stages import STAGES
 from .stages.command import add_parser, execute, prepare
@@ -82,6 +82,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run one command; Ctrl-C or SIGTERM ends it with one line, its run KILLED and no output replaced."""
     args = build_parser().parse_args(argv)
     stopping.install()
+    allocator.keep_freed_memory()  # a large fit otherwise spends more time faulting pages in than computing
     # workers stopped mid-job leave semaphores the resource tracker (a child process) warns about at exit
     os.environ.setdefault("PYTHONWARNINGS", "ignore:resource_tracker:UserWarning")
     try:
