@@ -167,3 +167,83 @@ def test_ingest_and_train_run_by_hand_write_only_where_they_are_told(benchmark_l
     after = {p: p.read_bytes() for p in checkout.rglob("*") if p.is_file()}
     assert after == before
     assert (mine / "processed").is_dir() and (mine / "model.npz").exists()
+
+
+def _schema_nodes(node, where="schema"):
+    """Every subschema of the demonstration schema, with where it is."""
+    yield where, node
+    for key, value in node.items():
+        if key in ("properties", "$defs"):
+            for name, child in value.items():
+                yield from _schema_nodes(child, f"{where}.{key}.{name}")
+        elif key in ("items", "additionalProperties") and isinstance(value, dict):
+            yield from _schema_nodes(value, f"{where}.{key}")
+        elif key == "oneOf":
+            for i, child in enumerate(value):
+                yield from _schema_nodes(child, f"{where}.oneOf[{i}]")
+
+
+def test_the_schema_keeps_to_keywords_whose_meaning_draft_7_shares():
+    """The fast validator reads the schema as draft 7: a keyword that draft 2020-12 reads otherwise (`prefixItems`,
+    a `$ref` with siblings, `items` as a list) would let it accept what the reference refuses."""
+    from pipeline.logs.records import load_schema
+    from pipeline.logs.validate import SAME_IN_DRAFT_7
+
+    for where, node in _schema_nodes(load_schema()):
+        assert set(node) <= SAME_IN_DRAFT_7, (where, set(node) - SAME_IN_DRAFT_7)
+        assert "$ref" not in node or set(node) == {"$ref"}, where
+        assert not isinstance(node.get("items"), list), where
+
+
+def _mutations(record, rng, count):
+    """`count` copies of `record`, each with one field deleted, retyped, negated, emptied or one key added."""
+    paths = []
+
+    def walk(value, path):
+        paths.append(path)
+        items = value.items() if isinstance(value, dict) else enumerate(value) if isinstance(value, list) else ()
+        for key, child in items:
+            walk(child, [*path, key])
+
+    walk(record, [])
+    replacements = ["", "x", 0, -1, 1.5, -0.25, True, None, [], ["x"], {}, {"x": 1}]
+    for _ in range(count):
+        copy = json.loads(json.dumps(record))
+        path = paths[rng.randrange(1, len(paths))]
+        how = rng.randrange(3)
+        if how == 0 and isinstance(path[-1], str):
+            _del(copy, path)
+        elif how == 1 and isinstance(_get(copy, path), dict):
+            _get(copy, path)["unexpected"] = 1
+        else:
+            _set(copy, path, rng.choice(replacements))
+        yield copy
+
+
+def _get(rec, path):
+    for key in path:
+        rec = rec[key]
+    return rec
+
+
+def test_the_fast_validator_accepts_exactly_what_the_reference_accepts(one_log):
+    """1,000 one-field mutations of a demonstration: the compiled schema and jsonschema agree on every one."""
+    import random
+
+    from fastjsonschema import JsonSchemaValueException
+
+    from pipeline.logs.validate import _VALIDATOR, _accepts
+
+    fast = _accepts()
+    _, _, records = one_log
+    verdicts = []
+    for copy in _mutations(records[2], random.Random(0), 1000):
+        reference = _VALIDATOR.is_valid(copy)
+        try:
+            fast(copy)
+            accepted = True
+        except JsonSchemaValueException:  # anything else it raised would fail the test
+            accepted = False
+        assert accepted == reference, copy
+        verdicts.append(reference)
+    assert 100 < sum(verdicts) < len(verdicts) - 100, sum(verdicts)  # both kinds, many of each
