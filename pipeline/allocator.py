@@ -3,14 +3,14 @@
 Why: by default glibc returns a freed block of more than 32 MiB (and any large
 free space at the top of its heap) to the kernel at once, and the next array
 of that size is faulted back in page by page, each page zeroed by the kernel.
-A fit builds and drops its score tables, oracle answers and feature rows on
-every cutting-plane iteration, so a large fit spent more time in the kernel
-than in its own arithmetic: one `noise_trained` fit of the 130-room world
-(28,000 steps with the noisy copies) took 17 s of user time and 25 to 29 s of
-system time, 470,000 page faults, and with this policy 18.5 s of user time,
-9 s of system time and 126,000 page faults, the same weights
-(docs/scaling-benchmark.md). On a virtual machine whose host backs guest
-memory only when the guest first touches it, a page given back costs most.
+A fit builds and drops its score tables, oracle answers and padded feature
+rows on every cutting-plane iteration, hundreds of MiB each on a large world,
+so large fits spent more time in the kernel than in their own arithmetic: the
+fold models of the 130-room world took 626 s with 433 s of system time and 55
+million page faults, and with this policy 316 s, 37 s and 0.4 million, the
+same models to the byte (docs/scaling-benchmark.md). On a virtual machine
+whose host backs guest memory only when the guest first touches it, a page
+given back costs most.
 
 The policy: no block is served by `mmap` of its own (`M_MMAP_MAX` 0; glibc
 still maps memory when the heap cannot grow, so nothing fails for want of
