@@ -7,22 +7,24 @@ A fit builds and drops its score tables, oracle answers and padded feature
 rows on every cutting-plane iteration, hundreds of MiB each on a large world,
 so large fits spent more time in the kernel than in their own arithmetic: the
 fold models of the 130-room world took 626 s with 433 s of system time and 55
-million page faults, and with this policy 316 s, 37 s and 0.4 million, the
-same models to the byte (docs/scaling-benchmark.md). On a virtual machine
-whose host backs guest memory only when the guest first touches it, a page
-given back costs most.
+million page faults with glibc mapping large blocks, and with this policy 316
+to 343 s, 37 to 40 s and 0.4 million, the same models to the byte
+(docs/scaling-benchmark.md). On a virtual machine whose host backs guest
+memory only when the guest first touches it, a page given back costs most.
 
 The policy: no block is served by `mmap` of its own (`M_MMAP_MAX` 0; glibc
 still maps memory when the heap cannot grow, so nothing fails for want of
 it), and the heap is trimmed only past 2 GiB of free space at its top. A
 process then keeps the memory of its peak until it exits, which a pipeline
-stage does when its work is done. Arithmetic is the same bits: where an array
-lies in memory changes no sum.
+stage does when its work is done (`taskseq serve` runs on, with a small
+peak). Arithmetic is the same bits: where an array lies in memory changes no
+sum.
 
 Child processes (loky's workers, the scaling benchmark's timed fit) take the
 policy from two environment variables, which glibc reads when a process
 starts. A user who sets either of them keeps their own setting. Where the C
-library is not glibc (macOS, musl) nothing changes.
+library is not glibc (macOS, musl) nothing changes. Workers of a Dask cluster
+started outside `taskseq` keep their own malloc settings.
 """
 
 from __future__ import annotations
