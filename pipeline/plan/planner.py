@@ -11,7 +11,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-from ..features.context import StepContext, candidate_index, step_context
+from ..features.context import StepContext, step_context
 from ..sim.primitives import Action, PreconditionError, execute, try_execute
 from ..sim.safety import violations
 from ..sim.state import WorldState
@@ -98,7 +98,7 @@ def greedy(planner: StepScorer, top_k: int = 3) -> Policy:
 def _runnable(planner: StepScorer, ctx: StepContext, state: WorldState, limit: int) -> Ranked:
     """The planner's best `limit` candidates among `done` and the steps whose preconditions hold, best first."""
     out = []
-    for y, score in planner.top_k(ctx, len(candidate_index(ctx.n)[0])):
+    for y, score in planner.ranked(ctx):
         action = ctx.action(y)
         if action.primitive == DONE or try_execute(state, action) is not None:
             out.append((y, score))
