@@ -32,14 +32,22 @@ def matmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         b = b[:, None]
     if a.ndim < 2 or a.shape[-1] != b.shape[-2]:
         raise ValueError(f"matmul: shapes {a.shape} and {b.shape} do not match")
-    batch = np.broadcast_shapes(a.shape[:-2], b.shape[:-2])
     (m, k), n = a.shape[-2:], b.shape[-1]
-    # C order for both: one compiled signature, and the inner loop reads b's rows contiguously
-    a3 = np.ascontiguousarray(np.broadcast_to(a, batch + (m, k)).reshape(-1, m, k))
-    b3 = np.ascontiguousarray(np.broadcast_to(b, batch + (k, n)).reshape(-1, k, n))
-    out = np.zeros((a3.shape[0], m, n))
+    if b.ndim == 2:  # one matrix for every row of `a`: its rows as one matrix (each entry summed alike)
+        rows = a.shape[:-1]
+        a3, b3 = np.ascontiguousarray(a.reshape(-1, k))[None], np.ascontiguousarray(b)[None]
+    elif a.shape[:-2] == b.shape[:-2]:  # a matrix per item, the batch shapes equal: nothing to broadcast
+        rows = a.shape[:-1]
+        a3, b3 = np.ascontiguousarray(a.reshape(-1, m, k)), np.ascontiguousarray(b.reshape(-1, k, n))
+    else:
+        batch = np.broadcast_shapes(a.shape[:-2], b.shape[:-2])
+        rows = batch + (m,)
+        # C order for both: one compiled signature, and the inner loop reads b's rows contiguously
+        a3 = np.ascontiguousarray(np.broadcast_to(a, batch + (m, k)).reshape(-1, m, k))
+        b3 = np.ascontiguousarray(np.broadcast_to(b, batch + (k, n)).reshape(-1, k, n))
+    out = np.zeros((a3.shape[0], a3.shape[1], n))
     _matmul(a3, b3, out)
-    out = out.reshape(batch + (m, n))
+    out = out.reshape(rows + (n,))
     return out[..., 0] if vector else out
 
 
