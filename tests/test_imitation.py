@@ -15,7 +15,7 @@ from pipeline.features.context import NO_PRIM, candidate_index, step_context
 from pipeline.features.dataset import build_steps
 from pipeline.imitation.dagger import fit_imitation, rollout_contexts
 from pipeline.imitation.expert import DONE, next_actions
-from pipeline.imitation.starts import chained_scenarios, demonstration_contexts
+from pipeline.imitation.starts import chained_contexts, chained_scenarios, demonstration_contexts
 from pipeline.learn.estimator import StepScorer
 from pipeline.logs.benchmark import Benchmark
 from pipeline.sim.primitives import Action, PreconditionError, execute, try_execute
@@ -103,6 +103,42 @@ def test_chained_scenarios_start_where_a_given_scenario_ended(small):
     assert any(sc.initial.held is not None for sc in chained)  # some start with something in hand
 
 
+def test_a_process_chains_and_featurises_a_scenario_once(small, monkeypatch):
+    """Folds of one world share training scenarios: what was chained for one comes back for the next, equal."""
+    _, _, scenarios = small
+    given = sorted(scenarios.values(), key=lambda s: s.id)
+    real_chain = starts_module._chain
+    calls: list[tuple[int, object]] = []
+
+    def spy_chain(env_id, state, task):
+        calls.append((id(state), task))
+        return real_chain(env_id, state, task)
+
+    monkeypatch.setattr(starts_module, "_chain", spy_chain)
+    monkeypatch.setattr(starts_module, "_CHAINED", {})
+    monkeypatch.setattr(starts_module, "_CONTEXTS", {})
+    first = chained_scenarios(given)
+    asked = len(calls)
+    assert asked and first
+    again = chained_scenarios(given)
+    assert len(calls) == asked and all(a is b for a, b in zip(again, first, strict=True))
+    chained_scenarios(given[1:])  # another fold: only pairs never tried are chained
+    assert len(set(calls)) == len(calls)
+    made = [chained_contexts(sc) for sc in first]
+    assert all(chained_contexts(sc) is m for sc, m in zip(first, made, strict=True))
+
+    monkeypatch.setattr(starts_module, "_CHAINED", {})  # from nothing again: the same scenarios and steps
+    fresh = chained_scenarios(given)
+    assert [(sc.id, sc.initial, sc.demonstrations) for sc in fresh] == [
+        (sc.id, sc.initial, sc.demonstrations) for sc in first]
+    for sc, mine in zip(fresh, made, strict=True):
+        plain = demonstration_contexts(sc)
+        assert [x.gold for x in mine] == [x.gold for x in plain]
+        for x, y in zip(mine, plain, strict=True):
+            np.testing.assert_array_equal(x.objects, y.objects)
+            np.testing.assert_array_equal(x.relations, y.relations)
+
+
 def test_demonstration_contexts_equal_the_feature_pipelines(small, benchmark_tables):
     contexts, meta, scenarios = small
     sid = meta[0].scenario_id
@@ -171,6 +207,7 @@ def test_the_expert_never_sees_a_test_scenario(small, monkeypatch):
 
     monkeypatch.setattr(dagger_module, "next_actions", spy_expert)
     monkeypatch.setattr(starts_module, "_chain", spy_chain)
+    monkeypatch.setattr(starts_module, "_CHAINED", {})  # nothing chained by an earlier test
     test = scenario_folds(scenarios, 3, 0, "scenario")[0]
     make = partial(MRFMethod, "full", **SSVM, chained_starts=True, dagger_rounds=1, name="all")
     result = run_fold(make, 0, contexts, meta, scenarios, test, max_steps=20)

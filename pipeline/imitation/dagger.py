@@ -20,7 +20,7 @@ from ..sim.primitives import Action
 from ..sim.scenarios import Scenario
 from ..sim.state import WorldState
 from .expert import next_actions
-from .starts import chained_scenarios, demonstration_contexts
+from .starts import chained_contexts, chained_scenarios
 
 ROLLOUT_STEPS = 20  # step cap of a training rollout, the evaluation's
 
@@ -65,7 +65,7 @@ def fit_imitation(planner: StepScorer, contexts: list[StepContext], scenarios: S
     scenarios = sorted(scenarios, key=lambda s: s.id)
     if chained:
         extra = chained_scenarios(scenarios)
-        data += [x for sc in extra for x in demonstration_contexts(sc)]
+        data += [x for sc in extra for x in chained_contexts(sc)]
         scenarios += extra
     fitted = base if base is not None and rounds else planner.clone().fit(data)
     seconds = 0.0 if fitted is base else fitted.fit_seconds_

@@ -140,7 +140,6 @@ class StepBatch:
     valid: np.ndarray  # (S, N) bool
     pair_valid: np.ndarray  # (S, N, N) bool: both objects present and different
     valid_neg: np.ndarray  # (S, N): 0 where an object is present, -inf in the padding
-    pair_neg: np.ndarray  # (S, N, N): 0 where `pair_valid`, else -inf
     task: np.ndarray  # (S,)
     prev: np.ndarray  # (S, 2)
     # (task, its steps, their rel_rows as one (steps * N, len(REL_ROW)) matrix): a weight block indexed by task
@@ -171,11 +170,10 @@ class StepBatch:
         prev = np.array([x.prev_prims for x in steps])
         pair_valid = valid[:, :, None] & valid[:, None, :] & ~np.eye(N, dtype=bool)[None]
         valid_neg = np.where(valid, 0.0, -np.inf)
-        pair_neg = np.where(pair_valid, 0.0, -np.inf)
         rel_rows = rel_row(objects, rel, rows_rel) if relations else np.zeros((S, N, 0))
         with_cues = relations and cues
         cue_rows = rows_cue if with_cues else np.zeros((S, N, 0))
-        return cls(objects, rel, rel_rows, cue_rows, hist, collide, valid, pair_valid, valid_neg, pair_neg, task,
+        return cls(objects, rel, rel_rows, cue_rows, hist, collide, valid, pair_valid, valid_neg, task,
                    prev, _by_task(task, rel_rows) if relations else [], _by_task(task, cue_rows) if with_cues else [])
 
 
@@ -201,9 +199,15 @@ class Tables:
     P: np.ndarray  # (S, N_PRIM)
     U1: np.ndarray  # (S, N_PRIM, N)
     U2: np.ndarray  # (S, N_PRIM, N)
-    pair: np.ndarray  # (S, N, N)
+    pair_weight: float  # the collision weight (`ae_pair`; 0 without it): pair = pair_weight * collide
+    collide: np.ndarray  # (S, N, N) bool
     left: np.ndarray  # (N_PRIM, S, N, R): a low-rank pair term per primitive (R = 0 without `rel_pair`)
     right: np.ndarray  # (S, N, R)
+
+    @property
+    def pair(self) -> np.ndarray:
+        """(S, N, N): made when asked for; the oracle reads the collision bits instead (`_best_pairs`)."""
+        return self.pair_weight * self.collide
 
 
 class _Batched:
@@ -262,9 +266,7 @@ class _Batched:
                 for rows, both in by_task.get(family, ()):
                     table[rows] += both[s - 1].reshape(len(rows), N, N_PRIM)
             U.append(table.transpose(0, 2, 1))
-        pair = np.zeros((S, N, N))
-        if (wt := self._w(w, "ae_pair")) is not None:
-            pair = wt[0] * b.collide
+        pair_weight = float(wt[0]) if (wt := self._w(w, "ae_pair")) is not None else 0.0
         # the task relations of a1 and a2, crossed, are a rank-4 term per primitive: (task_rel W_p) task_rel^T,
         # every primitive's in one product (columns p * 4 + r), seen as (N_PRIM, S, N, 4) without a copy
         left, right = np.zeros((N_PRIM, S, N, 0)), np.zeros((S, N, 0))
@@ -273,7 +275,7 @@ class _Batched:
             per_step = w_pair[b.task].transpose(0, 2, 1, 3).reshape(S, b.task_rel.shape[2], N_PRIM * R)
             left = matmul(b.task_rel, per_step).reshape(S, N, N_PRIM, R).transpose(2, 0, 1, 3)
             right = b.task_rel
-        return Tables(P, U[0], U[1], pair, left, right)
+        return Tables(P, U[0], U[1], pair_weight, b.collide, left, right)
 
     def _batch_best(self: MRFModel, b: StepBatch, w: np.ndarray, gold: np.ndarray | None = None) -> np.ndarray:  # type: ignore[misc]
         """(S, 3): the best candidate of every step; with `gold` (S, 3), of score plus Hamming loss.
@@ -298,7 +300,6 @@ class _Batched:
         arg1 = np.full((S, N_PRIM), -1)
         arg2 = np.full((S, N_PRIM), -1)
         # a step's primitive term does not move its argmax over arguments: it is added to the maximum only
-        base = f.pair + b.pair_neg
         for p, arity in enumerate(ARITIES):
             if arity == 0:
                 best[:, p] = P[:, p] + none1 + none2
@@ -307,7 +308,8 @@ class _Batched:
                 a = sc.argmax(axis=1)
                 best[:, p], arg1[:, p] = P[:, p] + sc[rows, a] + none2, a
             else:
-                value, a = _best_pairs(base, f.U2[:, p] + l2, f.U1[:, p] + l1, f.left[p], f.right)
+                value, a = _best_pairs(f.pair_weight, f.collide, b.pair_valid, f.U2[:, p] + l2, f.U1[:, p] + l1,
+                                       f.left[p], f.right)
                 best[:, p] = P[:, p] + value
                 arg1[:, p], arg2[:, p] = np.divmod(a, N)
         prim = best.argmax(axis=1)
@@ -396,21 +398,29 @@ def _slot_products(rows: np.ndarray, w1: np.ndarray | None,
 
 
 @njit(cache=True)
-def _best_pairs(base: np.ndarray, u2: np.ndarray, u1: np.ndarray, left: np.ndarray,
-                right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per step s, max and flat argmax over (a1, a2) of base[a1, a2] + u2[a2] + u1[a1] + left[a1] . right[a2].
+def _best_pairs(pair_weight: float, collide: np.ndarray, pair_valid: np.ndarray, u2: np.ndarray, u1: np.ndarray,
+                left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per step s, max and flat argmax over the valid (a1, a2) of
+    pair[a1, a2] + u2[a2] + u1[a1] + left[a1] . right[a2], with pair = pair_weight * collide.
 
     The same sum NumPy would broadcast into an (S, N, N) array, fused so that
-    array is never written: the oracle reads `base` once per primitive. Ties go
-    to the first (a1, a2) in row-major order, as `argmax` does.
+    no such array is written: the oracle reads two bits per pair, not the
+    (S, N, N) pair table and its mask as floats (800 MB each for 28,000 steps
+    of 60 objects). Each entry is the pair term plus 0, then the same sums in
+    the same order, so the values are the bits the broadcast sum gave. Ties
+    go to the first (a1, a2) in row-major order, as `argmax` does; an invalid
+    pair (padding, or a1 = a2) is never chosen, and with none valid the
+    value is -inf at (0, 0).
     """
-    S, N, R = base.shape[0], base.shape[1], left.shape[2]
+    S, N, R = collide.shape[0], collide.shape[1], left.shape[2]
     value, arg = np.empty(S), np.zeros(S, np.int64)
     for s in range(S):
         best, at = -np.inf, 0
         for i in range(N):
             for j in range(N):
-                v = base[s, i, j] + u2[s, j] + u1[s, i]
+                if not pair_valid[s, i, j]:
+                    continue
+                v = (pair_weight * (1.0 if collide[s, i, j] else 0.0) + 0.0) + u2[s, j] + u1[s, i]
                 if R:
                     low = 0.0
                     for r in range(R):
