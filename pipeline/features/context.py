@@ -21,7 +21,7 @@ import numpy as np
 
 from ..sim.objects import BINARY_ATTRIBUTES, CONTINUOUS_ATTRIBUTES, ObjectSpec
 from ..sim.primitives import ALL_PRIMITIVES, ARITY, Action
-from ..sim.state import EPS, INSIDE, ON, WorldState
+from ..sim.state import EPS, INSIDE, ON, REACH, WorldState, footprint_distance
 from ..sim.tasks import TASKS, Task
 
 N_PRIM = len(ALL_PRIMITIVES)  # the seven primitives and done
@@ -141,9 +141,9 @@ class StepContext:
         return PRIM_INDEX[action.primitive], args[0], args[1]
 
 
-def _log_ratio(a: np.ndarray, b: float) -> np.ndarray:
-    """log10(a / b) over two decades, clipped to [-1, 1]."""
-    return np.clip(log10(np.maximum(a, 1e-9) / max(b, 1e-9)) / 2.0, -1.0, 1.0)
+def _log_ratio(a: np.ndarray, b: np.ndarray | float) -> np.ndarray:
+    """log10(a / b) over two decades, clipped to [-1, 1] (entry by entry: `a` and `b` broadcast)."""
+    return np.clip(log10(np.maximum(a, 1e-9) / np.maximum(b, 1e-9)) / 2.0, -1.0, 1.0)
 
 
 def relations(state: WorldState, task: Task, ids: list[str],
@@ -164,21 +164,26 @@ def relations(state: WorldState, task: Task, ids: list[str],
     xy = np.array([state.poses[o][:2] for o in ids])
     first = task.args[0] if task.args else None
     refs = (first, state.container_of(first) if first in state.specs else None, state.held)
-    out = np.zeros((len(ids), len(RELATION_COLUMNS)))
-    k = len(RELATION_KINDS)
-    for r, ref in enumerate(refs):
-        if ref is None or ref not in state.specs:
-            continue
-        j = ids.index(ref)
+    present = [(r, ids.index(ref)) for r, ref in enumerate(refs) if ref is not None and ref in state.specs]
+    n, k = len(ids), len(RELATION_KINDS)
+    out = np.zeros((n, len(RELATION_COLUMNS)))
+    if not present:
+        return out
+    at = np.array([j for _, j in present])
+    # every reference's log volume ratio in one call: the same operations on each entry as one call per reference
+    log_ratios = _log_ratio(volume[None, :], volume[at][:, None])
+    for (r, j), log_ratio in zip(present, log_ratios, strict=True):
+        cols = out[:, r * k : (r + 1) * k]
         ratio = volume / volume[j]
         margin = length - attrs[j]["height"]
         d = np.hypot(*(xy - xy[j]).T)
-        cols = np.column_stack([
-            np.arange(len(ids)) == j, *(ratio >= t for t in VOLUME_RATIOS), _log_ratio(volume, volume[j]),
-            *(margin >= m for m in LENGTH_MARGINS), np.clip(1.0 - d, 0.0, 1.0),
-        ]).astype(float)
+        cols[:, 0] = np.arange(n) == j
+        cols[:, 1 : 1 + len(VOLUME_RATIOS)] = ratio[:, None] >= np.array(VOLUME_RATIOS)
+        c = 1 + len(VOLUME_RATIOS)
+        cols[:, c] = log_ratio
+        cols[:, c + 1 : c + 1 + len(LENGTH_MARGINS)] = margin[:, None] >= np.array(LENGTH_MARGINS)
+        cols[:, -1] = np.clip(1.0 - d, 0.0, 1.0)
         cols[j, 1:] = 0.0
-        out[:, r * k : (r + 1) * k] = cols
     return out
 
 
@@ -207,17 +212,15 @@ def step_context(
     # one pass over what rests on what, not one per object
     loaded = {p for p, r in state.support.values() if r == ON}
     wet = {p for c, (p, r) in state.support.items() if r == INSIDE and state.specs[c].has("liquid")}
-    for i, o in enumerate(ids):
-        objects[i, : len(STATE_COLUMNS)] = (
-            float(state.held == o),
-            min(state.distance(o), 10.0) / 10.0,
-            float(state.reachable(o)),
-            float(o in loaded),
-            float(state.over_shelf(o)),
-            float(o in wet),
-        )
-        objects[i, len(STATE_COLUMNS) :] = rows[i][1]
-    boxes = np.array([state.box(o) for o in ids])
+    shelved, robot = state.shelved(), state.robot
+    box_of = [state.box(o) for o in ids]
+    objects[:, : len(STATE_COLUMNS)] = [
+        (float(state.held == o), min(state.distance(o), 10.0) / 10.0,
+         float(footprint_distance(box, robot) <= REACH + EPS),  # `WorldState.reachable`, its box made once
+         float(o in loaded), float(o in shelved), float(o in wet))
+        for o, box in zip(ids, box_of, strict=True)]
+    objects[:, len(STATE_COLUMNS) :] = [row for _, row in rows]
+    boxes = np.array(box_of)
     task_rel = np.zeros((n, 4))
     for k, g in enumerate(task.args[:2]):
         if g in index:

@@ -33,6 +33,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
@@ -138,8 +139,6 @@ class StepBatch:
     hist: np.ndarray  # (S, N, 4)
     collide: np.ndarray  # (S, N, N)
     valid: np.ndarray  # (S, N) bool
-    pair_valid: np.ndarray  # (S, N, N) bool: both objects present and different
-    valid_neg: np.ndarray  # (S, N): 0 where an object is present, -inf in the padding
     task: np.ndarray  # (S,)
     prev: np.ndarray  # (S, 2)
     # (task, its steps, their rel_rows as one (steps * N, len(REL_ROW)) matrix): a weight block indexed by task
@@ -147,6 +146,17 @@ class StepBatch:
     by_task: list[tuple[int, np.ndarray, np.ndarray]]
     # the same for the choice cues (`features.cues`), empty when the batch is built without them
     cues_by_task: list[tuple[int, np.ndarray, np.ndarray]]
+
+    @cached_property
+    def pair_valid(self) -> np.ndarray:
+        """(S, N, N) bool: both objects present and different (made when the oracle first asks)."""
+        N = self.valid.shape[1]
+        return self.valid[:, :, None] & self.valid[:, None, :] & ~np.eye(N, dtype=bool)[None]
+
+    @cached_property
+    def valid_neg(self) -> np.ndarray:
+        """(S, N): 0 where an object is present, -inf in the padding."""
+        return np.where(self.valid, 0.0, -np.inf)
 
     @classmethod
     def of(cls, steps: list[StepContext], relations: bool = True, cues: bool = False) -> StepBatch:
@@ -168,12 +178,10 @@ class StepBatch:
             valid[s, : x.n] = True
         task = np.array([x.task for x in steps])
         prev = np.array([x.prev_prims for x in steps])
-        pair_valid = valid[:, :, None] & valid[:, None, :] & ~np.eye(N, dtype=bool)[None]
-        valid_neg = np.where(valid, 0.0, -np.inf)
         rel_rows = rel_row(objects, rel, rows_rel) if relations else np.zeros((S, N, 0))
         with_cues = relations and cues
         cue_rows = rows_cue if with_cues else np.zeros((S, N, 0))
-        return cls(objects, rel, rel_rows, cue_rows, hist, collide, valid, pair_valid, valid_neg, task,
+        return cls(objects, rel, rel_rows, cue_rows, hist, collide, valid, task,
                    prev, _by_task(task, rel_rows) if relations else [], _by_task(task, cue_rows) if with_cues else [])
 
 

@@ -23,6 +23,14 @@ STANDOFF = 0.35
 EPS = 1e-6
 
 
+def footprint_distance(box: tuple[float, ...], point: tuple[float, float]) -> float:
+    """Horizontal distance from `point` to the nearest point of a box's footprint (`WorldState.box` order)."""
+    xmin, ymin, _, xmax, ymax, _ = box
+    dx = max(xmin - point[0], 0.0, point[0] - xmax)
+    dy = max(ymin - point[1], 0.0, point[1] - ymax)
+    return math.hypot(dx, dy)
+
+
 @dataclass
 class WorldState:
     """Mutable state; primitives copy it before changing it."""
@@ -111,13 +119,24 @@ class WorldState:
 
     def reach_distance(self, obj: str) -> float:
         """Horizontal distance from the robot base to the nearest point of the footprint."""
-        xmin, ymin, _, xmax, ymax, _ = self.box(obj)
-        dx = max(xmin - self.robot[0], 0.0, self.robot[0] - xmax)
-        dy = max(ymin - self.robot[1], 0.0, self.robot[1] - ymax)
-        return math.hypot(dx, dy)
+        return footprint_distance(self.box(obj), self.robot)
 
     def reachable(self, obj: str) -> bool:
         return self.reach_distance(obj) <= REACH + EPS
+
+    def shelved(self) -> set[str]:
+        """Every object `over_shelf` holds for, found in one walk down from the multi-surface objects."""
+        below: dict[str, list[str]] = {}
+        for child, (parent, _) in self.support.items():
+            below.setdefault(parent, []).append(child)
+        out: set[str] = set()
+        stack = [o for o, spec in self.specs.items() if spec.has("multi_surface") and o in below]
+        while stack:
+            for child in below.get(stack.pop(), ()):
+                if child not in out:
+                    out.add(child)
+                    stack.append(child)
+        return out
 
     def approach_point(self, obj: str) -> tuple[float, float]:
         """Where the robot parks to work on `obj`: in front of its furniture, level with it."""
