@@ -40,6 +40,9 @@ class ScriptedPlanner:
     def __init__(self) -> None:
         self.calls = 0
 
+    def ranked(self, ctx):  # the whole ranking, which a policy walking down it reads
+        return iter(self.top_k(ctx, 1_000_000))
+
     def top_k(self, ctx, k: int):
         t, self.calls = self.calls, self.calls + 1
         ranked = [Action("done")] + ([DEMO[t]] if t < len(DEMO) else []) + [Action.parse(f"move_close({MUG})")]
@@ -111,6 +114,9 @@ class GraspMugFirst:
 
     def __init__(self) -> None:
         self.calls = 0
+
+    def ranked(self, ctx):  # the whole ranking, which a policy walking down it reads
+        return iter(self.top_k(ctx, 1_000_000))
 
     def top_k(self, ctx, k: int):
         t, self.calls = self.calls, self.calls + 1
@@ -303,6 +309,9 @@ def test_each_program_gets_its_policy_for_its_task_seen_as_its_condition_says(tw
 
 class Wanderer(ScriptedPlanner):
     """Never stops: offers a detour to the mug or back to the cup, in turn; the demonstration's step fourth."""
+
+    def ranked(self, ctx):  # the whole ranking, which a policy walking down it reads
+        return iter(self.top_k(ctx, 1_000_000))
 
     def top_k(self, ctx, k: int):
         t, self.calls = self.calls, self.calls + 1

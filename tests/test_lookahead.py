@@ -33,6 +33,9 @@ class ScriptedScorer:
     def __init__(self, script: dict[str, list[str]]) -> None:
         self.script, self.contexts = script, []
 
+    def ranked(self, ctx):  # the whole ranking, which a policy walking down it reads
+        return iter(self.top_k(ctx, 1_000_000))
+
     def top_k(self, ctx, k):
         self.contexts.append(ctx)
         history = ctx.history()

@@ -127,3 +127,19 @@ def test_steps_include_a_final_done(benchmark_steps):
         last[m.sequence_id] = x
     assert all(x.gold == (done, -1, -1) for x in last.values())
     assert sum(x.gold[0] == done for x in contexts) == len(last) == 127
+
+
+@pytest.mark.parametrize("features", ["full", "relations"])
+def test_the_lazy_ranking_is_top_k_of_every_candidate(some_steps, features):
+    """A policy walking down `ranked` reads what `top_k` of all candidates gives, ties to the earlier candidate."""
+    model = MRFModel(features)
+    w = np.random.default_rng(5).normal(size=model.size_joint_feature)
+    w[::3] = 0.0
+    for x in some_steps[:4]:
+        n_cand = len(candidate_index(x.n)[0])
+        assert list(model.ranked(x, w)) == model.top_k(x, w, n_cand)
+        head = model.ranked(x, w)
+        assert [next(head) for _ in range(3)] == model.top_k(x, w, 3)
+    x = some_steps[0]
+    ties = list(model.ranked(x, np.zeros(model.size_joint_feature)))  # every score 0: candidate order
+    assert [y for y, _ in ties] == list(zip(*(a.tolist() for a in candidate_index(x.n)), strict=True))

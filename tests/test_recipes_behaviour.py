@@ -59,6 +59,9 @@ class Scripted:
         self.done_at = done_at  # calls (counted from 0) at which `done` heads the offer too
         self.asked: list[int] = []  # the k of every call
 
+    def ranked(self, ctx):  # the whole ranking, which a policy walking down it reads
+        return iter(self.top_k(ctx, 1_000_000))
+
     def top_k(self, ctx, k):
         call = len(self.asked)
         self.asked.append(k)
@@ -78,6 +81,9 @@ class Method:
 
 class ReleaseFirst:
     """Offers `release` of the task's first object (nothing is held: it cannot run) first, then `done`."""
+
+    def ranked(self, ctx):  # the whole ranking, which a policy walking down it reads
+        return iter(self.top_k(ctx, 1_000_000))
 
     def top_k(self, ctx, k):
         offer = [Action("release", (ctx.object_ids[int(np.argmax(ctx.task_rel[:, 0]))],)), DONE]
@@ -146,6 +152,9 @@ class Wander:
 
     def __init__(self) -> None:
         self.asked: list[int] = []
+
+    def ranked(self, ctx):  # the whole ranking, which a policy walking down it reads
+        return iter(self.top_k(ctx, 1_000_000))
 
     def top_k(self, ctx, k):
         self.asked.append(k)
