@@ -413,8 +413,8 @@ def _best_pairs(pair_weight: float, collide: np.ndarray, pair_valid: np.ndarray,
 
     The same sum NumPy would broadcast into an (S, N, N) array, fused so that
     no such array is written: the oracle reads two bits per pair, not the
-    (S, N, N) pair table and its mask as floats (800 MB each for 28,000 steps
-    of 60 objects). Each entry is the pair term plus 0, then the same sums in
+    (S, N, N) pair table and its mask as floats (150 MB each for 28,000 steps
+    of 26 objects). Each entry is the pair term plus 0, then the same sums in
     the same order, so the values are the bits the broadcast sum gave. Ties
     go to the first (a1, a2) in row-major order, as `argmax` does; an invalid
     pair (padding, or a1 = a2) is never chosen, and with none valid the
