@@ -140,6 +140,12 @@ def test_the_lazy_ranking_is_top_k_of_every_candidate(some_steps, features):
         assert list(model.ranked(x, w)) == model.top_k(x, w, n_cand)
         head = model.ranked(x, w)
         assert [next(head) for _ in range(3)] == model.top_k(x, w, 3)
-    x = some_steps[0]
+    x = max(some_steps, key=lambda c: c.n)
     ties = list(model.ranked(x, np.zeros(model.size_joint_feature)))  # every score 0: candidate order
     assert [y for y, _ in ties] == list(zip(*(a.tolist() for a in candidate_index(x.n)), strict=True))
+    few = np.zeros(model.size_joint_feature)  # a few small whole weights: many candidates tie at each score
+    few[np.random.default_rng(6).choice(len(few), size=12, replace=False)] = [1.0, 2.0, -1.0] * 4
+    (cp, ca1, ca2), s = model.scores(x, few)
+    order = np.lexsort((np.arange(len(s)), -s))
+    assert [y for y, _ in model.ranked(x, few)] == [(int(cp[i]), int(ca1[i]), int(ca2[i])) for i in order]
+    assert len(np.unique(s)) < len(s) // 10  # the ties are there to break
