@@ -34,17 +34,21 @@ DEMO = tuple(Action.parse(t) for t in (f"move_close({CUP})", f"grasp({CUP})", f"
                                       f"hold_above({CUP},{TRASH})", f"release({CUP})"))
 
 
+def demonstrated(ctx) -> int:
+    """The demonstration's steps taken before this one, as the step's context remembers them: a planner is a
+    function of the step (programs that share their first steps share them in the rollout loop)."""
+    last = ctx.history()[-1:]
+    return DEMO.index(last[0]) + 1 if last and last[0] in DEMO else 0
+
+
 class ScriptedPlanner:
     """Ranks, at step t: `done` first, the demonstration's step t second, a detour to the mug third."""
-
-    def __init__(self) -> None:
-        self.calls = 0
 
     def ranked(self, ctx):  # the whole ranking, which a policy walking down it reads
         return iter(self.top_k(ctx, 1_000_000))
 
     def top_k(self, ctx, k: int):
-        t, self.calls = self.calls, self.calls + 1
+        t = demonstrated(ctx)
         ranked = [Action("done")] + ([DEMO[t]] if t < len(DEMO) else []) + [Action.parse(f"move_close({MUG})")]
         return [(ctx.encode(a), float(-i)) for i, a in enumerate(ranked)][:k]
 
@@ -112,14 +116,11 @@ class ScriptedMethod:
 class GraspMugFirst:
     """Offers a grasp of the mug, out of reach (it cannot run), before the demonstration's step t."""
 
-    def __init__(self) -> None:
-        self.calls = 0
-
     def ranked(self, ctx):  # the whole ranking, which a policy walking down it reads
         return iter(self.top_k(ctx, 1_000_000))
 
     def top_k(self, ctx, k: int):
-        t, self.calls = self.calls, self.calls + 1
+        t = demonstrated(ctx)
         ranked = [Action.parse(f"grasp({MUG})"), DEMO[t] if t < len(DEMO) else Action("done")]
         return [(ctx.encode(a), float(-i)) for i, a in enumerate(ranked)][:k]
 
@@ -236,7 +237,7 @@ SEEN: list[tuple[str, tuple]] = []  # (task, the binary attributes the planner s
 
 class SeeingPlanner(ScriptedPlanner):
     def top_k(self, ctx, k: int):
-        if self.calls == 0:
+        if not ctx.history():  # the first step
             SEEN.append((str(ctx.object_ids), tuple(ctx.objects[:, BINARY_COLUMNS].ravel())))
         return super().top_k(ctx, k)
 
@@ -312,6 +313,9 @@ class Wanderer(ScriptedPlanner):
 
     def ranked(self, ctx):  # the whole ranking, which a policy walking down it reads
         return iter(self.top_k(ctx, 1_000_000))
+
+    def __init__(self) -> None:
+        self.calls = 0
 
     def top_k(self, ctx, k: int):
         t, self.calls = self.calls, self.calls + 1
@@ -397,3 +401,56 @@ def test_the_candidates_the_observer_passed_over_stay_in_order_as_alternatives(s
                    choose=observer(scenario.demonstrations, 1))
     assert program.steps[0].action == DEMO[0]
     assert program.steps[0].alternatives == [(Action("done"), 0.0), (Action.parse(f"move_close({MUG})"), -2.0)]
+
+
+class CountingPlanner(ScriptedPlanner):
+    """The scripted planner, counting the steps it ranks (over every program of a test)."""
+
+    steps: list[tuple] = []
+
+    def top_k(self, ctx, k: int):
+        CountingPlanner.steps.append(tuple(ctx.history()))
+        return super().top_k(ctx, k)
+
+
+def test_programs_that_share_their_first_steps_rank_them_once(scenario):
+    """An observer who corrects the first n steps leaves every program the same as the others up to there:
+    with one memo they are ranked once, and each program is the one computed afresh, step for step."""
+    from pipeline.plan.planner import greedy, run_loop
+
+    def programs(memo):
+        CountingPlanner.steps = []
+        out = [run_loop(greedy(CountingPlanner(), 2), scenario.initial, scenario.task, 20, None,
+                        observer(scenario.demonstrations, n), memo) for n in (0, 2, 20, 3, 2)]
+        return out, CountingPlanner.steps
+
+    alone, ranked_alone = programs(None)
+    memo = {}
+    shared, ranked_shared = programs(memo)
+    assert [p.status for p in shared] == [DONE] * 5 and [len(p.actions) for p in shared] == [0, 2, 5, 3, 2]
+    for a, b in zip(alone, shared, strict=True):
+        assert (a.status, a.actions, a.error) == (b.status, b.actions, b.error)
+        assert [(s.score, s.alternatives, s.unsafe) for s in a.steps] == [
+            (s.score, s.alternatives, s.unsafe) for s in b.steps]
+        assert [(x.specs, x.robot, x.held) for x in a.states] == [(y.specs, y.robot, y.held) for y in b.states]
+    assert len(ranked_alone) == 1 + 3 + 6 + 4 + 3
+    assert len(ranked_shared) == len(memo) == 6  # the histories of the longest program, each ranked once
+    assert shared[3].states[:4] == shared[2].states[:4]  # the same world objects, not executed again
+
+
+def test_noise_draws_that_flip_nothing_are_one_program(scenario):
+    """At rate 0 every draw sees the world as it is: the replay ranks one program's steps for all of them."""
+    method = type("Method", (ScriptedMethod,), {"planner_": property(lambda self: CountingPlanner())})
+    CountingPlanner.steps = []
+    conditions = [NoiseCondition(0.0, 0), NoiseCondition(0.0, 1), NoiseCondition(0.0, 2),
+                  FeedbackCondition(2, 20), FeedbackCondition(2, 20), FeedbackCondition(1, 20)]
+    results = _replay(method, [], [], {scenario.id: scenario}, {scenario.id}, conditions, 20, 0)
+    assert [c for c, _ in results] == conditions
+    # offered one candidate (`done`), the observer cannot correct the robot: k is part of what a step offers
+    assert [o.status for _, o in results] == [DONE] * 6
+    assert [len(o.actions) for _, o in results] == [0, 0, 0, 5, 5, 0]
+    assert len(CountingPlanner.steps) == 1 + 6 + 1  # done at once (noise), the demonstration and done, done
+    CountingPlanner.steps = []
+    _replay(method, [], [], {scenario.id: scenario}, {scenario.id}, [NoiseCondition(0.5, 0), NoiseCondition(0.5, 1)],
+            20, 0)
+    assert len(CountingPlanner.steps) == 2  # two draws that flip attributes: two ways of seeing, two programs

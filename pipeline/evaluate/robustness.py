@@ -17,7 +17,7 @@ from threadpoolctl import threadpool_limits
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
 from ..features.perception import flip_masks, noisy_perception
-from ..plan.planner import learned_policy, run_loop
+from ..plan.planner import Memo, learned_policy, run_loop
 from ..settings import Feedback, Folds, Noise
 from ..sim.primitives import Action
 from ..sim.scenarios import Scenario
@@ -71,24 +71,29 @@ def _fold(make, contexts, meta, scenarios, test, conditions, max_steps, seed):
 def _replay(make, contexts, meta, scenarios, test, conditions, max_steps, seed):
     train = training_index(meta, test)
     method: MRFMethod = make().fit([contexts[i] for i in train], [meta[i] for i in train], scenarios)
-    out = []
-    for c in conditions:
-        for sid in sorted(test):
-            sc = scenarios[sid]
+    order = sorted(scenarios)
+    outcome = {}
+    for sid in sorted(test):
+        sc = scenarios[sid]
+        memos: dict[tuple, Memo] = {}  # one per way of seeing the scenario and number of candidates offered
+        for c in conditions:
             perceive = choose = None
             top_k = 3
             if isinstance(c, NoiseCondition):
                 # one draw per (seed, scenario): the same scenario sees the same errors in every fold layout
-                rng = np.random.default_rng([seed, c.draw, sorted(scenarios).index(sid)])
-                perceive = noisy_perception(flip_masks(sorted(sc.initial.specs), c.rate, rng))
+                rng = np.random.default_rng([seed, c.draw, order.index(sid)])
+                masks = flip_masks(sorted(sc.initial.specs), c.rate, rng)
+                perceive = noisy_perception(masks)
+                view = ("noise", *((o, m.tobytes()) for o, m in masks.items()))  # rate 0: every draw sees alike
             else:
                 top_k = c.k
                 choose = observer(sc.demonstrations, c.n)
+                view = ("feedback", c.k)  # the observer changes which step is taken, not what a step offers
             # as the method's own programs pick steps, imagined ones seen through the same perception
             policy = learned_policy(method.policy, method.planner_, sc.task, top_k, perceive)
-            program = run_loop(policy, sc.initial, sc.task, max_steps, perceive, choose)
-            out.append((c, judge(sc, program)))
-    return out
+            program = run_loop(policy, sc.initial, sc.task, max_steps, perceive, choose, memos.setdefault(view, {}))
+            outcome[c, sid] = judge(sc, program)
+    return [(c, outcome[c, sid]) for c in conditions for sid in sorted(test)]
 
 
 def evaluate_conditions(makes: Mapping[str, Callable[[], MRFMethod]], contexts: list[StepContext],

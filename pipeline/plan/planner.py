@@ -202,21 +202,44 @@ def plan(planner: StepScorer, state: WorldState, task: Task, max_steps: int = 20
     return run_loop(greedy(planner, top_k), state, task, max_steps, perceive, choose)
 
 
+# What one scenario's programs, seen one way and ranked by one policy, met at each history (the actions taken so
+# far): the world before the next step, that step's context as seen, and the policy's ranking of it (or its
+# abstention). `run_loop` fills it and reads it back.
+Memo = dict[tuple[Action, ...], tuple[WorldState, StepContext, Ranked | Abstain]]
+
+
 def run_loop(policy: Policy, state: WorldState, task: Task, max_steps: int = 20, perceive: Perceive | None = None,
-             choose: Choose | None = None) -> Program:
-    """The rollout loop of every method: rank the step's candidates, take the best, execute it, repeat."""
+             choose: Choose | None = None, memo: Memo | None = None) -> Program:
+    """The rollout loop of every method: rank the step's candidates, take the best, execute it, repeat.
+
+    A program is a function of the actions it took: the simulator, the
+    features, `perceive` and the policy are deterministic. So programs of one
+    scenario that differ only in the observer (`choose`) share every step up
+    to the first the observer changes; given the same `memo` (one per
+    scenario, `perceive` and policy: the caller's promise) a later program
+    reads those steps back instead of computing them again, the same objects.
+    """
     task.check_objects(state)
     states, steps = [state], []
+    history: tuple[Action, ...] = ()
     while True:
-        ctx = step_context(state, task, [s.action for s in steps])
-        if perceive is not None:
-            ctx = perceive(ctx)
-        try:
-            ranked = policy(ctx, state)
-        except Abstain as why:
-            return Program(task, steps, INFEASIBLE, states, str(why))
+        known = memo.get(history) if memo is not None else None
+        if known is None:
+            ctx = step_context(state, task, list(history))
+            if perceive is not None:
+                ctx = perceive(ctx)
+            try:
+                ranked: Ranked | Abstain = policy(ctx, state)
+            except Abstain as why:
+                ranked = why
+            if memo is not None:
+                memo[history] = (state, ctx, ranked)
+        else:
+            _, ctx, ranked = known
+        if isinstance(ranked, Abstain):
+            return Program(task, steps, INFEASIBLE, states, str(ranked))
         if choose is not None:
-            pick = choose([s.action for s in steps], [ctx.action(y) for y, _ in ranked])
+            pick = choose(list(history), [ctx.action(y) for y, _ in ranked])
             ranked = [ranked[pick]] + ranked[:pick] + ranked[pick + 1 :]
         (best, score), rest = ranked[0], ranked[1:]
         action = ctx.action(best)
@@ -226,8 +249,13 @@ def run_loop(policy: Policy, state: WorldState, task: Task, max_steps: int = 20,
             return Program(task, steps, STEP_CAP, states)
         step = PlanStep(action, score, [(ctx.action(y), s) for y, s in rest], violations(state, action))
         steps.append(step)
-        try:
-            state = execute(state, action)
-        except PreconditionError as err:
-            return Program(task, steps, INFEASIBLE, states, str(err))
+        history = (*history, action)
+        known = memo.get(history) if memo is not None else None
+        if known is not None:
+            state = known[0]
+        else:
+            try:
+                state = execute(state, action)
+            except PreconditionError as err:
+                return Program(task, steps, INFEASIBLE, states, str(err))
         states.append(state)
