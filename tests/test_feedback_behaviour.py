@@ -416,7 +416,7 @@ class CountingPlanner(ScriptedPlanner):
 def test_programs_that_share_their_first_steps_rank_them_once(scenario):
     """An observer who corrects the first n steps leaves every program the same as the others up to there:
     with one memo they are ranked once, and each program is the one computed afresh, step for step."""
-    from pipeline.plan.planner import greedy, run_loop
+    from pipeline.plan.planner import Memo, greedy, run_loop
 
     def programs(memo):
         CountingPlanner.steps = []
@@ -425,7 +425,7 @@ def test_programs_that_share_their_first_steps_rank_them_once(scenario):
         return out, CountingPlanner.steps
 
     alone, ranked_alone = programs(None)
-    memo = {}
+    memo = Memo()
     shared, ranked_shared = programs(memo)
     assert [p.status for p in shared] == [DONE] * 5 and [len(p.actions) for p in shared] == [0, 2, 5, 3, 2]
     for a, b in zip(alone, shared, strict=True):
@@ -434,12 +434,19 @@ def test_programs_that_share_their_first_steps_rank_them_once(scenario):
             (s.score, s.alternatives, s.unsafe) for s in b.steps]
         assert [(x.specs, x.robot, x.held) for x in a.states] == [(y.specs, y.robot, y.held) for y in b.states]
     assert len(ranked_alone) == 1 + 3 + 6 + 4 + 3
-    assert len(ranked_shared) == len(memo) == 6  # the histories of the longest program, each ranked once
+    # the histories of the longest program, each ranked once
+    assert len(ranked_shared) == len(memo.ranked) == len(memo.worlds) == 6
     assert shared[3].states[:4] == shared[2].states[:4]  # the same world objects, not executed again
 
 
-def test_noise_draws_that_flip_nothing_are_one_program(scenario):
-    """At rate 0 every draw sees the world as it is: the replay ranks one program's steps for all of them."""
+def test_noise_draws_that_flip_nothing_are_one_program(scenario, monkeypatch):
+    """At rate 0 every draw sees the world as it is: the replay ranks one program's steps for all of them.
+    Draws that flip attributes rank their own steps, from the world's context made once."""
+    from pipeline.plan import planner
+
+    made = []
+    real = planner.step_context
+    monkeypatch.setattr(planner, "step_context", lambda *args: made.append(args) or real(*args))
     method = type("Method", (ScriptedMethod,), {"planner_": property(lambda self: CountingPlanner())})
     CountingPlanner.steps = []
     conditions = [NoiseCondition(0.0, 0), NoiseCondition(0.0, 1), NoiseCondition(0.0, 2),
@@ -450,7 +457,9 @@ def test_noise_draws_that_flip_nothing_are_one_program(scenario):
     assert [o.status for _, o in results] == [DONE] * 6
     assert [len(o.actions) for _, o in results] == [0, 0, 0, 5, 5, 0]
     assert len(CountingPlanner.steps) == 1 + 6 + 1  # done at once (noise), the demonstration and done, done
-    CountingPlanner.steps = []
+    assert len(made) == 6  # the world's context at each history met
+    CountingPlanner.steps, made[:] = [], []
     _replay(method, [], [], {scenario.id: scenario}, {scenario.id}, [NoiseCondition(0.5, 0), NoiseCondition(0.5, 1)],
             20, 0)
     assert len(CountingPlanner.steps) == 2  # two draws that flip attributes: two ways of seeing, two programs
+    assert len(made) == 1  # of one world

@@ -140,6 +140,26 @@ def test_a_process_chains_and_featurises_a_scenario_once(small, monkeypatch):
             assert (x.object_ids, x.prev_prims, x.prev_args) == (y.object_ids, y.prev_prims, y.prev_args)
 
 
+def test_the_chaining_memo_empties_both_halves_together_when_full(small, monkeypatch):
+    """A process that goes through many worlds keeps a bounded memo: past the cap, what was chained and what
+    was featurised are forgotten together (neither half keeps scenarios the other dropped)."""
+    _, _, scenarios = small
+    given = sorted(scenarios.values(), key=lambda s: s.id)
+    monkeypatch.setattr(starts_module, "_CHAINED", {})
+    monkeypatch.setattr(starts_module, "_CONTEXTS", {})
+    monkeypatch.setattr(starts_module, "_REMEMBERED", 3)
+    chained = chained_scenarios(given[:2])
+    assert len(starts_module._CHAINED) == 2 and chained
+    for sc in chained:
+        chained_contexts(sc)
+    assert len(starts_module._CONTEXTS) == len(chained) <= 2
+    chained_contexts(given[2])  # the third scenario featurised: still within the cap
+    assert len(starts_module._CHAINED) == 2 and len(starts_module._CONTEXTS) == len(chained) + 1
+    assert len(starts_module._CONTEXTS) == 3  # full: the next call empties both halves first
+    chained_contexts(given[3])
+    assert (len(starts_module._CHAINED), len(starts_module._CONTEXTS)) == (0, 1)
+
+
 def test_demonstration_contexts_equal_the_feature_pipelines(small, benchmark_tables):
     contexts, meta, scenarios = small
     sid = meta[0].scenario_id

@@ -75,7 +75,7 @@ def _replay(make, contexts, meta, scenarios, test, conditions, max_steps, seed):
     outcome = {}
     for sid in sorted(test):
         sc = scenarios[sid]
-        memos: dict[tuple, Memo] = {}  # one per way of seeing the scenario and number of candidates offered
+        memo = Memo()
         for c in conditions:
             perceive = choose = None
             top_k = 3
@@ -91,7 +91,7 @@ def _replay(make, contexts, meta, scenarios, test, conditions, max_steps, seed):
                 view = ("feedback", c.k)  # the observer changes which step is taken, not what a step offers
             # as the method's own programs pick steps, imagined ones seen through the same perception
             policy = learned_policy(method.policy, method.planner_, sc.task, top_k, perceive)
-            program = run_loop(policy, sc.initial, sc.task, max_steps, perceive, choose, memos.setdefault(view, {}))
+            program = run_loop(policy, sc.initial, sc.task, max_steps, perceive, choose, memo.seen_as(view))
             outcome[c, sid] = judge(sc, program)
     return [(c, outcome[c, sid]) for c in conditions for sid in sorted(test)]
 

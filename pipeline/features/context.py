@@ -21,7 +21,7 @@ import numpy as np
 
 from ..sim.objects import BINARY_ATTRIBUTES, CONTINUOUS_ATTRIBUTES, ObjectSpec
 from ..sim.primitives import ALL_PRIMITIVES, ARITY, Action
-from ..sim.state import EPS, INSIDE, ON, REACH, WorldState, footprint_distance
+from ..sim.state import EPS, INSIDE, ON, WorldState, within_reach
 from ..sim.tasks import TASKS, Task
 
 N_PRIM = len(ALL_PRIMITIVES)  # the seven primitives and done
@@ -216,7 +216,7 @@ def step_context(
     box_of = [state.box(o) for o in ids]
     objects[:, : len(STATE_COLUMNS)] = [
         (float(state.held == o), min(state.distance(o), 10.0) / 10.0,
-         float(footprint_distance(box, robot) <= REACH + EPS),  # `WorldState.reachable`, its box made once
+         float(within_reach(box, robot)),  # `WorldState.reachable`, its box made once
          float(o in loaded), float(o in shelved), float(o in wet))
         for o, box in zip(ids, box_of, strict=True)]
     objects[:, len(STATE_COLUMNS) :] = [row for _, row in rows]

@@ -42,13 +42,20 @@ def _chain(env_id: str, state: WorldState, task: Task) -> Scenario | None:
 # its own): the folds of one world train on overlapping scenarios, and a worker fits them one after another.
 _CHAINED: dict[int, tuple[Scenario, WorldState, dict[Task, Scenario | None]]] = {}
 _CONTEXTS: dict[int, tuple[Scenario, list[StepContext]]] = {}
-_REMEMBERED = 20_000  # scenarios at most, past which both are emptied (a process that goes through many worlds)
+# Scenarios at most in either, past which both are emptied together: a process that goes through many worlds
+# keeps the last (about 110 kB a chained scenario with its steps: 2,500 hold the 1,130 of a 130-room world)
+_REMEMBERED = 2_500
+
+
+def _make_room() -> None:
+    if len(_CHAINED) >= _REMEMBERED or len(_CONTEXTS) >= _REMEMBERED:
+        _CHAINED.clear()
+        _CONTEXTS.clear()
 
 
 def _chained_after(first: Scenario, task: Task) -> Scenario | None:
     """`_chain` from where `first`'s demonstration ended, once per process for a given scenario and task."""
-    if len(_CHAINED) >= _REMEMBERED:
-        _CHAINED.clear()
+    _make_room()
     if id(first) not in _CHAINED:
         _CHAINED[id(first)] = (first, _final(first), {})
     _, end, by_task = _CHAINED[id(first)]
@@ -79,8 +86,7 @@ def chained_contexts(scenario: Scenario) -> list[StepContext]:
     scenario and the next one in its room are both training scenarios), and
     its steps' features were a seventh of a chained fit at 130 rooms.
     """
-    if len(_CONTEXTS) >= _REMEMBERED:
-        _CONTEXTS.clear()
+    _make_room()
     if id(scenario) not in _CONTEXTS:
         _CONTEXTS[id(scenario)] = (scenario, demonstration_contexts(scenario))
     return _CONTEXTS[id(scenario)][1]

@@ -7,7 +7,7 @@ expected, changes the next choice.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -202,10 +202,26 @@ def plan(planner: StepScorer, state: WorldState, task: Task, max_steps: int = 20
     return run_loop(greedy(planner, top_k), state, task, max_steps, perceive, choose)
 
 
-# What one scenario's programs, seen one way and ranked by one policy, met at each history (the actions taken so
-# far): the world before the next step, that step's context as seen, and the policy's ranking of it (or its
-# abstention). `run_loop` fills it and reads it back.
-Memo = dict[tuple[Action, ...], tuple[WorldState, StepContext, Ranked | Abstain]]
+@dataclass(frozen=True)
+class Memo:
+    """What one scenario's programs met at each history (the actions taken so far), for programs to share.
+
+    `worlds` holds the world before the next step and its context as it is,
+    the same however a program sees it; `ranked` holds, per way of seeing the
+    scenario (`view`: the perception and what the policy offers), the context
+    as seen and the policy's ranking of it (or its abstention). A caller makes
+    one `Memo` per scenario and task and one `seen_as` per view, and promises
+    that programs given the same view see and rank alike.
+    """
+
+    view: Hashable = ()
+    worlds: dict[tuple[Action, ...], tuple[WorldState, StepContext]] = field(default_factory=dict)
+    ranked: dict[tuple[Hashable, tuple[Action, ...]], tuple[StepContext, Ranked | Abstain]] = field(
+        default_factory=dict)
+
+    def seen_as(self, view: Hashable) -> Memo:
+        """The same memo for programs that see the scenario as `view` says."""
+        return Memo(view, self.worlds, self.ranked)
 
 
 def run_loop(policy: Policy, state: WorldState, task: Task, max_steps: int = 20, perceive: Perceive | None = None,
@@ -215,17 +231,24 @@ def run_loop(policy: Policy, state: WorldState, task: Task, max_steps: int = 20,
     A program is a function of the actions it took: the simulator, the
     features, `perceive` and the policy are deterministic. So programs of one
     scenario that differ only in the observer (`choose`) share every step up
-    to the first the observer changes; given the same `memo` (one per
-    scenario, `perceive` and policy: the caller's promise) a later program
-    reads those steps back instead of computing them again, the same objects.
+    to the first the observer changes, and programs that see it differently
+    (attribute noise) share the world and its context at a history they both
+    reach. Given the same `memo` (see `Memo`) a later program reads those back
+    instead of computing them again: the same objects, so the same program.
     """
     task.check_objects(state)
     states, steps = [state], []
     history: tuple[Action, ...] = ()
     while True:
-        known = memo.get(history) if memo is not None else None
+        known = memo.ranked.get((memo.view, history)) if memo is not None else None
         if known is None:
-            ctx = step_context(state, task, list(history))
+            world = memo.worlds.get(history) if memo is not None else None
+            if world is None:
+                ctx = step_context(state, task, list(history))
+                if memo is not None:
+                    memo.worlds[history] = (state, ctx)
+            else:
+                ctx = world[1]
             if perceive is not None:
                 ctx = perceive(ctx)
             try:
@@ -233,9 +256,9 @@ def run_loop(policy: Policy, state: WorldState, task: Task, max_steps: int = 20,
             except Abstain as why:
                 ranked = why
             if memo is not None:
-                memo[history] = (state, ctx, ranked)
+                memo.ranked[memo.view, history] = (ctx, ranked)
         else:
-            _, ctx, ranked = known
+            ctx, ranked = known
         if isinstance(ranked, Abstain):
             return Program(task, steps, INFEASIBLE, states, str(ranked))
         if choose is not None:
@@ -250,9 +273,9 @@ def run_loop(policy: Policy, state: WorldState, task: Task, max_steps: int = 20,
         step = PlanStep(action, score, [(ctx.action(y), s) for y, s in rest], violations(state, action))
         steps.append(step)
         history = (*history, action)
-        known = memo.get(history) if memo is not None else None
-        if known is not None:
-            state = known[0]
+        world = memo.worlds.get(history) if memo is not None else None
+        if world is not None:
+            state = world[0]
         else:
             try:
                 state = execute(state, action)

@@ -31,6 +31,11 @@ def footprint_distance(box: tuple[float, ...], point: tuple[float, float]) -> fl
     return math.hypot(dx, dy)
 
 
+def within_reach(box: tuple[float, ...], point: tuple[float, float]) -> bool:
+    """Whether a robot based at `point` reaches a box (`WorldState.box` order): the one reach threshold."""
+    return footprint_distance(box, point) <= REACH + EPS
+
+
 @dataclass
 class WorldState:
     """Mutable state; primitives copy it before changing it."""
@@ -122,7 +127,7 @@ class WorldState:
         return footprint_distance(self.box(obj), self.robot)
 
     def reachable(self, obj: str) -> bool:
-        return self.reach_distance(obj) <= REACH + EPS
+        return within_reach(self.box(obj), self.robot)
 
     def shelved(self) -> set[str]:
         """Every object `over_shelf` holds for, found in one walk down from the multi-surface objects."""
