@@ -33,11 +33,15 @@ def flip_masks(object_ids: list[str], rate: float, rng: np.random.Generator) -> 
 def noisy_perception(masks: dict[str, np.ndarray]) -> Callable[[StepContext], StepContext]:
     """A `perceive` hook that flips the masked binary attributes of every object, every step alike."""
 
+    flips: dict[tuple[str, ...], np.ndarray] = {}  # (n, binary attributes) masks, rows in a step's object order
+
     def perceive(ctx: StepContext) -> StepContext:
+        ids = tuple(ctx.object_ids)
+        if ids not in flips:
+            flips[ids] = np.array([masks[o] for o in ids], dtype=bool).reshape(len(ids), len(BINARY_COLUMNS))
         objects = ctx.objects.copy()
-        for i, o in enumerate(ctx.object_ids):
-            cols = BINARY_COLUMNS[masks[o]]
-            objects[i, cols] = 1.0 - objects[i, cols]
+        binary = objects[:, BINARY_COLUMNS]
+        objects[:, BINARY_COLUMNS] = np.where(flips[ids], 1.0 - binary, binary)
         return replace(ctx, objects=objects)
 
     return perceive
