@@ -132,3 +132,30 @@ def test_chance_is_deterministic_and_multiclass_predicts_no_arguments(benchmark_
     preds = mc.predict_steps(contexts[300:400])
     assert all(a1 == -1 and a2 == -1 for _, a1, a2 in preds)
     assert np.mean([p == x.gold[0] for (p, _, _), x in zip(preds, contexts[300:400], strict=True)]) > 0.5
+
+
+def test_the_symbolic_planners_of_a_fold_share_a_job_and_results_keep_the_methods_order(benchmark_steps, scenarios,
+                                                                                          monkeypatch):
+    """Their SAT problems coincide where their roles agree, which one process then solves once: the two symbolic
+    baselines of a fold run in one job, every other method alone, and the results come back method by method."""
+    from functools import partial
+
+    from pipeline.evaluate import crossval
+    from pipeline.evaluate.methods import SymbolicMethod
+
+    calls = []
+
+    def fake(makes, fold, *args):
+        names = tuple(make().name for make in makes)
+        calls.append((names, fold))
+        return [FoldResult(name, fold, [], [], None) for name in names]
+
+    monkeypatch.setattr(crossval, "run_folds", fake)
+    methods = {"chance": ChanceMethod, "symb_plan_svm": partial(SymbolicMethod, goals="svm", name="symb_plan_svm"),
+               "multiclass": MulticlassMethod, "symb_plan_manual": SymbolicMethod}
+    contexts, meta = benchmark_steps
+    bench = Benchmark(scenarios=scenarios, records=[], states={}, actions={})
+    results = crossval.cross_validate(methods, contexts, meta, bench, n_folds=3, n_jobs=1)
+    assert [(r.method, r.fold) for r in results] == [(name, k) for name in methods for k in range(3)]
+    assert sorted(calls) == sorted([(("symb_plan_svm", "symb_plan_manual"), k) for k in range(3)]
+                                   + [((name,), k) for name in ("chance", "multiclass") for k in range(3)])

@@ -115,9 +115,26 @@ def cross_validate(methods: dict[str, Callable[[], Method]], contexts: list[Step
     steps, shared_meta = Shared(contexts), Shared(meta)
     shared_scenarios, demos = Shared(scenarios), Shared(replace(bench, records=[]))
     cost = {name: _fold_job_cost(make()) for name, make in methods.items()}
-    return run_jobs([(run_fold, (methods[name], k, steps, shared_meta, shared_scenarios, folds[k], max_steps, demos,
-                                 keep.get(name, frozenset()))) for name, k in jobs], n_jobs, verbose,
-                    cost=[cost[name] for name, _ in jobs])
+    # the symbolic planners of a fold run in one job, one after the other: where their roles agree (most
+    # scenarios) they pose the same SAT problems, which the process then solves once (`plan.symbolic.sat.solve`)
+    symbolic = tuple(name for name, make in methods.items() if isinstance(make(), SymbolicMethod))
+    tasks = [(symbolic, k) for k in range(n_folds)] if symbolic else []
+    tasks += [((name,), k) for name, k in jobs if name not in symbolic]
+    parts = run_jobs([(run_folds, (tuple(methods[name] for name in names), k, steps, shared_meta, shared_scenarios,
+                                   folds[k], max_steps, demos, tuple(keep.get(name, frozenset()) for name in names)))
+                      for names, k in tasks], n_jobs, verbose, cost=[sum(cost[name] for name in names)
+                                                                     for names, _ in tasks])
+    done = {(name, k): result for (names, k), part in zip(tasks, parts, strict=True)
+            for name, result in zip(names, part, strict=True)}
+    return [done[job] for job in jobs]
+
+
+def run_folds(makes: tuple[Callable[[], Method], ...], fold: int, contexts: list[StepContext], meta: list[StepMeta],
+              scenarios: dict[str, Scenario], test_scenarios: set[str], max_steps: int, demos: Benchmark | None,
+              keep_programs: tuple[frozenset[str], ...]) -> list[FoldResult]:
+    """`run_fold` of several methods on one fold, in turn, in one process."""
+    return [run_fold(make, fold, contexts, meta, scenarios, test_scenarios, max_steps, demos, keep)
+            for make, keep in zip(makes, keep_programs, strict=True)]
 
 
 def _fold_job_cost(method: Method) -> float:
