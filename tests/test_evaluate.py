@@ -145,9 +145,12 @@ def test_the_symbolic_planners_of_a_fold_share_a_job_and_results_keep_the_method
 
     calls = []
 
+    keep = {"symb_plan_manual": frozenset({"s1"}), "multiclass": frozenset({"s2"})}
+
     def fake(makes, fold, *args):
         names = tuple(make().name for make in makes)
         calls.append((names, fold))
+        assert args[-1] == tuple(keep.get(name, frozenset()) for name in names)  # each method its recordings
         return [FoldResult(name, fold, [], [], None) for name in names]
 
     monkeypatch.setattr(crossval, "run_folds", fake)
@@ -155,7 +158,7 @@ def test_the_symbolic_planners_of_a_fold_share_a_job_and_results_keep_the_method
                "multiclass": MulticlassMethod, "symb_plan_manual": SymbolicMethod}
     contexts, meta = benchmark_steps
     bench = Benchmark(scenarios=scenarios, records=[], states={}, actions={})
-    results = crossval.cross_validate(methods, contexts, meta, bench, n_folds=3, n_jobs=1)
+    results = crossval.cross_validate(methods, contexts, meta, bench, n_folds=3, n_jobs=1, keep_programs=keep)
     assert [(r.method, r.fold) for r in results] == [(name, k) for name in methods for k in range(3)]
     assert sorted(calls) == sorted([(("symb_plan_svm", "symb_plan_manual"), k) for k in range(3)]
                                    + [((name,), k) for name in ("chance", "multiclass") for k in range(3)])

@@ -309,7 +309,10 @@ def test_each_program_gets_its_policy_for_its_task_seen_as_its_condition_says(tw
 
 
 class Wanderer(ScriptedPlanner):
-    """Never stops: offers a detour to the mug or back to the cup, in turn; the demonstration's step fourth."""
+    """Never stops: offers a detour to the mug or back to the cup, in turn; the demonstration's step fourth.
+
+    It counts its calls, so it ranks a history differently each time: never give its programs a memo.
+    """
 
     def ranked(self, ctx):  # the whole ranking, which a policy walking down it reads
         return iter(self.top_k(ctx, 1_000_000))

@@ -114,10 +114,11 @@ def cross_validate(methods: dict[str, Callable[[], Method]], contexts: list[Step
     # sent to each worker once; without the raw log records, which no method reads (half the benchmark's size)
     steps, shared_meta = Shared(contexts), Shared(meta)
     shared_scenarios, demos = Shared(scenarios), Shared(replace(bench, records=[]))
-    cost = {name: _fold_job_cost(make()) for name, make in methods.items()}
+    made = {name: make() for name, make in methods.items()}  # unfitted: what each method is, for planning the jobs
+    cost = {name: _fold_job_cost(method) for name, method in made.items()}
     # the symbolic planners of a fold run in one job, one after the other: where their roles agree (most
     # scenarios) they pose the same SAT problems, which the process then solves once (`plan.symbolic.sat.solve`)
-    symbolic = tuple(name for name, make in methods.items() if isinstance(make(), SymbolicMethod))
+    symbolic = tuple(name for name, method in made.items() if isinstance(method, SymbolicMethod))
     tasks = [(symbolic, k) for k in range(n_folds)] if symbolic else []
     tasks += [((name,), k) for name, k in jobs if name not in symbolic]
     parts = run_jobs([(run_folds, (tuple(methods[name] for name in names), k, steps, shared_meta, shared_scenarios,

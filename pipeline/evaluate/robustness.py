@@ -78,17 +78,18 @@ def _replay(make, contexts, meta, scenarios, test, conditions, max_steps, seed):
         memo = Memo()
         for c in conditions:
             perceive = choose = None
-            top_k = 3
+            top_k, flips = 3, ()  # flips: each object's attribute flips, bytes (none: seen as it is)
             if isinstance(c, NoiseCondition):
                 # one draw per (seed, scenario): the same scenario sees the same errors in every fold layout
                 rng = np.random.default_rng([seed, c.draw, order.index(sid)])
                 masks = flip_masks(sorted(sc.initial.specs), c.rate, rng)
                 perceive = noisy_perception(masks)
-                view = ("noise", *((o, m.tobytes()) for o, m in masks.items()))  # rate 0: every draw sees alike
+                flips = tuple((o, m.tobytes()) for o, m in masks.items())  # rate 0: every draw sees alike
             else:
                 top_k = c.k
                 choose = observer(sc.demonstrations, c.n)
-                view = ("feedback", c.k)  # the observer changes which step is taken, not what a step offers
+            # what a program sees and what it offers; the observer changes which step is taken, not what it offers
+            view = (top_k, flips)
             # as the method's own programs pick steps, imagined ones seen through the same perception
             policy = learned_policy(method.policy, method.planner_, sc.task, top_k, perceive)
             program = run_loop(policy, sc.initial, sc.task, max_steps, perceive, choose, memo.seen_as(view))

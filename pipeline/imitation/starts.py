@@ -48,6 +48,11 @@ _REMEMBERED = 2_500
 
 
 def _make_room() -> None:
+    """Empty both memos when either is full, before a new entry goes in.
+
+    Every entry holds its scenario, so no id is given to another object while
+    its entry is kept; emptying both at once frees every scenario they hold.
+    """
     if len(_CHAINED) >= _REMEMBERED or len(_CONTEXTS) >= _REMEMBERED:
         _CHAINED.clear()
         _CONTEXTS.clear()

@@ -211,13 +211,16 @@ class Memo:
     scenario (`view`: the perception and what the policy offers), the context
     as seen and the policy's ranking of it (or its abstention). A caller makes
     one `Memo` per scenario and task and one `seen_as` per view, and promises
-    that programs given the same view see and rank alike.
+    that programs given the same view see and rank alike. A policy given a
+    memo must be a function of the step's context and world only: one that
+    keeps a plan between calls (the symbolic baselines' `SymbolicPolicy`)
+    would rank a history differently from one program to the next.
     """
 
     view: Hashable = ()
     worlds: dict[tuple[Action, ...], tuple[WorldState, StepContext]] = field(default_factory=dict)
-    ranked: dict[tuple[Hashable, tuple[Action, ...]], tuple[StepContext, Ranked | Abstain]] = field(
-        default_factory=dict)
+    ranked: dict[tuple[Hashable, tuple[Action, ...]], tuple[StepContext, Ranked | str]] = field(
+        default_factory=dict)  # a str: why the policy abstained
 
     def seen_as(self, view: Hashable) -> Memo:
         """The same memo for programs that see the scenario as `view` says."""
@@ -235,6 +238,8 @@ def run_loop(policy: Policy, state: WorldState, task: Task, max_steps: int = 20,
     (attribute noise) share the world and its context at a history they both
     reach. Given the same `memo` (see `Memo`) a later program reads those back
     instead of computing them again: the same objects, so the same program.
+    This holds only for a policy that ranks a step from its context and world
+    alone, as the learned policies do.
     """
     task.check_objects(state)
     states, steps = [state], []
@@ -248,19 +253,19 @@ def run_loop(policy: Policy, state: WorldState, task: Task, max_steps: int = 20,
                 if memo is not None:
                     memo.worlds[history] = (state, ctx)
             else:
-                ctx = world[1]
+                _, ctx = world
             if perceive is not None:
                 ctx = perceive(ctx)
             try:
-                ranked: Ranked | Abstain = policy(ctx, state)
+                ranked: Ranked | str = policy(ctx, state)
             except Abstain as why:
-                ranked = why
+                ranked = str(why)
             if memo is not None:
                 memo.ranked[memo.view, history] = (ctx, ranked)
         else:
             ctx, ranked = known
-        if isinstance(ranked, Abstain):
-            return Program(task, steps, INFEASIBLE, states, str(ranked))
+        if isinstance(ranked, str):
+            return Program(task, steps, INFEASIBLE, states, ranked)
         if choose is not None:
             pick = choose(list(history), [ctx.action(y) for y, _ in ranked])
             ranked = [ranked[pick]] + ranked[:pick] + ranked[pick + 1 :]
@@ -275,7 +280,7 @@ def run_loop(policy: Policy, state: WorldState, task: Task, max_steps: int = 20,
         history = (*history, action)
         world = memo.worlds.get(history) if memo is not None else None
         if world is not None:
-            state = world[0]
+            state, _ = world
         else:
             try:
                 state = execute(state, action)
