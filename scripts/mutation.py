@@ -89,7 +89,7 @@ def _scratch(name: str, group: Group) -> Path:
         "", "[tool.mutmut]", 'source_paths = ["pipeline"]',
         f"only_mutate = {list(group.modules)!r}",
         f"pytest_add_cli_args_test_selection = {tests!r}",
-        'pytest_add_cli_args = ["-p", "no:cacheprovider"]', "",
+        'pytest_add_cli_args = ["-p", "no:cacheprovider", "-n", "0"]', "",  # mutmut follows one process
     ]).replace("'", '"')
     (scratch / "pyproject.toml").write_text((ROOT / "pyproject.toml").read_text() + settings)
     return scratch
