@@ -204,6 +204,22 @@ def test_a_policy_that_abstains_ends_the_program_infeasible(scenario):
     assert program.task == scenario.task and program.states == [scenario.initial]
 
 
+def test_an_abstention_read_back_from_the_memo_ends_the_program_with_its_reason(scenario):
+    from pipeline.plan.planner import INFEASIBLE, Abstain, Memo, run_loop
+
+    calls = []
+
+    def abstain(ctx, state):
+        calls.append(ctx)
+        raise Abstain("no plan within 4 steps")
+
+    memo = Memo()
+    first, second = (run_loop(abstain, scenario.initial, scenario.task, memo=memo) for _ in range(2))
+    assert len(calls) == 1  # the second program read the abstention back
+    for program in (first, second):
+        assert (program.status, program.steps, program.error) == (INFEASIBLE, [], "no plan within 4 steps")
+
+
 def test_an_unsafe_step_is_recorded_and_fails_the_program():
     from pipeline.plan.planner import run_loop
 
