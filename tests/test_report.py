@@ -61,3 +61,20 @@ def test_summary_gives_each_methods_own_c(tmp_path):
     assert ("(sequence arg per C tried: ours - full C = 10 (3: 60.2, 10: 61.1); ours + relations C = 3 (3: 82.3))"
             in text)
     assert "(ours + relations 82.3, ours - full 61.1); the shipped planner" in text and text.count("## Settings") == 1
+
+
+def test_the_transfer_column_shows_what_transfer_md_shows(tmp_path):
+    """From the unrounded means: the CSV's two decimals (2.25) would give 2.2 where the table shows 2.3."""
+    from pipeline.stages.scenes import transfer_markdown
+
+    row = {"method": "dagger", "sequence_arg": 65.2933, "sequence_arg_sd": 2.2549, "sequence_prim": 74.48,
+           "sequence_prim_sd": 1.43, "success": 80.1249, "success_sd": 2.75, "goal_reached": 86.62,
+           "goal_reached_sd": 4.59}
+    (tmp_path / "scenes" / "paper").mkdir(parents=True)
+    (tmp_path / "scenes" / "paper" / "crossval_means.json").write_text(json.dumps(
+        {"dagger": {"sequence_arg": 80.5, "sequence_arg_sd": 4.7, "success": 93.5}}))
+    (tmp_path / "scenes" / "transfer.json").write_text(json.dumps({"dagger": row}))
+    text = build_summary(tmp_path, method_labels())
+    line = next(line for line in text.splitlines() if line.startswith("| ours + relations + dagger |"))
+    assert line.endswith("| 80.5 ± 4.7 (93.5) | - | 65.3 ± 2.3 (80.1) |")
+    assert "| 65.3 ± 2.3 | 74.5 ± 1.4 | 80.1 ± 2.8 |" in transfer_markdown([row], 3)

@@ -97,6 +97,9 @@ def test_the_scenes_stage_writes_every_table_over_seeds(benchmark_logs, tmp_path
     assert draw["family"] == "procedural" and draw["environments"] == 3
     rows = list(csv.DictReader((out / "transfer.csv").open()))
     assert [r["method"] for r in rows] == ["full", "relations"]
+    means = json.loads((out / "transfer.json").read_text())  # the same figures, unrounded
+    assert [{k: f"{v:.2f}" for k, v in means[r["method"]].items()} for r in rows] == [
+        {k: v for k, v in r.items() if k != "method"} for r in rows]
     assert all(0.0 <= float(r["sequence_arg"]) <= float(r["success"]) + 1e-9 <= 100.0 for r in rows)
     for part in ("paper", "drawn"):
         means = json.loads((out / part / "crossval_means.json").read_text())
@@ -180,6 +183,7 @@ def test_with_drawn_reported_worlds_the_stage_runs_and_says_no_transfer_was_meas
                  "--n-jobs", "1"]) == 0
     assert "Not measured" in (out / "transfer.md").read_text() and "procedural" in (out / "transfer.md").read_text()
     assert list(csv.DictReader((out / "transfer.csv").open())) == []
+    assert json.loads((out / "transfer.json").read_text()) == {}
     assert not (tmp_path / "data" / "drawn" / "0" / "transfer.csv").exists()
     for part in ("paper", "drawn"):
         assert 0.0 <= json.loads((out / part / "crossval_means.json").read_text())["full"]["sequence_arg"] <= 100.0

@@ -152,8 +152,7 @@ def _scenes(reports: Path, paper_shaped: dict[str, Any], labels: dict[str, str])
     drawn = _load(reports / "scenes" / "drawn" / "crossval_means.json") or {}
     if not held_out and not drawn:
         return []
-    transfer_path = reports / "scenes" / "transfer.csv"
-    transfer = {r["method"]: r for r in csv.DictReader(transfer_path.open())} if transfer_path.exists() else {}
+    transfer = _load(reports / "scenes" / "transfer.json") or {}
     worlds = _load(reports / "scenes" / "drawn" / "worlds.json") or {}
     rooms = sorted({w["environments"] for w in worlds.values()})
     size = f"of {' or '.join(map(str, rooms))} rooms " if rooms else ""
@@ -166,9 +165,7 @@ def _scenes(reports: Path, paper_shaped: dict[str, Any], labels: dict[str, str])
     for name in labels:
         cells = [_pm(table.get(name, {}), "sequence_arg") + _success(table.get(name, {}))
                  for table in (paper_shaped, held_out, drawn)]
-        t = transfer.get(name)
-        cells.append(f"{float(t['sequence_arg']):.1f} ± {float(t['sequence_arg_sd']):.1f} "
-                     f"({float(t['success']):.1f})" if t else "-")
+        cells.append(_pm(transfer[name], "sequence_arg") + _success(transfer[name]) if name in transfer else "-")
         if any(c.startswith(tuple("0123456789")) for c in cells[1:]):
             out.append(f"| {labels[name]} | " + " | ".join(cells) + " |")
     out += ["", "Per primitive: `reports/scenes/paper/table1.md`, `reports/scenes/drawn/table1.md`; why programs fail "

@@ -99,6 +99,8 @@ def run(settings: Settings, paths: ScenesPaths, tracker: Tracker = NO_RUN, n_job
                       csv_text(["world_seed", "method", *TRANSFER], per_seed, dict.fromkeys(TRANSFER, 2)))
     columns = ["method"] + [c for v in TRANSFER for c in (v, f"{v}_sd")]
     write_text_atomic(out / "transfer.csv", csv_text(columns, over_seeds, dict.fromkeys(columns[1:], 2)))
+    # unrounded, for what formats the means again (the summary): a figure rounded twice can differ from transfer.md
+    write_json_atomic(out / "transfer.json", {r["method"]: {c: r[c] for c in columns[1:]} for r in over_seeds})
     table = transfer_markdown(over_seeds, len(settings.seeds)) if settings.paper_shaped else NO_TRANSFER
     write_text_atomic(out / "transfer.md", table)
     tracker.metrics({f"transfer.{r['method']}.{k}": r[k] for r in over_seeds for k in TRANSFER})
