@@ -199,14 +199,16 @@ def test_every_table_names_its_columns_and_the_world_seeds(aggregated):
     assert head[0] == "world_seed,method,average_prim,average_arg,sequence_prim,sequence_arg,success,goal_reached"
     assert head[1] == "0,multiclass,95,,,,,"
     assert (aggregated / "noise_seeds.csv").read_text().splitlines()[:2] == [
-        "world_seed,method,rate,sequence_arg,sequence_prim,success", "0,full,0.0,60.00,90.00,80.00"]
-    assert (aggregated / "feedback_seeds.csv").read_text().splitlines()[3] == "0,full,2,all,80.00,80.00,80.00"
+        "world_seed,method,rate,sequence_arg,sequence_prim,success", "0,full,0.0,60.0000,90.0000,80.0000"]
+    assert (aggregated / "feedback_seeds.csv").read_text().splitlines()[3] == "0,full,2,all,80.0000,80.0000,80.0000"
     assert (aggregated / "noise.csv").read_text().splitlines() == [
         "method,rate,sequence_arg,sequence_arg_sd,sequence_prim,sequence_prim_sd,success,success_sd",
-        "full,0.0,75.00,18.03,90.00,10.00,80.00,10.00", "full,0.3,30.00,10.00,30.00,10.00,30.00,10.00"]
+        "full,0.0,75.0000,18.0278,90.0000,10.0000,80.0000,10.0000",
+        "full,0.3,30.0000,10.0000,30.0000,10.0000,30.0000,10.0000"]
     assert (aggregated / "feedback.csv").read_text().splitlines()[1:] == [
-        "full,2,0,75.00,18.03,90.00,10.00,80.00,10.00", "full,2,1,80.00,10.00,80.00,10.00,80.00,10.00",
-        "full,2,all,90.00,10.00,90.00,10.00,90.00,10.00"]
+        "full,2,0,75.0000,18.0278,90.0000,10.0000,80.0000,10.0000",
+        "full,2,1,80.0000,10.0000,80.0000,10.0000,80.0000,10.0000",
+        "full,2,all,90.0000,10.0000,90.0000,10.0000,90.0000,10.0000"]
     assert (aggregated / "feedback.csv").read_text().splitlines()[0].startswith("method,k,n,sequence_arg,")
     assert (aggregated / "failures.csv").read_text().splitlines()[1] == "0,full,all,exact,6"
     assert (aggregated / "crossval_sequences.csv").read_text() == "world_seed," + ",".join(SEQUENCE_COLUMNS) + "\n"
@@ -351,3 +353,27 @@ def test_failures_per_environment_and_task_of_each_world(tmp_path, family):
     assert ("| env01 | 100.0 (2/2) | 50.0 (1/2), wrong object 1 |" in text) == (family == "paper")
     assert "| stir | 100.0 (2/2) | 50.0 (1/2), wrong object 1 |" in text
     assert "The full model per task and world seed: sequence arg, % (exact programs / programs)" in text
+
+
+def test_the_results_page_rounds_the_curves_once(tmp_path, tracker):
+    """Three worlds whose noise and feedback means are 79.7467 (sd 2.6871): the page must say 79.7 ± 2.7.
+
+    Curves kept at two decimals said 79.8, because 79.75 was rounded again (and an sd of 6.6453, kept as 6.65,
+    became 6.7); the per-world files are written at four decimals as the noise and feedback stages write them.
+    """
+    from pipeline.evaluate.registry import method_labels
+    from pipeline.report.summary import build_summary
+
+    for seed, (arg, w) in zip(SEEDS, ((77.0, WORLD[0]), (79.87, WORLD[3]), (82.37, WORLD[7])), strict=True):
+        d = tmp_path / "worlds" / str(seed)
+        _write_world(d, w)
+        (d / "noise.csv").write_text(f"method,rate,sequence_arg,sequence_prim,success\nfull,0.1,{arg:.4f},90,90\n")
+        (d / "feedback.csv").write_text(f"method,k,n,sequence_arg,sequence_prim,success\nfull,2,1,{arg:.4f},90,90\n")
+    out = tmp_path / "out"
+    aggregate.run(World(seeds=SEEDS, dev_seed=100), AggregatePaths(worlds=tmp_path / "worlds", output=out), tracker)
+    mean, sd = mean_sd([77.0, 79.87, 82.37])
+    assert (f"{mean:.2f}", f"{mean:.1f}", f"{sd:.1f}") == ("79.75", "79.7", "2.7")  # where the two roundings part
+    assert (out / "noise.csv").read_text().splitlines()[1] == "full,0.1,79.7467,2.6871,90.0000,0.0000,90.0000,0.0000"
+    text = build_summary(out, method_labels())
+    assert "| ours - full | 0.1 | 79.7 ± 2.7 |" in text
+    assert "| ours - full | 2 | 1 | 79.7 ± 2.7 |" in text

@@ -164,8 +164,7 @@ def _scenes(reports: Path, paper_shaped: dict[str, Any], labels: dict[str, str])
            "paper-shaped to drawn rooms |", "|---|---:|---:|---:|---:|"]
     for name in labels:
         cells = [_pm(table.get(name, {}), "sequence_arg") + _success(table.get(name, {}))
-                 for table in (paper_shaped, held_out, drawn)]
-        cells.append(_pm(transfer[name], "sequence_arg") + _success(transfer[name]) if name in transfer else "-")
+                 for table in (paper_shaped, held_out, drawn, transfer)]
         if any(c.startswith(tuple("0123456789")) for c in cells[1:]):
             out.append(f"| {labels[name]} | " + " | ".join(cells) + " |")
     out += ["", "Per primitive: `reports/scenes/paper/table1.md`, `reports/scenes/drawn/table1.md`; why programs fail "

@@ -35,6 +35,9 @@ from ..track.mlflow_runs import NO_RUN, Tracker
 from .paths import AggregatePaths
 
 RATES = ("sequence_arg", "sequence_prim", "success")
+# the noise and feedback curves keep four decimals, as the per-world files they are read from: the results page
+# rounds them to one, and from two it would round twice (79.7467 to 79.75 to 79.8)
+CURVE_DECIMALS = 4
 
 
 def settings(params: Params, world_seed: int | None = None) -> World:
@@ -109,9 +112,9 @@ def _noise(dirs: dict[int, Path], out: Path, world: World) -> list[dict[str, Any
     """The noise curve over seeds: its tables and figure."""
     noise_seeds, noise = curve_over_seeds(dirs, "noise.csv", ["method", "rate"], RATES)
     write_text_atomic(out / "noise_seeds.csv", csv_text(["world_seed", "method", "rate", *RATES], noise_seeds,
-                                                        dict.fromkeys(RATES, 2)))
+                                                        dict.fromkeys(RATES, CURVE_DECIMALS)))
     cols = ["method", "rate"] + [c for v in RATES for c in (v, f"{v}_sd")]
-    write_text_atomic(out / "noise.csv", csv_text(cols, noise, dict.fromkeys(cols[2:], 2)))
+    write_text_atomic(out / "noise.csv", csv_text(cols, noise, dict.fromkeys(cols[2:], CURVE_DECIMALS)))
     noise_methods = list(dict.fromkeys(r["method"] for r in noise))
     line_plot_png({f"{method_labels().get(m, m)} (mean, sd over {len(world.seeds)} world seeds)":
                    ([float(r["rate"]) for r in noise if r["method"] == m],
@@ -127,9 +130,9 @@ def _feedback(dirs: dict[int, Path], out: Path) -> list[dict[str, Any]]:
     """The feedback curves over seeds: their tables and figure."""
     fb_seeds, fb = curve_over_seeds(dirs, "feedback.csv", ["method", "k", "n"], RATES)
     write_text_atomic(out / "feedback_seeds.csv", csv_text(["world_seed", "method", "k", "n", *RATES], fb_seeds,
-                                                           dict.fromkeys(RATES, 2)))
+                                                           dict.fromkeys(RATES, CURVE_DECIMALS)))
     cols = ["method", "k", "n"] + [c for v in RATES for c in (v, f"{v}_sd")]
-    write_text_atomic(out / "feedback.csv", csv_text(cols, fb, dict.fromkeys(cols[3:], 2)))
+    write_text_atomic(out / "feedback.csv", csv_text(cols, fb, dict.fromkeys(cols[3:], CURVE_DECIMALS)))
     ks = list(dict.fromkeys(r["k"] for r in fb))
     ns = list(dict.fromkeys(r["n"] for r in fb))
     fb_methods = list(dict.fromkeys(r["method"] for r in fb))

@@ -23,7 +23,7 @@ from ..settings import Feedback, Params, Replay
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .paths import EvaluationPaths
 
-DECIMALS = {"sequence_arg": 2, "sequence_prim": 2, "success": 2}
+DECIMALS = {"sequence_arg": 4, "sequence_prim": 4, "success": 4}  # four, as the noise curve's (stages/noise.py)
 
 
 @dataclass(frozen=True)
