@@ -1,5 +1,7 @@
 """The MRF model: vectorised scores against a plain reference, families, names, features files."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -66,6 +68,24 @@ def test_loss_augmented_inference_maximises_score_plus_hamming(some_steps):
         y_hat = model.loss_augmented_inference(x, x.gold, w)
         k = int(np.argmax(total))
         assert y_hat == (cp[k], ca1[k], ca2[k])
+
+
+def test_score_tables_refuse_factors_the_oracle_would_read_past(some_steps):
+    """The compiled oracle indexes the tables without bounds checks, so tables whose shapes disagree are refused
+    when made: a low-rank left factor wider than the right one (as a model without relations would make with a
+    width of 1 instead of 0) would otherwise be read past its end."""
+    for features in ("full", "relations"):
+        model = MRFModel(features)
+        tables = model.batch_tables(model._batch(some_steps[:4]), np.ones(model.size_joint_feature))
+        S, N = tables.collide.shape[:2]
+        assert tables.left.shape[:3] == (tables.P.shape[1], S, N)
+        assert tables.left.shape[-1] == tables.right.shape[-1]
+        assert (tables.right.shape[-1] > 0) == (features == "relations")  # the pairwise relation term's rank
+        wider = np.zeros(tables.left.shape[:3] + (tables.right.shape[-1] + 1,))
+        with pytest.raises(ValueError, match=r"Tables\.left has shape .* expected"):
+            dataclasses.replace(tables, left=wider)
+        with pytest.raises(ValueError, match=r"Tables\.U2 has shape"):
+            dataclasses.replace(tables, U2=tables.U2[:-1])
 
 
 def test_edge_and_clique_use_exactly_their_families(some_steps):

@@ -212,6 +212,18 @@ class Tables:
     left: np.ndarray  # (N_PRIM, S, N, R): a low-rank pair term per primitive (R = 0 without `rel_pair`)
     right: np.ndarray  # (S, N, R)
 
+    def __post_init__(self) -> None:
+        # the compiled oracle (`_best_pairs`) indexes these without bounds checks: a left factor wider than the
+        # right one, or tables of another batch, would be read past their ends rather than refused
+        S, N = self.collide.shape[:2]
+        n_prim = self.P.shape[1]
+        expected = {"P": (S, n_prim), "U1": (S, n_prim, N), "U2": (S, n_prim, N), "collide": (S, N, N),
+                    "left": (n_prim, S, N, self.right.shape[-1]), "right": (S, N, self.right.shape[-1])}
+        for name, shape in expected.items():
+            if getattr(self, name).shape != shape:
+                raise ValueError(f"Tables.{name} has shape {getattr(self, name).shape}, expected {shape} "
+                                 f"({S} steps of {N} objects, {n_prim} primitives)")
+
     @property
     def pair(self) -> np.ndarray:
         """(S, N, N): made when asked for; the oracle reads the collision bits instead (`_best_pairs`)."""
