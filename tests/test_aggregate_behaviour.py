@@ -13,8 +13,10 @@ import pytest
 
 from pipeline.cli import main
 from pipeline.evaluate.failures import KINDS
+from pipeline.evaluate.registry import method_labels
 from pipeline.report.csvs import SEQUENCE_COLUMNS, csv_text
 from pipeline.report.seeds import mean_sd
+from pipeline.report.summary import build_summary
 from pipeline.report.tables import COLUMNS
 from pipeline.settings import World
 from pipeline.stages import aggregate
@@ -361,9 +363,6 @@ def test_the_results_page_rounds_the_curves_once(tmp_path, tracker):
     Curves kept at two decimals said 79.8, because 79.75 was rounded again (and an sd of 6.6453, kept as 6.65,
     became 6.7); the per-world files are written at four decimals as the noise and feedback stages write them.
     """
-    from pipeline.evaluate.registry import method_labels
-    from pipeline.report.summary import build_summary
-
     for seed, (arg, w) in zip(SEEDS, ((77.0, WORLD[0]), (79.87, WORLD[3]), (82.37, WORLD[7])), strict=True):
         d = tmp_path / "worlds" / str(seed)
         _write_world(d, w)

@@ -10,6 +10,10 @@ from typing import Any
 
 from ..sim.primitives import ALL_PRIMITIVES
 
+# Digits of the rates (%) in the noise and feedback files, per world and over worlds: the results page rounds them
+# to one decimal, and from two it rounded twice (79.7467 to 79.75 to 79.8); from four it rounds as the exact rates do.
+RATE_DECIMALS = 4
+
 
 def _cell(v: Any) -> str:
     if v is None:

@@ -14,7 +14,7 @@ from ..evaluate.registry import method_labels
 from ..io import write_json_atomic, write_text_atomic
 from ..report import paper
 from ..report.breakdown import breakdown_markdown, group_outcomes
-from ..report.csvs import SEQUENCE_COLUMNS, csv_text, read_csv_rows
+from ..report.csvs import RATE_DECIMALS, SEQUENCE_COLUMNS, csv_text, read_csv_rows
 from ..report.figures import line_plot_png
 from ..report.seeds import (
     crossval_over_seeds,
@@ -35,9 +35,6 @@ from ..track.mlflow_runs import NO_RUN, Tracker
 from .paths import AggregatePaths
 
 RATES = ("sequence_arg", "sequence_prim", "success")
-# the noise and feedback curves keep four decimals, as the per-world files they are read from: the results page
-# rounds them to one, and from two it would round twice (79.7467 to 79.75 to 79.8)
-CURVE_DECIMALS = 4
 
 
 def settings(params: Params, world_seed: int | None = None) -> World:
@@ -112,9 +109,9 @@ def _noise(dirs: dict[int, Path], out: Path, world: World) -> list[dict[str, Any
     """The noise curve over seeds: its tables and figure."""
     noise_seeds, noise = curve_over_seeds(dirs, "noise.csv", ["method", "rate"], RATES)
     write_text_atomic(out / "noise_seeds.csv", csv_text(["world_seed", "method", "rate", *RATES], noise_seeds,
-                                                        dict.fromkeys(RATES, CURVE_DECIMALS)))
+                                                        dict.fromkeys(RATES, RATE_DECIMALS)))
     cols = ["method", "rate"] + [c for v in RATES for c in (v, f"{v}_sd")]
-    write_text_atomic(out / "noise.csv", csv_text(cols, noise, dict.fromkeys(cols[2:], CURVE_DECIMALS)))
+    write_text_atomic(out / "noise.csv", csv_text(cols, noise, dict.fromkeys(cols[2:], RATE_DECIMALS)))
     noise_methods = list(dict.fromkeys(r["method"] for r in noise))
     line_plot_png({f"{method_labels().get(m, m)} (mean, sd over {len(world.seeds)} world seeds)":
                    ([float(r["rate"]) for r in noise if r["method"] == m],
@@ -130,9 +127,9 @@ def _feedback(dirs: dict[int, Path], out: Path) -> list[dict[str, Any]]:
     """The feedback curves over seeds: their tables and figure."""
     fb_seeds, fb = curve_over_seeds(dirs, "feedback.csv", ["method", "k", "n"], RATES)
     write_text_atomic(out / "feedback_seeds.csv", csv_text(["world_seed", "method", "k", "n", *RATES], fb_seeds,
-                                                           dict.fromkeys(RATES, CURVE_DECIMALS)))
+                                                           dict.fromkeys(RATES, RATE_DECIMALS)))
     cols = ["method", "k", "n"] + [c for v in RATES for c in (v, f"{v}_sd")]
-    write_text_atomic(out / "feedback.csv", csv_text(cols, fb, dict.fromkeys(cols[3:], CURVE_DECIMALS)))
+    write_text_atomic(out / "feedback.csv", csv_text(cols, fb, dict.fromkeys(cols[3:], RATE_DECIMALS)))
     ks = list(dict.fromkeys(r["k"] for r in fb))
     ns = list(dict.fromkeys(r["n"] for r in fb))
     fb_methods = list(dict.fromkeys(r["method"] for r in fb))

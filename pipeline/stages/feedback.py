@@ -17,13 +17,13 @@ from ..evaluate.robustness import FeedbackCondition, evaluate_conditions, feedba
 from ..features.dataset import read_features
 from ..io import write_text_atomic
 from ..logs.benchmark import load_benchmark
-from ..report.csvs import OUTCOME_COLUMNS, csv_text, outcome_row
+from ..report.csvs import OUTCOME_COLUMNS, RATE_DECIMALS, csv_text, outcome_row
 from ..report.figures import line_plot_png
 from ..settings import Feedback, Params, Replay
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .paths import EvaluationPaths
 
-DECIMALS = {"sequence_arg": 4, "sequence_prim": 4, "success": 4}  # four, as the noise curve's (stages/noise.py)
+DECIMALS = dict.fromkeys(("sequence_arg", "sequence_prim", "success"), RATE_DECIMALS)
 
 
 @dataclass(frozen=True)

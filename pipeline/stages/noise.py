@@ -18,15 +18,13 @@ from ..features.dataset import read_features
 from ..io import write_text_atomic
 from ..logs.benchmark import load_benchmark
 from ..report import paper
-from ..report.csvs import OUTCOME_COLUMNS, csv_text, outcome_row
+from ..report.csvs import OUTCOME_COLUMNS, RATE_DECIMALS, csv_text, outcome_row
 from ..report.figures import line_plot_png
 from ..settings import Noise, Params, Replay
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .paths import EvaluationPaths
 
-# four decimals: the one-decimal tables made from these files over world seeds (the results page) then round as
-# the exact rates do; two, rounded again to one, put 79.7467 at 79.8
-RATE = {"rate": 1, "sequence_arg": 4, "sequence_arg_std": 4, "sequence_prim": 4, "success": 4}
+RATE = {"rate": 1, **dict.fromkeys(("sequence_arg", "sequence_arg_std", "sequence_prim", "success"), RATE_DECIMALS)}
 
 
 @dataclass(frozen=True)
