@@ -16,9 +16,9 @@ from pipeline.sim.state import WorldState
 # collected first, and pytest-xdist hands files to its workers in collection order (`--no-loadscope-reorder` in
 # pyproject.toml): the long files start at once and the short ones fill in around them, so the workers end
 # together. Only the order changes, never what runs.
-SLOWEST_FIRST = ("test_scenes.py", "test_fold_models.py", "test_stage_runs.py", "test_sweeps.py", "test_track.py",
-                 "test_extending.py", "test_scaling.py", "test_ingest.py", "test_signals.py", "test_imitation.py",
-                 "test_feasible.py", "test_processor_independence.py", "test_serve_browser.py")
+SLOWEST_FIRST = ("test_scenes.py", "test_track.py", "test_scaling.py", "test_sweeps.py", "test_stage_runs.py",
+                 "test_fold_models.py", "test_ingest.py", "test_signals.py", "test_stages.py", "test_lookahead.py",
+                 "test_processor_independence.py", "test_serve_browser.py", "test_extending.py", "test_feasible.py")
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:

@@ -21,7 +21,7 @@ from pipeline.logs.benchmark import Benchmark
 from pipeline.sim.primitives import Action, PreconditionError, execute, try_execute
 from pipeline.sim.tasks import goal_reached
 
-SSVM = {"C": 3.0, "tol": 1e-2, "max_iter": 300, "n_slacks": 2}
+SSVM = {"C": 3.0, "tol": 1e-2, "max_iter": 300, "n_slacks": 0}
 ENVS = ("env01", "env02", "env03")
 
 

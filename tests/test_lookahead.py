@@ -10,13 +10,26 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import numpy as np
 import pytest
 
 from pipeline.features.context import candidate_index, step_context
-from pipeline.plan.planner import DONE, POLICIES, feasible, greedy, learned_policy, lookahead, run_loop
+from pipeline.features.perception import flip_masks, noisy_perception
+from pipeline.plan.planner import (
+    DONE,
+    LOOKAHEAD_DEPTH,
+    LOOKAHEAD_WIDTH,
+    POLICIES,
+    feasible,
+    greedy,
+    learned_policy,
+    lookahead,
+    run_loop,
+)
 from pipeline.sim.catalog import ENVIRONMENTS_BY_ID, build_environment
 from pipeline.sim.demonstrator import demonstrate
 from pipeline.sim.primitives import Action, execute, try_execute
+from pipeline.sim.safety import violations
 from pipeline.sim.tasks import Task
 
 GLASS, CARTON, COUNTER = "obj15", "obj21", "obj03"
@@ -193,3 +206,130 @@ def test_a_policy_is_built_by_name_and_an_unknown_name_is_refused(room):
         assert [len(learned_policy(name, scorer, TASK, top_k=k)(later, state)) for name in POLICIES] == [k] * 3
     with pytest.raises(ValueError, match="unknown policy 'cautious'; known: greedy, feasible, lookahead"):
         learned_policy("cautious", scorer, TASK)
+
+
+# --- the policy's memory of imagined steps ---------------------------------------------------------------------
+
+def _afresh(planner, task, top_k=3, perceive=None, depth=LOOKAHEAD_DEPTH, width=LOOKAHEAD_WIDTH):
+    """The lookahead as its docstring says it, every imagined step built and ranked afresh: what the policy's
+    memory of the steps it imagined must not change."""
+    seen = perceive or (lambda ctx: ctx)
+
+    def runnable(ctx, state, limit):
+        out = []
+        for y, score in planner.ranked(ctx):
+            action = ctx.action(y)
+            if action.primitive == DONE or try_execute(state, action) is not None:
+                out.append((y, score))
+                if len(out) == limit:
+                    break
+        return out
+
+    def harms(state, history, action):
+        for _ in range(depth):
+            if violations(state, action):
+                return True
+            state, history = execute(state, action), [*history[-1:], action]
+            imagined = seen(step_context(state, task, history))
+            action = imagined.action(runnable(imagined, state, 1)[0][0])
+            if action.primitive == DONE:
+                return False
+        return bool(violations(state, action))
+
+    def policy(ctx, state):
+        ranked, history = runnable(ctx, state, max(top_k, width)), ctx.history()
+        pick = next((i for i, (y, _) in enumerate(ranked[:width])
+                     if ctx.action(y).primitive == DONE or not harms(state, history, ctx.action(y))), 0)
+        return ([ranked[pick]] + ranked[:pick] + ranked[pick + 1:])[:top_k]
+
+    return policy
+
+
+class CountingScorer:
+    """A fitted planner that notes every context it ranks."""
+
+    def __init__(self, planner):
+        self.planner, self.contexts = planner, []
+
+    def ranked(self, ctx):
+        self.contexts.append(ctx)
+        return self.planner.ranked(ctx)
+
+
+def _content(ctx):
+    return (tuple(ctx.object_ids), ctx.objects.tobytes(), ctx.task_rel.tobytes(), ctx.collide.tobytes(), ctx.task,
+            ctx.prev_prims, ctx.prev_args, ctx.relations.tobytes())
+
+
+@pytest.fixture(scope="module")
+def rollouts(benchmark_tables, benchmark_steps):
+    """Scenarios of the benchmark and planners that walk into harm often: one fitted on a few steps and two with
+    random weights."""
+    from pipeline.learn.estimator import StepScorer
+    from pipeline.logs.records import parse_record, state_from_dict
+
+    starts = []
+    for item in benchmark_tables[1][:60:5]:
+        specs, task, _ = parse_record(item.record)
+        starts.append((state_from_dict(specs, item.record["steps"][0]["state"]), task))
+    fitted = StepScorer("relations", C=1.0, tol=0.05, max_iter=50).fit(benchmark_steps[0][:60])
+    rng = np.random.default_rng(1)
+    return starts, [fitted] + [StepScorer.from_weights("relations", rng.normal(size=fitted.w_.shape))
+                               for _ in range(2)]
+
+
+def _steps(program):
+    return program.status, [(str(s.action), s.score, [(str(a), v) for a, v in s.alternatives], s.unsafe)
+                            for s in program.steps]
+
+
+@pytest.mark.parametrize("seeing", ["as it is", "noisy", "noisy, imagined as it is"])
+def test_remembering_imagined_steps_changes_no_program(rollouts, seeing):
+    """The same steps, scores, proposals and ends as imagining every step afresh, on planners fitted and random,
+    with the world seen as it is or through attribute noise; and when the program's steps are seen through noise
+    but the policy imagines without it (a caller's mistake), the step ranked for real is still the one seen."""
+    starts, planners = rollouts
+    harmful = 0
+    for n, (state, task) in enumerate(starts):
+        masks = flip_masks(sorted(state.specs), 0.3, np.random.default_rng(n))
+        perceive = None if seeing == "as it is" else noisy_perception(masks)
+        imagined_as = perceive if seeing == "noisy" else None
+        for planner in planners:
+            remembered = run_loop(lookahead(planner, task, perceive=imagined_as), state, task, 12, perceive)
+            afresh = run_loop(_afresh(planner, task, perceive=imagined_as), state, task, 12, perceive)
+            assert _steps(remembered) == _steps(afresh), (n, task)
+            greedy_first = run_loop(feasible(planner), state, task, 12, perceive)
+            harmful += _steps(greedy_first) != _steps(afresh)
+    assert harmful > 5  # the lookahead changed many of these programs: its imagined steps were read
+
+
+def test_a_program_ranks_each_step_it_imagines_once(rollouts):
+    starts, planners = rollouts
+    saved = 0
+    for state, task in starts:
+        for planner in planners:
+            remembered, afresh = CountingScorer(planner), CountingScorer(planner)
+            program = run_loop(lookahead(remembered, task), state, task, 12)
+            assert _steps(program) == _steps(run_loop(_afresh(afresh, task), state, task, 12))
+            ranked = [_content(c) for c in remembered.contexts]
+            assert len(set(ranked)) == len(ranked)
+            saved += len(afresh.contexts) - len(ranked)
+    assert saved > 500
+
+
+def test_a_worlds_key_tells_apart_every_field_a_primitive_changes(room):
+    """Equal keys are the same world: a copy has its key, and a change to any field the primitives write does not."""
+    assert room.copy().key() == room.key() and hash(room.copy().key()) == hash(room.key())
+    some = next(iter(room.poses))
+    changes = {
+        "poses": lambda s: s.poses.__setitem__(some, (*s.poses[some][:2], s.poses[some][2] + 0.01)),
+        "support": lambda s: s.support.__setitem__(some, ("floor", "on")),
+        "robot": lambda s: setattr(s, "robot", (s.robot[0] + 0.1, s.robot[1])),
+        "held": lambda s: setattr(s, "held", GLASS),
+        "held_above": lambda s: setattr(s, "held_above", CARTON),
+        "stirred": lambda s: s.stirred.add(GLASS),
+    }
+    for field, change in changes.items():
+        other = room.copy()
+        change(other)
+        assert other.key() != room.key(), field

@@ -18,7 +18,7 @@ from pipeline.logs.ingest import load_logs
 from pipeline.settings import Generate, Params, Procedural
 from pipeline.stages import scenes
 
-LEARN = ["--set", "train.tol=0.01", "--set", "train.max_iter=300", "--set", "train.n_slacks=2"]
+LEARN = ["--set", "train.tol=0.01", "--set", "train.max_iter=300", "--set", "train.n_slacks=0"]
 
 
 def _world(folder, world):

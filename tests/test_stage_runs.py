@@ -21,7 +21,7 @@ from pipeline.sim.tasks import Task
 from pipeline.stages import select as select_stage
 
 FOLDS = ["--set", "crossval.folds=2", "--set", "crossval.group_by=scenario", "--set", "crossval.seed=0"]
-LEARN = ["--set", "train.tol=0.01", "--set", "train.max_iter=300", "--set", "train.n_slacks=2"]
+LEARN = ["--set", "train.tol=0.01", "--set", "train.max_iter=300", "--set", "train.n_slacks=0"]
 
 
 @pytest.fixture(scope="module")

@@ -11,6 +11,8 @@ from collections.abc import Callable, Hashable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from ..features.context import StepContext, step_context
 from ..sim.primitives import Action, PreconditionError, execute, try_execute
 from ..sim.safety import violations
@@ -95,16 +97,30 @@ def greedy(planner: StepScorer, top_k: int = 3) -> Policy:
     return lambda ctx, state: planner.top_k(ctx, top_k)
 
 
+class _Runnable:
+    """The planner's candidates of one step among `done` and the steps whose preconditions hold, best first,
+    found only as far down the ranking as they are asked for."""
+
+    def __init__(self, planner: StepScorer, ctx: StepContext, state: WorldState) -> None:
+        self.ctx, self.state = ctx, state
+        self._ranked = planner.ranked(ctx)
+        self._found: Ranked = []
+
+    def first(self, limit: int) -> Ranked:
+        """The best `limit` of them (fewer when the step has fewer)."""
+        while len(self._found) < limit:
+            candidate = next(self._ranked, None)
+            if candidate is None:
+                break
+            action = self.ctx.action(candidate[0])
+            if action.primitive == DONE or try_execute(self.state, action) is not None:
+                self._found.append(candidate)
+        return self._found[:limit]
+
+
 def _runnable(planner: StepScorer, ctx: StepContext, state: WorldState, limit: int) -> Ranked:
     """The planner's best `limit` candidates among `done` and the steps whose preconditions hold, best first."""
-    out = []
-    for y, score in planner.ranked(ctx):
-        action = ctx.action(y)
-        if action.primitive == DONE or try_execute(state, action) is not None:
-            out.append((y, score))
-            if len(out) == limit:
-                break
-    return out
+    return _Runnable(planner, ctx, state).first(limit)
 
 
 def feasible(planner: StepScorer, top_k: int = 3) -> Policy:
@@ -148,22 +164,41 @@ def lookahead(planner: StepScorer, task: Task, top_k: int = 3, perceive: Perceiv
     for it; the development world chose 4.
     """
     seen = perceive or (lambda ctx: ctx)
+    # The steps the robot imagined, kept for the program's later steps: after it takes a step, the plan it
+    # imagines from there is mostly the one it imagined a step earlier, one step further on, and the step it now
+    # ranks for real is the first it imagined. Keyed by the world's contents (`WorldState.key`) and the steps a
+    # context remembers, what step_context reads: a hit is the very step computed before.
+    worlds: dict[tuple[Hashable, Action], WorldState] = {}
+    steps: dict[tuple[Hashable, tuple[Action, ...]], _Runnable] = {}
+
+    def imagine(state: WorldState, history: list[Action]) -> _Runnable:
+        known = (state.key(), tuple(history))
+        step = steps.get(known)
+        if step is None:
+            step = steps[known] = _Runnable(planner, seen(step_context(state, task, history)), state)
+        return step
 
     def harms(state: WorldState, history: list[Action], action: Action) -> bool:
         for _ in range(depth):
             if violations(state, action):
                 return True
-            state = execute(state, action)
+            after = worlds.get((state.key(), action))
+            if after is None:
+                after = worlds[state.key(), action] = execute(state, action)
+            state = after
             history = [*history[-1:], action]
-            imagined = seen(step_context(state, task, history))
-            action = imagined.action(_runnable(planner, imagined, state, 1)[0][0])
+            step = imagine(state, history)
+            action = step.ctx.action(step.first(1)[0][0])
             if action.primitive == DONE:
                 return False
         return bool(violations(state, action))
 
     def policy(ctx: StepContext, state: WorldState) -> Ranked:
-        runnable = _runnable(planner, ctx, state, max(top_k, width))
         history = ctx.history()
+        step = steps.get((state.key(), tuple(history)))
+        if step is None or step.ctx.object_ids != ctx.object_ids or not np.array_equal(step.ctx.objects, ctx.objects):
+            step = _Runnable(planner, ctx, state)  # not imagined, or seen otherwise than the imagined steps
+        runnable = step.first(max(top_k, width))
         pick = next((i for i, (y, _) in enumerate(runnable[:width])
                      if ctx.action(y).primitive == DONE or not harms(state, history, ctx.action(y))), 0)
         return ([runnable[pick]] + runnable[:pick] + runnable[pick + 1:])[:top_k]

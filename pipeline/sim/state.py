@@ -59,6 +59,12 @@ class WorldState:
             stirred=set(self.stirred),
         )
 
+    def key(self) -> tuple:
+        """What the primitives change, hashable: two states that share their `specs` (every state of one program
+        does) and have equal keys are the same world. Dict order counts, so equal keys also list objects alike."""
+        return (tuple(self.poses.items()), tuple(self.support.items()), self.robot, self.held, self.held_above,
+                frozenset(self.stirred))
+
     # --- relations -------------------------------------------------------
     def children(self, parent: str, relation: str | None = None) -> list[str]:
         return sorted(
