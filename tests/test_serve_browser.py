@@ -61,16 +61,27 @@ def browser():
         b.close()
 
 
+def submit(page, button: str) -> None:
+    """Click a form's button and wait until the page it leads to has loaded.
+
+    Reading a page right after a bare click can race its navigation: the new
+    document may not be parsed yet, and a count or a list of texts, which do
+    not wait, would read an empty page.
+    """
+    with page.expect_navigation():
+        page.click(button)
+
+
 def choose(page, url: str, task: Task, mode: str, participant: str = "") -> None:
     """Open the first page, pick env01 of world 0 and the task, as a person clicks."""
     page.goto(url + "/")
     page.select_option("#world-form select[name=env_id]", "env01")
-    page.click("#world-form button")
+    submit(page, "#world-form button")
     page.select_option("#task-form select[name=task]", task.name)
     page.select_option("#task-form select[name=arg1]", task.args[0])
     page.select_option("#task-form select[name=arg2]", task.args[1] if len(task.args) > 1 else "")
     page.fill("#task-form input[name=participant]", participant)
-    page.click(f"#task-form button[value={mode}]")
+    submit(page, f"#task-form button[value={mode}]")
 
 
 def click_step(page, action: Action) -> None:
@@ -78,7 +89,7 @@ def click_step(page, action: Action) -> None:
     args = list(action.args) + [""] * (2 - len(action.args))
     page.select_option("#step-form select[name=a1]", args[0])
     page.select_option("#step-form select[name=a2]", args[1])
-    page.click("#step-form button")
+    submit(page, "#step-form button")
 
 
 def demonstrated(task: Task) -> list[Action]:
@@ -122,7 +133,7 @@ def test_a_person_corrects_the_planner_in_assist_mode(server, browser, tmp_path)
         if str(action) in proposals:  # accept the best, or take another proposal
             if proposals.index(str(action)) != 0:
                 overridden.append(k)
-            page.click(f"#proposals button[value='{proposals.index(str(action))}']")
+            submit(page, f"#proposals button[value='{proposals.index(str(action))}']")
         else:  # none of the proposals: choose the step by hand
             overridden.append(k)
             click_step(page, action)
@@ -164,7 +175,7 @@ def test_markup_in_an_uploaded_environment_file_is_shown_as_text_and_never_run(s
     page.on("dialog", lambda d: (dialogs.append(d.message), d.dismiss()))
     page.goto(url + "/")
     page.set_input_files("#upload-form input[name=file]", str(path))
-    page.click("#upload-form button")
+    submit(page, "#upload-form button")
     assert "<script>alert(1)</script>" in page.inner_text("#tree")
     assert page.locator("#scene text", has_text="<script>alert(1)</script>").count() == 1
     assert dialogs == []
@@ -172,6 +183,6 @@ def test_markup_in_an_uploaded_environment_file_is_shown_as_text_and_never_run(s
     path.write_text(json.dumps(env))
     page.goto(url + "/")
     page.set_input_files("#upload-form input[name=file]", str(path))
-    page.click("#upload-form button")
+    submit(page, "#upload-form button")
     assert page.inner_text("#message") == "kitchen.json:1: objects[3]: 'size' is a required property"
     assert not data.exists()
