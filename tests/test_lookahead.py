@@ -317,6 +317,29 @@ def test_a_program_ranks_each_step_it_imagines_once(rollouts):
     assert saved > 500
 
 
+def test_a_program_imagines_each_world_once(rollouts, monkeypatch):
+    """The worlds the lookahead imagines are remembered: a step from one world is executed once, the real step of
+    an imagined action aside."""
+    import pipeline.plan.planner as planner_module
+
+    calls = []
+
+    def spy(state, action):
+        calls.append((state.key(), action))
+        return execute(state, action)
+
+    monkeypatch.setattr(planner_module, "execute", spy)
+    starts, planners = rollouts
+    imagined = 0
+    for state, task in starts:
+        for planner in planners:
+            calls.clear()
+            program = run_loop(lookahead(planner, task), state, task, 12)
+            assert len(calls) - len(set(calls)) <= len(program.steps)
+            imagined += len(calls) - len(program.steps)
+    assert imagined > 100  # the lookahead did imagine: the test saw its worlds
+
+
 def test_a_worlds_key_tells_apart_every_field_a_primitive_changes(room):
     """Equal keys are the same world: a copy has its key, and a change to any field the primitives write does not."""
     assert room.copy().key() == room.key() and hash(room.copy().key()) == hash(room.key())
