@@ -387,7 +387,12 @@ def test_predict_and_top_k_read_the_fitted_weights(steps):
     assert s.predict(steps) == [model.inference(x, s.w_) for x in steps]
     assert s.model_._batch_cache is None
     assert s.top_k(steps[4], 3) == model.top_k(steps[4], s.w_, 3) and len(s.top_k(steps[4], 3)) == 3
-    for unfitted in (StepScorer().predict, lambda X: StepScorer().top_k(X[0], 1), lambda X: StepScorer().save("m")):
+    for x in steps[:5]:  # the lazy ranking: every candidate, in top_k's order, by the fitted weights
+        ranked = list(s.ranked(x))
+        assert ranked == list(model.ranked(x, s.w_)) == model.top_k(x, s.w_, len(ranked))
+        assert len(ranked) > 3 and ranked[:3] == s.top_k(x, 3)
+    for unfitted in (StepScorer().predict, lambda X: StepScorer().top_k(X[0], 1), lambda X: StepScorer().save("m"),
+                     lambda X: StepScorer().ranked(X[0])):
         with pytest.raises(ValueError, match=r"^this StepScorer is not fitted yet: call fit or load first$"):
             unfitted(steps)
 

@@ -12,7 +12,7 @@ import pytest
 from pipeline.cli import main
 from pipeline.logs.generate import generate
 from pipeline.settings import Generate, Params, Procedural
-from pipeline.sim.catalog import OBJECTS, EnvironmentSpec, Placement, build_environment
+from pipeline.sim.catalog import OBJECTS, OBJECTS_BY_ID, EnvironmentSpec, Placement, build_environment
 from pipeline.sim.primitives import execute
 from pipeline.sim.procedural import NEW_KINDS, SHAPES, Kind, Redraw, check_fits, draw_room
 from pipeline.sim.scenarios import QUOTAS, drawn_scenarios, world_scenarios
@@ -90,6 +90,8 @@ def test_a_new_kinds_flags_are_drawn_with_its_probabilities_and_those_that_defin
     ({"maybe": (("container", 0.5),)}, r"\['container'\] define the kind and cannot vary"),
     ({"maybe": (("movable", 0.5),)}, r"\['movable'\] define the kind and cannot vary"),
     ({"maybe": (("handle", 1.0),)}, r"must lie in \(0, 1\)"),
+    ({"maybe": (("handle", 0.0),)}, r"must lie in \(0, 1\)"),
+    ({"shapes": (("cylinder", 0.5), ("bowl", 0.5))}, "shapes must be cylinder, box or ''"),
     ({"shapes": (("cylinder", 0.5), ("box", 0.4))}, "summing to 1"),
     ({"flags": "cylinder container", "shapes": (("cylinder", 0.5), ("", 0.5))}, r"\['cylinder'\] both fixed and drawn"),
 ])
@@ -99,6 +101,9 @@ def test_a_kind_that_draws_a_flag_defining_it_or_a_bad_probability_is_refused(ch
     with pytest.raises(ValueError, match=message):
         Kind(**{**base, **change})
     assert Kind(**{**base, "category": "bin", "flags": "container", "maybe": (("movable", 0.5),)}).maybe  # bins only
+    # what may be drawn: no shape (''), probabilities that sum to 1 up to rounding, a shape fixed when none is drawn
+    assert Kind(**{**base, "shapes": (("cylinder", 0.7), ("box", 0.2), ("", 0.1))}).shapes
+    assert Kind(**{**base, "flags": "cylinder container movable", "maybe": (("handle", 0.5),)}).maybe
 
 
 def test_the_same_seed_draws_the_same_bytes_and_another_seed_other_rooms(tmp_path):
@@ -136,6 +141,79 @@ def test_check_fits_names_what_overhangs_or_stands_too_tall_for_its_shelf_level(
     assert check_fits(build_environment(env, objects={**objects, "tall": tall, "wide": wide})) == []
 
 
+def _env02_after(change) -> list[str]:
+    """check_fits of env02 after `change(state)`: the soda can on the side table, the milk in its carton, the
+    cereal box (level 0) and the carton (level 2) on the bookshelf, whose levels are 0.45, 0.85, 1.25 and 1.65."""
+    from pipeline.sim.catalog import ENVIRONMENTS_BY_ID
+
+    state = build_environment(ENVIRONMENTS_BY_ID["env02"])
+    change(state)
+    return check_fits(state)
+
+
+def _shift(obj: str, dx: float = 0.0, dy: float = 0.0):
+    def change(state):
+        x, y, z = state.poses[obj]
+        state.poses[obj] = (x + dx, y + dy, z)
+    return change
+
+
+def _resize(obj: str, **size: float):
+    def change(state):
+        spec = state.specs[obj]
+        w, l, h = spec.size  # noqa: E741
+        state.specs[obj] = replace(spec, size=(size.get("w", w), size.get("l", l), size.get("h", h)))
+    return change
+
+
+def _edges(state, obj):
+    x0, y0, _, x1, y1, _ = state.box(obj)
+    return x0, y0, x1, y1
+
+
+@pytest.mark.parametrize("side", range(4), ids=["x low", "y low", "x high", "y high"])
+def test_an_item_may_reach_its_supports_edge_and_no_further_on_every_side(side):
+    from pipeline.sim.catalog import ENVIRONMENTS_BY_ID
+
+    state = build_environment(ENVIRONMENTS_BY_ID["env02"])
+    gap = _edges(state, "obj05")[side] - _edges(state, "obj23")[side]  # the can's way to the side table's edge
+    sign = 1.0 if side < 2 else -1.0  # low edges: past the edge is lower
+
+    def to_edge(beyond: float):
+        d = gap - sign * beyond
+        return _shift("obj23", dx=d if side % 2 == 0 else 0.0, dy=d if side % 2 else 0.0)
+
+    assert _env02_after(to_edge(0.0)) == _env02_after(to_edge(5e-7)) == []  # at the edge, within a micrometre
+    assert _env02_after(to_edge(2e-6)) == ["obj23 overhangs obj05"]
+
+
+@pytest.mark.parametrize("dimension", ["w", "l", "h"])
+def test_what_a_container_holds_may_be_as_large_as_it_and_no_larger(dimension):
+    from pipeline.sim.catalog import OBJECTS_BY_ID
+
+    carton = OBJECTS_BY_ID["obj21"]
+    same = dict(zip("wlh", carton.size, strict=True))
+    assert _env02_after(_resize("obj28", **same)) == []
+    larger = {**same, dimension: same[dimension] + 0.001}
+    assert _env02_after(_resize("obj28", **larger)) == ["obj28 is larger than obj21, which holds it"]
+
+
+def test_a_shelf_item_and_what_stands_on_it_stay_below_the_next_level_of_its_own_level():
+    limit = 0.85 - 0.45 - 0.02  # the cereal box's level is 0.45, the next 0.85, and 2 cm of clearance
+    assert _env02_after(_resize("obj42", h=limit)) == []
+    assert _env02_after(_resize("obj42", h=limit + 2e-6)) == ["obj42 does not fit under level 1 of obj07"]
+    carton = 1.65 - 1.25 - 0.02  # the carton stands on level 2
+    assert _env02_after(_resize("obj21", h=carton + 2e-6)) == ["obj21 does not fit under level 3 of obj07"]
+
+    def stacked(state):  # the crumpled paper (6 cm) moved from the book onto the cereal box, cut 5 cm shorter
+        _resize("obj42", h=limit - 0.05)(state)
+        x, y, z = state.poses["obj42"]
+        state.support["obj43"] = ("obj42", "on")
+        state.poses["obj43"] = (x, y, z + limit - 0.05)
+
+    assert _env02_after(stacked) == ["obj42 does not fit under level 1 of obj07"]  # the paper's top counts
+
+
 def test_a_distribution_that_cannot_fit_a_room_stops_with_the_reasons_counted():
     crowded = Procedural(environments=1, tables=(1, 1), shelves=(0, 0), vessels=(60, 60))
     with pytest.raises(RuntimeError, match="no room for an object"):
@@ -160,3 +238,61 @@ def test_generate_draws_a_procedural_world_that_ingest_accepts(tmp_path):
     assert report["redraws"] == sum(report["redraws_by_reason"].values())
     assert main(["--no-mlflow", "ingest", "--world-seed", "2", "--input", str(raw), "--output",
                  str(tmp_path / "processed")]) == 0
+
+
+def test_drawn_objects_keep_to_the_distribution_that_describes_them():
+    """Catalog objects vary each dimension within the spread (a shelf keeps its height, so its levels stay
+    where they are), new objects keep to their kind's ranges (round ones as long as wide) and flags, about
+    `new_objects` of the draws are new, and sizes are whole millimetres."""
+    from pipeline.sim.procedural import CATALOG_KINDS, _catalog, _count, _Room
+
+    assert {o.category for o in _catalog("table", "shelf")} == {"table", "shelf"}
+    assert CATALOG_KINDS["shelf"] == _catalog("shelf") and len(CATALOG_KINDS["vessel"]) > 3
+    dist = Procedural()
+    room = _Room("t", dist, np.random.default_rng(0))
+    assert set(room.objects) == {"obj01"}  # the floor, under its catalog id
+    ratios, new = {"shelf": [], "table": []}, 0
+    kinds = {k.name: k for ks in NEW_KINDS.values() for k in ks}
+    for i in range(400):
+        kind = ("shelf", "table", "vessel", "pourer", "stirrer", "bin", "item", "liquid")[i % 8]
+        spec = room.draw(kind)
+        assert all(round(v, 3) == v for v in spec.size), spec
+        if spec.name in kinds:
+            new += 1
+            k = kinds[spec.name]
+            assert k.width[0] <= spec.w <= k.width[1] and k.height[0] <= spec.h <= k.height[1], spec
+            assert spec.l == spec.w if k.length == (0, 0) else k.length[0] <= spec.l <= k.length[1], spec
+            assert set(k.flags.split()) <= spec.flags, spec
+            continue
+        original = next(o for o in OBJECTS if o.name == spec.name and o.category == spec.category
+                        and all(abs(a / b - 1) <= dist.size_spread + 0.02 for a, b in zip(spec.size, o.size,
+                                                                                          strict=True)))
+        if kind in ratios:
+            ratios[kind].append([a / b for a, b in zip(spec.size, original.size, strict=True)])
+    shelf, table = np.array(ratios["shelf"]), np.array(ratios["table"])
+    assert (shelf[:, 2] == 1.0).all() and not (table[:, 2] == 1.0).all()
+    for r in (shelf[:, :2], table):
+        assert r.min() < 1 - 0.8 * dist.size_spread and r.max() > 1 + 0.8 * dist.size_spread
+    drawable = 400 * 6 / 8 - 50  # vessels, pourers, stirrers, bins, items and liquids have new kinds
+    assert abs(new / drawable - dist.new_objects) < 0.1
+    counts = [_count(room.rng, (1, 3)) for _ in range(200)]
+    assert set(counts) == {1, 2, 3}
+
+
+def test_a_liquid_is_cut_to_fit_inside_its_container():
+    """Within 90% of the container's narrower side and 80% of its height; a roomy container leaves it as drawn."""
+    from pipeline.sim.procedural import _Room
+
+    room = _Room("t", Procedural(), np.random.default_rng(0))
+    small = replace(OBJECTS_BY_ID["obj14"], id="small", size=(0.06, 0.05, 0.04))
+    big = replace(OBJECTS_BY_ID["obj14"], id="big", size=(0.5, 0.5, 0.5))
+    for container in (small, big) * 5:
+        room.liquid_in(container)
+        placed = room.items[-1]
+        liquid = room.objects[placed.obj]
+        assert placed.on == container.id and liquid.category == "liquid"
+        if container is small:
+            assert liquid.w <= 0.045 + 1e-12 and liquid.l <= 0.045 + 1e-12 and liquid.h <= 0.032 + 1e-12
+            assert min(liquid.w, liquid.l) == pytest.approx(0.045) or liquid.h == pytest.approx(0.032)  # cut
+        else:
+            assert liquid.w > 0.045 and liquid.h > 0.032  # liquids are drawn wider and taller than that

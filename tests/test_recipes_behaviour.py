@@ -113,6 +113,23 @@ def test_a_planner_that_follows_the_demonstrator_completes_every_recipe(recipe):
     assert set(planner.asked) == {3}  # the observer's k by default
 
 
+def test_each_program_builds_the_methods_policy_for_its_own_task(monkeypatch):
+    """A policy that imagines steps (the lookahead) needs the program's task: each program passes its own."""
+    import pipeline.evaluate.recipes as recipes_module
+
+    built, real = [], recipes_module.learned_policy
+
+    def spy(name, planner, task, top_k=3, perceive=None):
+        built.append((name, str(task), top_k))
+        return real(name, planner, task, top_k, perceive)
+
+    monkeypatch.setattr(recipes_module, "learned_policy", spy)
+    recipe = next(r for r in RECIPES if r.name == "serve-sweet-tea")
+    out = run_recipe(Method(Scripted(script_of(recipe)), "feasible"), recipe, feedback=False, observer_k=2)
+    assert out.success
+    assert built == [("feasible", task, 2) for task, _ in demonstrated(recipe)]
+
+
 def test_each_program_of_a_recipe_starts_where_the_last_one_left_the_world():
     sweet = next(r for r in RECIPES if r.name == "serve-sweet-tea" and r.env_id == "env06")
     initial = build_environment(ENVIRONMENTS_BY_ID["env06"])
