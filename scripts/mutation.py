@@ -74,6 +74,9 @@ GROUPS = {
     "learner": Group(("pipeline/learn/ssvm.py", "pipeline/learn/working_set.py", "pipeline/learn/estimator.py"),
                      ("tests/test_learner_behaviour.py", "tests/test_ssvm.py")),
     "recipes": Group(("pipeline/evaluate/recipes.py",), ("tests/test_recipes_behaviour.py",)),
+    "world": Group(("pipeline/sim/safety.py", "pipeline/sim/procedural.py", "pipeline/sim/demonstrator.py"),
+                   ("tests/test_safety.py", "tests/test_demonstrator.py", "tests/test_procedural.py",
+                    "tests/test_primitives.py")),
 }
 
 
