@@ -12,9 +12,27 @@ import pytest
 from pipeline.cli import main
 from pipeline.logs.generate import generate
 from pipeline.settings import Generate, Params, Procedural
-from pipeline.sim.catalog import OBJECTS, OBJECTS_BY_ID, EnvironmentSpec, Placement, build_environment
+from pipeline.sim.catalog import (
+    ENVIRONMENTS_BY_ID,
+    OBJECTS,
+    OBJECTS_BY_ID,
+    EnvironmentSpec,
+    Placement,
+    build_environment,
+)
 from pipeline.sim.primitives import execute
-from pipeline.sim.procedural import NEW_KINDS, SHAPES, Kind, Redraw, check_fits, draw_room
+from pipeline.sim.procedural import (
+    CATALOG_KINDS,
+    NEW_KINDS,
+    SHAPES,
+    Kind,
+    Redraw,
+    _catalog,
+    _count,
+    _Room,
+    check_fits,
+    draw_room,
+)
 from pipeline.sim.scenarios import QUOTAS, drawn_scenarios, world_scenarios
 from pipeline.sim.tasks import goal_reached
 
@@ -144,8 +162,6 @@ def test_check_fits_names_what_overhangs_or_stands_too_tall_for_its_shelf_level(
 def _env02_after(change) -> list[str]:
     """check_fits of env02 after `change(state)`: the soda can on the side table, the milk in its carton, the
     cereal box (level 0) and the carton (level 2) on the bookshelf, whose levels are 0.45, 0.85, 1.25 and 1.65."""
-    from pipeline.sim.catalog import ENVIRONMENTS_BY_ID
-
     state = build_environment(ENVIRONMENTS_BY_ID["env02"])
     change(state)
     return check_fits(state)
@@ -173,8 +189,6 @@ def _edges(state, obj):
 
 @pytest.mark.parametrize("side", range(4), ids=["x low", "y low", "x high", "y high"])
 def test_an_item_may_reach_its_supports_edge_and_no_further_on_every_side(side):
-    from pipeline.sim.catalog import ENVIRONMENTS_BY_ID
-
     state = build_environment(ENVIRONMENTS_BY_ID["env02"])
     gap = _edges(state, "obj05")[side] - _edges(state, "obj23")[side]  # the can's way to the side table's edge
     sign = 1.0 if side < 2 else -1.0  # low edges: past the edge is lower
@@ -189,8 +203,6 @@ def test_an_item_may_reach_its_supports_edge_and_no_further_on_every_side(side):
 
 @pytest.mark.parametrize("dimension", ["w", "l", "h"])
 def test_what_a_container_holds_may_be_as_large_as_it_and_no_larger(dimension):
-    from pipeline.sim.catalog import OBJECTS_BY_ID
-
     carton = OBJECTS_BY_ID["obj21"]
     same = dict(zip("wlh", carton.size, strict=True))
     assert _env02_after(_resize("obj28", **same)) == []
@@ -244,8 +256,6 @@ def test_drawn_objects_keep_to_the_distribution_that_describes_them():
     """Catalog objects vary each dimension within the spread (a shelf keeps its height, so its levels stay
     where they are), new objects keep to their kind's ranges (round ones as long as wide) and flags, about
     `new_objects` of the draws are new, and sizes are whole millimetres."""
-    from pipeline.sim.procedural import CATALOG_KINDS, _catalog, _count, _Room
-
     assert {o.category for o in _catalog("table", "shelf")} == {"table", "shelf"}
     assert CATALOG_KINDS["shelf"] == _catalog("shelf") and len(CATALOG_KINDS["vessel"]) > 3
     dist = Procedural()
@@ -281,8 +291,6 @@ def test_drawn_objects_keep_to_the_distribution_that_describes_them():
 
 def test_a_liquid_is_cut_to_fit_inside_its_container():
     """Within 90% of the container's narrower side and 80% of its height; a roomy container leaves it as drawn."""
-    from pipeline.sim.procedural import _Room
-
     room = _Room("t", Procedural(), np.random.default_rng(0))
     small = replace(OBJECTS_BY_ID["obj14"], id="small", size=(0.06, 0.05, 0.04))
     big = replace(OBJECTS_BY_ID["obj14"], id="big", size=(0.5, 0.5, 0.5))
