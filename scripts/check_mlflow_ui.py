@@ -34,7 +34,7 @@ from pathlib import Path
 
 from mlflow.tracking import MlflowClient
 
-from pipeline.track.mlflow_runs import EXPERIMENT
+from taskseq.track.mlflow_runs import EXPERIMENT
 
 STAGES = ("select", "train", "fold_models", "crossval", "noise", "feedback", "recipes", "scenes", "aggregate",
           "report")

@@ -1,6 +1,6 @@
 """How often each choice cue marks exactly the object the demonstrator chooses, on worlds that are never reported.
 
-The choice cues (`pipeline.features.cues`) are read off what perception
+The choice cues (`taskseq.features.cues`) are read off what perception
 reports; the demonstrator chooses by the world's semantics (the smallest empty
 vessel that holds the liquid, the shortest stirrer that sticks out of the
 cup, the bin nearest the object). This script draws each world seed's
@@ -28,11 +28,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from pipeline.features.context import step_context  # noqa: E402
-from pipeline.features.cues import CUE_COLUMNS, choice_cues  # noqa: E402
-from pipeline.settings import Generate, Params  # noqa: E402
-from pipeline.sim.demonstrator import choose_bin, choose_stirrer, choose_vessel  # noqa: E402
-from pipeline.sim.scenarios import Scenario, world_scenarios  # noqa: E402
+from taskseq.features.context import step_context  # noqa: E402
+from taskseq.features.cues import CUE_COLUMNS, choice_cues  # noqa: E402
+from taskseq.settings import Generate, Params  # noqa: E402
+from taskseq.sim.demonstrator import choose_bin, choose_stirrer, choose_vessel  # noqa: E402
+from taskseq.sim.scenarios import Scenario, world_scenarios  # noqa: E402
 
 FAMILIES = {"pour": "smallest_empty", "stir": "shortest_over", "throw_away": "nearest_of_kind"}
 

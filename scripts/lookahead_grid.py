@@ -1,6 +1,6 @@
 """Choose the safety lookahead's depth and width on the development world.
 
-The `lookahead` policy (`pipeline.plan.planner.lookahead`) takes, of the
+The `lookahead` policy (`taskseq.plan.planner.lookahead`) takes, of the
 `width` best runnable steps, the first whose next `depth` imagined steps
 break no safety rule. Both are free settings; this script cross-validates the
 choice-cue models (`ours + relations + choice cues`, C from the selection
@@ -8,7 +8,7 @@ file) on the development world that the `select` stage draws (`data/dev`,
 never reported), runs every fold's programs with each (depth, width) of the
 grid, and ranks them by sequence arg, then success, then the shorter depth,
 then the smaller width. The chosen pair is written into
-`pipeline/plan/planner.py` by hand (`LOOKAHEAD_DEPTH`, `LOOKAHEAD_WIDTH`);
+`taskseq/plan/planner.py` by hand (`LOOKAHEAD_DEPTH`, `LOOKAHEAD_WIDTH`);
 docs/model.md shows the table this prints.
 
     python scripts/lookahead_grid.py --depths 2 4 6 8 12 --widths 2 3 5
@@ -28,15 +28,15 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from pipeline.evaluate.crossval import cross_validate  # noqa: E402
-from pipeline.evaluate.methods import MRFMethod  # noqa: E402
-from pipeline.evaluate.metrics import summarize  # noqa: E402
-from pipeline.evaluate.selection import read_selection  # noqa: E402
-from pipeline.features.dataset import read_features  # noqa: E402
-from pipeline.logs.benchmark import load_benchmark  # noqa: E402
-from pipeline.plan.planner import Program, lookahead, run_loop  # noqa: E402
-from pipeline.settings import Params  # noqa: E402
-from pipeline.sim.scenarios import Scenario  # noqa: E402
+from taskseq.evaluate.crossval import cross_validate  # noqa: E402
+from taskseq.evaluate.methods import MRFMethod  # noqa: E402
+from taskseq.evaluate.metrics import summarize  # noqa: E402
+from taskseq.evaluate.selection import read_selection  # noqa: E402
+from taskseq.features.dataset import read_features  # noqa: E402
+from taskseq.logs.benchmark import load_benchmark  # noqa: E402
+from taskseq.plan.planner import Program, lookahead, run_loop  # noqa: E402
+from taskseq.settings import Params  # noqa: E402
+from taskseq.sim.scenarios import Scenario  # noqa: E402
 
 
 @dataclass

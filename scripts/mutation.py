@@ -33,7 +33,7 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-from pipeline.io import write_text_atomic
+from taskseq.io import write_text_atomic
 
 ROOT = Path(__file__).resolve().parents[1]
 EQUIVALENT = ROOT / "scripts" / "mutation_equivalent.toml"
@@ -51,30 +51,30 @@ class Group:
     tests: tuple[str, ...]
 
     def dotted(self) -> set[str]:
-        """The modules as mutmut's names begin with them (`pipeline.sim.primitives`)."""
+        """The modules as mutmut's names begin with them (`taskseq.sim.primitives`)."""
         return {m.removesuffix(".py").replace("/", ".") for m in self.modules}
 
 
 GROUPS = {
-    "evaluate": Group(("pipeline/evaluate/failures.py", "pipeline/evaluate/metrics.py",
-                       "pipeline/evaluate/selection.py"),
+    "evaluate": Group(("taskseq/evaluate/failures.py", "taskseq/evaluate/metrics.py",
+                       "taskseq/evaluate/selection.py"),
                       ("tests/test_metrics_behaviour.py", "tests/test_failures.py", "tests/test_evaluate.py",
                        "tests/test_selection_behaviour.py")),
-    "seeds": Group(("pipeline/report/seeds.py", "pipeline/stages/aggregate.py"),
+    "seeds": Group(("taskseq/report/seeds.py", "taskseq/stages/aggregate.py"),
                    ("tests/test_aggregate_behaviour.py", "tests/test_seeds.py")),
-    "primitives": Group(("pipeline/sim/primitives.py", "pipeline/sim/tasks.py"),
+    "primitives": Group(("taskseq/sim/primitives.py", "taskseq/sim/tasks.py"),
                         ("tests/test_preconditions_behaviour.py", "tests/test_primitives.py",
                          "tests/test_tasks_behaviour.py")),
-    "planner": Group(("pipeline/plan/planner.py", "pipeline/evaluate/robustness.py", "pipeline/features/perception.py"),
+    "planner": Group(("taskseq/plan/planner.py", "taskseq/evaluate/robustness.py", "taskseq/features/perception.py"),
                      ("tests/test_feedback_behaviour.py", "tests/test_robustness_behaviour.py",
                       "tests/test_feasible.py", "tests/test_noise_training.py", "tests/test_lookahead.py")),
-    "features": Group(("pipeline/features/context.py", "pipeline/features/cues.py", "pipeline/learn/mrf.py"),
+    "features": Group(("taskseq/features/context.py", "taskseq/features/cues.py", "taskseq/learn/mrf.py"),
                       ("tests/test_features_behaviour.py", "tests/test_choice_cues.py", "tests/test_mrf.py",
                        "tests/test_relations.py")),
-    "learner": Group(("pipeline/learn/ssvm.py", "pipeline/learn/working_set.py", "pipeline/learn/estimator.py"),
+    "learner": Group(("taskseq/learn/ssvm.py", "taskseq/learn/working_set.py", "taskseq/learn/estimator.py"),
                      ("tests/test_learner_behaviour.py", "tests/test_ssvm.py")),
-    "recipes": Group(("pipeline/evaluate/recipes.py",), ("tests/test_recipes_behaviour.py",)),
-    "world": Group(("pipeline/sim/safety.py", "pipeline/sim/procedural.py", "pipeline/sim/demonstrator.py"),
+    "recipes": Group(("taskseq/evaluate/recipes.py",), ("tests/test_recipes_behaviour.py",)),
+    "world": Group(("taskseq/sim/safety.py", "taskseq/sim/procedural.py", "taskseq/sim/demonstrator.py"),
                    ("tests/test_safety.py", "tests/test_demonstrator.py", "tests/test_procedural.py",
                     "tests/test_primitives.py")),
 }
@@ -85,12 +85,12 @@ def _scratch(name: str, group: Group) -> Path:
     scratch = ROOT / ".mutation" / name
     # mutmut re-tests a mutant only when its function changed, not when the tests did: start each run afresh
     shutil.rmtree(scratch / "mutants", ignore_errors=True)
-    for folder in ("pipeline", "tests"):
+    for folder in ("taskseq", "tests"):
         shutil.copytree(ROOT / folder, scratch / folder, dirs_exist_ok=True,
                         ignore=shutil.ignore_patterns("__pycache__"))
     tests = [t for t in group.tests if (ROOT / t).exists()]
     settings = "\n".join([
-        "", "[tool.mutmut]", 'source_paths = ["pipeline"]',
+        "", "[tool.mutmut]", 'source_paths = ["taskseq"]',
         f"only_mutate = {list(group.modules)!r}",
         f"pytest_add_cli_args_test_selection = {tests!r}",
         'pytest_add_cli_args = ["-p", "no:cacheprovider", "-n", "0"]', "",  # mutmut follows one process
@@ -237,7 +237,7 @@ def _diffs(scratch: Path, mutants: list[str]) -> dict[str, str]:
 
 
 def _module(mutant: str) -> str:
-    """`pipeline.report.seeds` of `pipeline.report.seeds.x_mean_sd__mutmut_3` (methods: `.xǁClassǁname`)."""
+    """`taskseq.report.seeds` of `taskseq.report.seeds.x_mean_sd__mutmut_3` (methods: `.xǁClassǁname`)."""
     return re.match(r"(.+?)\.x[_ǁ]", mutant).group(1)
 
 

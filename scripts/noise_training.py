@@ -1,6 +1,6 @@
 """Choose the noisy-training settings of `ours + relations + noisy training` on the development world.
 
-The method (`pipeline/methods/noise_trained.py`) adds copies of its training
+The method (`taskseq/methods/noise_trained.py`) adds copies of its training
 steps with binary attributes flipped. How many copies and how often to flip
 are its free settings; this script cross-validates every pair of a grid on
 the development world that the `select` stage draws (`data/dev`, never
@@ -28,12 +28,12 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from pipeline.evaluate.methods import MRFMethod  # noqa: E402
-from pipeline.evaluate.robustness import NoiseCondition, evaluate_conditions, noise_curve, noise_runs  # noqa: E402
-from pipeline.evaluate.selection import read_selection  # noqa: E402
-from pipeline.features.dataset import read_features  # noqa: E402
-from pipeline.logs.benchmark import load_benchmark  # noqa: E402
-from pipeline.settings import Params  # noqa: E402
+from taskseq.evaluate.methods import MRFMethod  # noqa: E402
+from taskseq.evaluate.robustness import NoiseCondition, evaluate_conditions, noise_curve, noise_runs  # noqa: E402
+from taskseq.evaluate.selection import read_selection  # noqa: E402
+from taskseq.features.dataset import read_features  # noqa: E402
+from taskseq.logs.benchmark import load_benchmark  # noqa: E402
+from taskseq.settings import Params  # noqa: E402
 
 
 def rank(rows: list[dict[str, float]]) -> list[dict[str, float]]:

@@ -6,11 +6,11 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.logs.generate import generate
-from pipeline.logs.ingest import load_logs
-from pipeline.settings import Generate
-from pipeline.sim.catalog import EnvironmentSpec, Placement, build_environment
-from pipeline.sim.state import WorldState
+from taskseq.logs.generate import generate
+from taskseq.logs.ingest import load_logs
+from taskseq.settings import Generate
+from taskseq.sim.catalog import EnvironmentSpec, Placement, build_environment
+from taskseq.sim.state import WorldState
 
 # The test files that take longest (each tens of seconds on 2 idle cores, `--durations`), slowest first. They are
 # collected first, and pytest-xdist hands files to its workers in collection order (`--no-loadscope-reorder` in
@@ -65,6 +65,6 @@ def benchmark_tables(benchmark_logs: Path):
 @pytest.fixture(scope="session")
 def benchmark_steps(benchmark_tables):
     """Teacher-forced steps (StepContext, StepMeta) of the whole benchmark."""
-    from pipeline.features.dataset import build_steps
+    from taskseq.features.dataset import build_steps
 
     return build_steps([item.record for item in benchmark_tables[1]])

@@ -6,7 +6,7 @@ import importlib
 from dataclasses import fields, is_dataclass
 from typing import Any
 
-from pipeline.settings import Params
+from taskseq.settings import Params
 
 
 class _Section:
@@ -49,6 +49,6 @@ def _kept_whole(value: Any) -> set[str]:
 def keys_read(stage: str, world_seed: int | None = 0) -> set[str]:
     """The dotted params keys the stage's `settings` reads from the whole of params.yaml."""
     seen: set[str] = set()
-    module = importlib.import_module(f"pipeline.stages.{stage}")
+    module = importlib.import_module(f"taskseq.stages.{stage}")
     settings = module.settings(_Params(Params.load(), seen), world_seed)
     return seen | _kept_whole(settings)

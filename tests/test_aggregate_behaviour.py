@@ -11,16 +11,16 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.cli import main
-from pipeline.evaluate.failures import KINDS
-from pipeline.evaluate.registry import method_labels
-from pipeline.report.csvs import SEQUENCE_COLUMNS, csv_text
-from pipeline.report.seeds import mean_sd
-from pipeline.report.summary import build_summary
-from pipeline.report.tables import COLUMNS
-from pipeline.settings import World
-from pipeline.stages import aggregate
-from pipeline.stages.paths import AggregatePaths
+from taskseq.cli import main
+from taskseq.evaluate.failures import KINDS
+from taskseq.evaluate.registry import method_labels
+from taskseq.report.csvs import SEQUENCE_COLUMNS, csv_text
+from taskseq.report.seeds import mean_sd
+from taskseq.report.summary import build_summary
+from taskseq.report.tables import COLUMNS
+from taskseq.settings import World
+from taskseq.stages import aggregate
+from taskseq.stages.paths import AggregatePaths
 
 SEEDS = (0, 3, 7)
 # per seed: full model's sequence arg and success, Table I prim, noise at 0.3, feedback top-2 all, recipes
@@ -251,7 +251,7 @@ def test_the_failure_table_per_task(aggregated):
 
 
 def test_failure_shares_of_a_world_with_one_program_and_of_an_unknown_method():
-    from pipeline.report.seeds import failure_shares
+    from taskseq.report.seeds import failure_shares
 
     rows = [{"world_seed": 0, "method": "m", "task": "all", "kind": "exact", "programs": 1},
             {"world_seed": 0, "method": "m", "task": "pour", "kind": "exact", "programs": 0},
@@ -278,7 +278,7 @@ def test_the_figures_draw_the_means_and_spreads_over_worlds(aggregated):
 
 
 def test_bad_or_missing_inputs_are_named(tmp_path):
-    from pipeline.report.seeds import crossval_over_seeds, table1_over_seeds
+    from taskseq.report.seeds import crossval_over_seeds, table1_over_seeds
 
     for seed, w in WORLD.items():
         _write_world(tmp_path / str(seed), w)
@@ -301,7 +301,7 @@ def test_bad_or_missing_inputs_are_named(tmp_path):
 
 
 def test_methods_without_a_label_keep_their_name_and_a_summary_without_tasks_is_read():
-    from pipeline.report.seeds import failures_markdown, failures_over_seeds, plot_columns
+    from taskseq.report.seeds import failures_markdown, failures_over_seeds, plot_columns
 
     programs = dict.fromkeys(KINDS, 0) | {"exact": 2}
     rows = failures_over_seeds({0: {"mine": {"programs": programs}}})  # no per-task figures

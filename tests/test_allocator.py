@@ -1,4 +1,4 @@
-"""The allocator policy (`pipeline.allocator`): a freed large array stays in the process's heap, child
+"""The allocator policy (`taskseq.allocator`): a freed large array stays in the process's heap, child
 processes take the policy from the environment, a user's own setting wins, and every `taskseq` command
 applies it. Each case runs in a fresh interpreter: glibc reads the environment once, at a process's start."""
 
@@ -11,7 +11,7 @@ import sys
 
 import pytest
 
-from pipeline import allocator, cli
+from taskseq import allocator, cli
 
 pytestmark = pytest.mark.skipif(allocator._glibc() is None or not hasattr(allocator._glibc(), "mallinfo2"),
                                 reason="the policy is glibc's malloc; the probe reads mallinfo2 (glibc 2.33 or later)")
@@ -22,7 +22,7 @@ ARRAY = 64 * 2**20  # bytes: past glibc's largest threshold for serving a block 
 PROBE = r"""
 import ctypes, json, os, sys
 import numpy as np
-from pipeline import allocator
+from taskseq import allocator
 
 applied = allocator.keep_freed_memory() if sys.argv[1] == "apply" else None
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from pipeline.report.breakdown import GroupOutcome, breakdown_markdown, group_outcomes
+from taskseq.report.breakdown import GroupOutcome, breakdown_markdown, group_outcomes
 
 
 def _program(method: str, scenario: str, kind: str) -> dict[str, str]:

@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.evaluate.methods import table1_methods
-from pipeline.features.context import RELATION_COLUMNS, step_context
-from pipeline.features.cues import CUE_COLUMNS, CUE_VOLUME_RATIOS, choice_cues
-from pipeline.settings import Crossval, Learner
-from pipeline.sim.demonstrator import choose_stirrer, choose_vessel
-from pipeline.sim.objects import ObjectSpec
-from pipeline.sim.state import INSIDE, ON, WorldState
-from pipeline.sim.tasks import Task
+from taskseq.evaluate.methods import table1_methods
+from taskseq.features.context import RELATION_COLUMNS, step_context
+from taskseq.features.cues import CUE_COLUMNS, CUE_VOLUME_RATIOS, choice_cues
+from taskseq.settings import Crossval, Learner
+from taskseq.sim.demonstrator import choose_stirrer, choose_vessel
+from taskseq.sim.objects import ObjectSpec
+from taskseq.sim.state import INSIDE, ON, WorldState
+from taskseq.sim.tasks import Task
 
 CUP = frozenset({"container", "cylinder", "movable"})
 LIQUID = frozenset({"liquid", "cylinder", "movable"})
@@ -114,13 +114,13 @@ def test_the_choice_cue_method_is_a_labelled_row_of_table1():
     choice = methods["choice"]()
     assert (choice.features, choice.C, choice.dagger_rounds, choice.policy) == ("choice", 0.5, 0, "greedy")
     assert choice.learner_params() == methods["relations"]().learner_params() | {"C": 0.5}
-    from pipeline.evaluate.registry import added_methods
+    from taskseq.evaluate.registry import added_methods
 
     assert added_methods()["choice"].label == "ours + relations + choice cues"
 
 
 def test_the_choice_model_is_the_relations_model_plus_the_cue_blocks():
-    from pipeline.learn.mrf import CUE_FAMILY, MRFModel
+    from taskseq.learn.mrf import CUE_FAMILY, MRFModel
 
     state = kitchen()
     ctx = step_context(state, Task.parse("stir(obj08)"), [])

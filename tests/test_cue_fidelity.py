@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.settings import Generate
-from pipeline.sim.scenarios import world_scenarios
+from taskseq.settings import Generate
+from taskseq.sim.scenarios import world_scenarios
 
 ROOT = Path(__file__).resolve().parents[1]
 spec = importlib.util.spec_from_file_location("cue_fidelity", ROOT / "scripts" / "cue_fidelity.py")

@@ -2,15 +2,15 @@
 
 import filecmp
 
-from pipeline.cli import main
-from pipeline.logs.generate import generate
-from pipeline.logs.ingest import dataset_summary, load_logs, write_tables
-from pipeline.logs.records import parse_record, state_from_dict
-from pipeline.settings import Generate
-from pipeline.sim.objects import ATTRIBUTE_NAMES
-from pipeline.sim.primitives import PRIMITIVES, execute
-from pipeline.sim.safety import violations
-from pipeline.sim.tasks import TASKS, goal_reached
+from taskseq.cli import main
+from taskseq.logs.generate import generate
+from taskseq.logs.ingest import dataset_summary, load_logs, write_tables
+from taskseq.logs.records import parse_record, state_from_dict
+from taskseq.settings import Generate
+from taskseq.sim.objects import ATTRIBUTE_NAMES
+from taskseq.sim.primitives import PRIMITIVES, execute
+from taskseq.sim.safety import violations
+from taskseq.sim.tasks import TASKS, goal_reached
 
 
 def test_dataset_has_the_papers_figures(benchmark_tables):

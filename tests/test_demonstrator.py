@@ -2,10 +2,10 @@
 
 import pytest
 
-from pipeline.sim.demonstrator import NoDemonstration, demonstrate
-from pipeline.sim.primitives import execute
-from pipeline.sim.safety import violations
-from pipeline.sim.tasks import Task, goal_reached
+from taskseq.sim.demonstrator import NoDemonstration, demonstrate
+from taskseq.sim.primitives import execute
+from taskseq.sim.safety import violations
+from taskseq.sim.tasks import Task, goal_reached
 from tests.conftest import world
 
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipeline.evaluate.dispatch import Shared, run_jobs
+from taskseq.evaluate.dispatch import Shared, run_jobs
 
 CALLS: list[int] = []
 

@@ -52,11 +52,11 @@ def test_every_module_has_its_api_reference():
     blocks = set()
     for page in (DOCS / "api").glob("*.md"):
         blocks |= set(re.findall(r"^::: (pipeline(?:\.\w+)*)\s*$", page.read_text(), re.M))
-    package = ROOT / "pipeline"
-    wanted = {f"pipeline.{p.name}" for p in package.iterdir() if (p / "__init__.py").is_file()}
-    wanted |= {f"pipeline.{p.stem}" for p in package.glob("*.py") if p.stem != "__init__"}
+    package = ROOT / "taskseq"
+    wanted = {f"taskseq.{p.name}" for p in package.iterdir() if (p / "__init__.py").is_file()}
+    wanted |= {f"taskseq.{p.stem}" for p in package.glob("*.py") if p.stem != "__init__"}
     assert not wanted - blocks, f"missing from docs/api/: {sorted(wanted - blocks)}"
-    assert not blocks - wanted - {"pipeline"}, f"docs/api/ names what pipeline/ lacks: {sorted(blocks - wanted)}"
+    assert not blocks - wanted - {"taskseq"}, f"docs/api/ names what taskseq/ lacks: {sorted(blocks - wanted)}"
 
 
 def test_the_readme_is_a_short_front_page():

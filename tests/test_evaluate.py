@@ -5,14 +5,14 @@ import re
 import numpy as np
 import pytest
 
-from pipeline.evaluate.crossval import FoldResult, SequenceOutcome, run_fold, scenario_folds
-from pipeline.evaluate.folds import grouped_folds
-from pipeline.evaluate.methods import ChanceMethod, MulticlassMethod
-from pipeline.evaluate.metrics import step_accuracy, summarize
-from pipeline.features.context import StepContext
-from pipeline.logs.benchmark import Benchmark
-from pipeline.report.tables import table_rows, to_csv, to_latex, to_markdown
-from pipeline.sim.primitives import ALL_PRIMITIVES
+from taskseq.evaluate.crossval import FoldResult, SequenceOutcome, run_fold, scenario_folds
+from taskseq.evaluate.folds import grouped_folds
+from taskseq.evaluate.methods import ChanceMethod, MulticlassMethod
+from taskseq.evaluate.metrics import step_accuracy, summarize
+from taskseq.features.context import StepContext
+from taskseq.logs.benchmark import Benchmark
+from taskseq.report.tables import table_rows, to_csv, to_latex, to_markdown
+from taskseq.sim.primitives import ALL_PRIMITIVES
 
 
 def test_grouped_folds_cover_everything_once_and_never_split_a_group():
@@ -140,8 +140,8 @@ def test_the_symbolic_planners_of_a_fold_share_a_job_and_results_keep_the_method
     baselines of a fold run in one job, every other method alone, and the results come back method by method."""
     from functools import partial
 
-    from pipeline.evaluate import crossval
-    from pipeline.evaluate.methods import SymbolicMethod
+    from taskseq.evaluate import crossval
+    from taskseq.evaluate.methods import SymbolicMethod
 
     calls = []
 

@@ -11,10 +11,10 @@ from pathlib import Path
 import pytest
 from mlflow.tracking import MlflowClient
 
-import pipeline.methods
-from pipeline.cli import main
-from pipeline.evaluate import registry
-from pipeline.track.mlflow_runs import EXPERIMENT
+import taskseq.methods
+from taskseq.cli import main
+from taskseq.evaluate import registry
+from taskseq.track.mlflow_runs import EXPERIMENT
 
 ROOT = Path(__file__).resolve().parents[1]
 TUTORIAL = ROOT / "docs" / "adding-a-method.md"
@@ -25,24 +25,24 @@ SMALL = ["--set", "crossval.folds=2", "--set", "train.tol=0.01", "--set", "train
 def tutorial_module() -> tuple[str, str]:
     """The file name and code the tutorial tells a reader to save (its first Python block)."""
     text = TUTORIAL.read_text()
-    name = re.search(r"Save this\s+as `pipeline/methods/(\w+\.py)`", text).group(1)
+    name = re.search(r"Save this\s+as `taskseq/methods/(\w+\.py)`", text).group(1)
     code = re.search(r"```python\n(.*?)```", text, re.S).group(1)
     return name, code
 
 
 @pytest.fixture
 def added(tmp_path, monkeypatch):
-    """The tutorial's module saved beside `pipeline/methods/` (a folder on the package's path), the registry
+    """The tutorial's module saved beside `taskseq/methods/` (a folder on the package's path), the registry
     read afresh; both restored afterwards."""
     folder = tmp_path / "methods"
     folder.mkdir()
     name, code = tutorial_module()
     (folder / name).write_text(code)
-    monkeypatch.setattr(pipeline.methods, "__path__", [*pipeline.methods.__path__, str(folder)])
+    monkeypatch.setattr(taskseq.methods, "__path__", [*taskseq.methods.__path__, str(folder)])
     monkeypatch.setattr(registry, "_ADDED", {})
     monkeypatch.setattr(registry, "_loaded", False)
     yield name.removesuffix(".py")
-    sys.modules.pop(f"pipeline.methods.{name.removesuffix('.py')}", None)
+    sys.modules.pop(f"taskseq.methods.{name.removesuffix('.py')}", None)
 
 
 @pytest.fixture

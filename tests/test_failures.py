@@ -2,9 +2,9 @@
 
 import pytest
 
-from pipeline.evaluate.failures import KINDS, classify, failure_counts
-from pipeline.plan.planner import DONE, INFEASIBLE, STEP_CAP
-from pipeline.sim.primitives import Action
+from taskseq.evaluate.failures import KINDS, classify, failure_counts
+from taskseq.plan.planner import DONE, INFEASIBLE, STEP_CAP
+from taskseq.sim.primitives import Action
 
 
 def acts(*texts: str) -> tuple[Action, ...]:

@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipeline.evaluate.methods import table1_methods
-from pipeline.features.context import candidate_index, step_context
-from pipeline.learn.estimator import StepScorer
-from pipeline.logs.records import parse_record, state_from_dict
-from pipeline.plan.planner import DONE, INFEASIBLE, feasible, greedy, learned_policy, run_loop
-from pipeline.settings import Crossval, Learner
-from pipeline.sim.primitives import try_execute
+from taskseq.evaluate.methods import table1_methods
+from taskseq.features.context import candidate_index, step_context
+from taskseq.learn.estimator import StepScorer
+from taskseq.logs.records import parse_record, state_from_dict
+from taskseq.plan.planner import DONE, INFEASIBLE, feasible, greedy, learned_policy, run_loop
+from taskseq.settings import Crossval, Learner
+from taskseq.sim.primitives import try_execute
 
 
 @pytest.fixture(scope="module")

@@ -9,7 +9,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from pipeline.features.context import (
+from taskseq.features.context import (
     ATTRIBUTE_COLUMNS,
     LENGTH_MARGINS,
     NO_PRIM,
@@ -26,11 +26,11 @@ from pipeline.features.context import (
     scale_attribute,
     step_context,
 )
-from pipeline.features.cues import CUE_COLUMNS
-from pipeline.learn.mrf import FEATURE_SETS, MRFModel, StepBatch, rel_row
-from pipeline.sim.primitives import ALL_PRIMITIVES, ARITY, Action, execute
-from pipeline.sim.state import INSIDE, ON, WorldState
-from pipeline.sim.tasks import Task
+from taskseq.features.cues import CUE_COLUMNS
+from taskseq.learn.mrf import FEATURE_SETS, MRFModel, StepBatch, rel_row
+from taskseq.sim.primitives import ALL_PRIMITIVES, ARITY, Action, execute
+from taskseq.sim.state import INSIDE, ON, WorldState
+from taskseq.sim.tasks import Task
 from tests.conftest import world
 
 # --- the step's context --------------------------------------------------------------------------------------
@@ -527,9 +527,9 @@ def test_the_default_model_is_the_full_one():
 
 
 def test_the_blocks_of_the_model():
-    from pipeline.features.context import HISTORY_ARG_COLUMNS, TASK_REL_COLUMNS
-    from pipeline.learn.mrf import REL_ROW, _blocks
-    from pipeline.sim.tasks import TASKS
+    from taskseq.features.context import HISTORY_ARG_COLUMNS, TASK_REL_COLUMNS
+    from taskseq.learn.mrf import REL_ROW, _blocks
+    from taskseq.sim.tasks import TASKS
 
     prims, prev = ALL_PRIMITIVES, ALL_PRIMITIVES + ("none",)
     hands = ("holding", "empty_hand")

@@ -11,8 +11,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from pipeline.evaluate.crossval import judge
-from pipeline.evaluate.robustness import (
+from taskseq.evaluate.crossval import judge
+from taskseq.evaluate.robustness import (
     FeedbackCondition,
     NoiseCondition,
     _replay,
@@ -20,13 +20,13 @@ from pipeline.evaluate.robustness import (
     feedback_rows,
     observer,
 )
-from pipeline.features.context import step_context
-from pipeline.features.perception import BINARY_COLUMNS
-from pipeline.plan.planner import DONE, plan
-from pipeline.settings import Feedback, Folds
-from pipeline.sim.primitives import Action
-from pipeline.sim.scenarios import Scenario
-from pipeline.sim.tasks import Task
+from taskseq.features.context import step_context
+from taskseq.features.perception import BINARY_COLUMNS
+from taskseq.plan.planner import DONE, plan
+from taskseq.settings import Feedback, Folds
+from taskseq.sim.primitives import Action
+from taskseq.sim.scenarios import Scenario
+from taskseq.sim.tasks import Task
 from tests.conftest import world
 
 TABLE, TRASH, CUP, MUG = "obj02", "obj10", "obj14", "obj13"
@@ -159,7 +159,7 @@ class ListPolicy:
 
 
 def test_a_program_records_each_step_its_alternatives_and_every_state(scenario):
-    from pipeline.plan.planner import run_loop
+    from taskseq.plan.planner import run_loop
 
     policy = ListPolicy([[str(DEMO[0]), f"move_close({MUG})"], [str(DEMO[1]), "done"], ["done"]])
     program = run_loop(policy, scenario.initial, scenario.task)
@@ -174,7 +174,7 @@ def test_a_program_records_each_step_its_alternatives_and_every_state(scenario):
 
 
 def test_the_loop_stops_at_the_step_cap(scenario):
-    from pipeline.plan.planner import STEP_CAP, run_loop
+    from taskseq.plan.planner import STEP_CAP, run_loop
 
     back_and_forth = ListPolicy([[f"move_close({MUG})"], [f"move_close({CUP})"]] * 5)
     program = run_loop(back_and_forth, scenario.initial, scenario.task, max_steps=3)
@@ -184,7 +184,7 @@ def test_the_loop_stops_at_the_step_cap(scenario):
 
 
 def test_an_infeasible_step_ends_the_program_with_the_reason(scenario):
-    from pipeline.plan.planner import INFEASIBLE, run_loop
+    from taskseq.plan.planner import INFEASIBLE, run_loop
 
     program = run_loop(ListPolicy([[f"grasp({CUP})"]]), scenario.initial, scenario.task)
     assert program.status == INFEASIBLE and program.actions == [Action.parse(f"grasp({CUP})")]
@@ -194,7 +194,7 @@ def test_an_infeasible_step_ends_the_program_with_the_reason(scenario):
 
 
 def test_a_policy_that_abstains_ends_the_program_infeasible(scenario):
-    from pipeline.plan.planner import INFEASIBLE, Abstain, run_loop
+    from taskseq.plan.planner import INFEASIBLE, Abstain, run_loop
 
     def abstain(ctx, state):
         raise Abstain("no plan within 4 steps")
@@ -205,7 +205,7 @@ def test_a_policy_that_abstains_ends_the_program_infeasible(scenario):
 
 
 def test_an_abstention_read_back_from_the_memo_ends_the_program_with_its_reason(scenario):
-    from pipeline.plan.planner import INFEASIBLE, Abstain, Memo, run_loop
+    from taskseq.plan.planner import INFEASIBLE, Abstain, Memo, run_loop
 
     calls = []
 
@@ -221,7 +221,7 @@ def test_an_abstention_read_back_from_the_memo_ends_the_program_with_its_reason(
 
 
 def test_an_unsafe_step_is_recorded_and_fails_the_program():
-    from pipeline.plan.planner import run_loop
+    from taskseq.plan.planner import run_loop
 
     state = world({2: 0.0}, [(41, 2, 0, 0.4), (14, 41)])  # a cup standing on a tray
     task = Task("pick_and_place", ("obj41", "obj02"))
@@ -232,7 +232,7 @@ def test_an_unsafe_step_is_recorded_and_fails_the_program():
 
 
 def test_perception_changes_what_the_policy_sees_not_the_world(scenario):
-    from pipeline.plan.planner import run_loop
+    from taskseq.plan.planner import run_loop
 
     def blind(ctx):
         return replace(ctx, objects=np.zeros_like(ctx.objects))
@@ -304,7 +304,7 @@ def test_noise_draws_depend_on_the_scenario_not_on_the_fold_layout(two_scenarios
 
 def test_each_program_gets_its_policy_for_its_task_seen_as_its_condition_says(two_scenarios, monkeypatch):
     """A lookahead needs the program's task and its perception (under noise it imagines with the same errors)."""
-    from pipeline.evaluate import robustness
+    from taskseq.evaluate import robustness
 
     calls = []
 
@@ -344,7 +344,7 @@ class Wanderer(ScriptedPlanner):
 
 
 def test_plan_caps_at_twenty_steps_by_default_or_as_told(scenario):
-    from pipeline.plan.planner import STEP_CAP, run_loop
+    from taskseq.plan.planner import STEP_CAP, run_loop
 
     assert len(plan(Wanderer(), scenario.initial, scenario.task).actions) == 20
     wanderer = Wanderer()
@@ -435,7 +435,7 @@ class CountingPlanner(ScriptedPlanner):
 def test_programs_that_share_their_first_steps_rank_them_once(scenario):
     """An observer who corrects the first n steps leaves every program the same as the others up to there:
     with one memo they are ranked once, and each program is the one computed afresh, step for step."""
-    from pipeline.plan.planner import Memo, greedy, run_loop
+    from taskseq.plan.planner import Memo, greedy, run_loop
 
     def programs(memo):
         CountingPlanner.steps = []
@@ -462,7 +462,7 @@ def test_programs_that_share_their_first_steps_rank_them_once(scenario):
 def test_noise_draws_that_flip_nothing_are_one_program(scenario, monkeypatch):
     """At rate 0 every draw sees the world as it is: the replay ranks one program's steps for all of them.
     Draws that flip attributes rank their own steps, from the world's context made once."""
-    from pipeline.plan import planner
+    from taskseq.plan import planner
 
     made = []
     real = planner.step_context

@@ -5,18 +5,18 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.evaluate.crossval import cross_validate
-from pipeline.evaluate.fold_models import train_fold_models, training_jobs
-from pipeline.evaluate.methods import MRFMethod, mrf_methods
-from pipeline.evaluate.recipes import evaluate_recipes
-from pipeline.evaluate.robustness import NoiseCondition, evaluate_conditions
-from pipeline.features.dataset import build_steps
-from pipeline.learn.estimator import StepScorer
-from pipeline.logs.benchmark import Benchmark
-from pipeline.logs.generate import generate
-from pipeline.logs.ingest import load_logs
-from pipeline.settings import Folds, Generate, Learner, Procedural
-from pipeline.sim.procedural import NEW_KINDS
+from taskseq.evaluate.crossval import cross_validate
+from taskseq.evaluate.fold_models import train_fold_models, training_jobs
+from taskseq.evaluate.methods import MRFMethod, mrf_methods
+from taskseq.evaluate.recipes import evaluate_recipes
+from taskseq.evaluate.robustness import NoiseCondition, evaluate_conditions
+from taskseq.features.dataset import build_steps
+from taskseq.learn.estimator import StepScorer
+from taskseq.logs.benchmark import Benchmark
+from taskseq.logs.generate import generate
+from taskseq.logs.ingest import load_logs
+from taskseq.settings import Folds, Generate, Learner, Procedural
+from taskseq.sim.procedural import NEW_KINDS
 
 SETTINGS = {"C": 3.0, "tol": 1e-2, "max_iter": 2000, "n_slacks": 0}
 # two of the paper's models and both that consult the demonstrator (chained starts, DAgger)
@@ -124,7 +124,7 @@ def test_a_dask_cluster_trains_the_same_bytes_as_local_processes(world, local, r
     local processes, on three paper-shaped rooms and on two drawn ones (the `dev` extra installs Dask)."""
     import distributed
 
-    from pipeline.evaluate.dispatch import SCHEDULER_ENV
+    from taskseq.evaluate.dispatch import SCHEDULER_ENV
 
     records, contexts, meta, scenarios = request.getfixturevalue(world)
     out, jobs, fitted = request.getfixturevalue(local)

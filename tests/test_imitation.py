@@ -7,19 +7,19 @@ from functools import partial
 import numpy as np
 import pytest
 
-import pipeline.imitation.dagger as dagger_module
-import pipeline.imitation.starts as starts_module
-from pipeline.evaluate.crossval import run_fold, scenario_folds
-from pipeline.evaluate.methods import MRFMethod
-from pipeline.features.context import NO_PRIM, candidate_index, step_context
-from pipeline.features.dataset import build_steps
-from pipeline.imitation.dagger import fit_imitation, rollout_contexts
-from pipeline.imitation.expert import DONE, next_actions
-from pipeline.imitation.starts import chained_contexts, chained_scenarios, demonstration_contexts
-from pipeline.learn.estimator import StepScorer
-from pipeline.logs.benchmark import Benchmark
-from pipeline.sim.primitives import Action, PreconditionError, execute, try_execute
-from pipeline.sim.tasks import goal_reached
+import taskseq.imitation.dagger as dagger_module
+import taskseq.imitation.starts as starts_module
+from taskseq.evaluate.crossval import run_fold, scenario_folds
+from taskseq.evaluate.methods import MRFMethod
+from taskseq.features.context import NO_PRIM, candidate_index, step_context
+from taskseq.features.dataset import build_steps
+from taskseq.imitation.dagger import fit_imitation, rollout_contexts
+from taskseq.imitation.expert import DONE, next_actions
+from taskseq.imitation.starts import chained_contexts, chained_scenarios, demonstration_contexts
+from taskseq.learn.estimator import StepScorer
+from taskseq.logs.benchmark import Benchmark
+from taskseq.sim.primitives import Action, PreconditionError, execute, try_execute
+from taskseq.sim.tasks import goal_reached
 
 SSVM = {"C": 3.0, "tol": 1e-2, "max_iter": 300, "n_slacks": 0}
 ENVS = ("env01", "env02", "env03")

@@ -5,9 +5,9 @@ import shutil
 
 import pytest
 
-from pipeline.cli import main
-from pipeline.logs.ingest import load_logs, read_tables, records_from_tables, write_tables
-from pipeline.logs.validate import LogError
+from taskseq.cli import main
+from taskseq.logs.ingest import load_logs, read_tables, records_from_tables, write_tables
+from taskseq.logs.validate import LogError
 
 
 def test_log_to_parquet_to_log_round_trip(benchmark_tables, tmp_path):
@@ -150,8 +150,8 @@ def test_empty_folder_is_a_clear_error(tmp_path, capsys):
 def test_ingest_and_train_run_by_hand_write_only_where_they_are_told(benchmark_logs, benchmark_steps, tmp_path,
                                                                       monkeypatch):
     """In a checkout, running the commands on one's own data leaves the pipeline's reports/ and data/ alone."""
-    from pipeline.cli import main
-    from pipeline.features.dataset import write_features
+    from taskseq.cli import main
+    from taskseq.features.dataset import write_features
 
     checkout = tmp_path / "checkout"
     (checkout / "reports").mkdir(parents=True)
@@ -186,8 +186,8 @@ def _schema_nodes(node, where="schema"):
 def test_the_schema_keeps_to_keywords_whose_meaning_draft_7_shares():
     """The fast validator reads the schema as draft 7: a keyword that draft 2020-12 reads otherwise (`prefixItems`,
     a `$ref` with siblings, `items` as a list) would let it accept what the reference refuses."""
-    from pipeline.logs.records import load_schema
-    from pipeline.logs.validate import SAME_IN_DRAFT_7
+    from taskseq.logs.records import load_schema
+    from taskseq.logs.validate import SAME_IN_DRAFT_7
 
     for where, node in _schema_nodes(load_schema()):
         assert set(node) <= SAME_IN_DRAFT_7, (where, set(node) - SAME_IN_DRAFT_7)
@@ -233,7 +233,7 @@ def test_the_fast_validator_never_accepts_what_the_reference_refuses(one_log):
 
     from fastjsonschema import JsonSchemaValueException
 
-    from pipeline.logs.validate import _VALIDATOR, _accepts
+    from taskseq.logs.validate import _VALIDATOR, _accepts
 
     fast = _accepts()
     _, _, records = one_log

@@ -8,10 +8,10 @@ from pathlib import Path
 import pytest
 import yaml
 
-from pipeline.cli import main
-from pipeline.serve.environments import file_environment
-from pipeline.serve.layout import environment_from_layout
-from pipeline.sim.scenarios import doable_tasks
+from taskseq.cli import main
+from taskseq.serve.environments import file_environment
+from taskseq.serve.layout import environment_from_layout
+from taskseq.sim.scenarios import doable_tasks
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "docs" / "examples" / "workshop.yaml"
 

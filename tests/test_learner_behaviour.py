@@ -12,14 +12,14 @@ import pytest
 import scipy.sparse as sps
 from threadpoolctl import threadpool_info
 
-from pipeline.features.context import NO_PRIM, OBJECT_COLUMNS, RELATION_COLUMNS, StepContext
-from pipeline.learn.estimator import StepScorer
-from pipeline.learn.mrf import MRFModel
-from pipeline.learn.multiclass import MulticlassModel
-from pipeline.learn.persist import save_model
-from pipeline.learn.ssvm import CuttingPlaneSSVM, Iteration, learning_curve
-from pipeline.learn.working_set import WorkingSet
-from pipeline.settings import Learner
+from taskseq.features.context import NO_PRIM, OBJECT_COLUMNS, RELATION_COLUMNS, StepContext
+from taskseq.learn.estimator import StepScorer
+from taskseq.learn.mrf import MRFModel
+from taskseq.learn.multiclass import MulticlassModel
+from taskseq.learn.persist import save_model
+from taskseq.learn.ssvm import CuttingPlaneSSVM, Iteration, learning_curve
+from taskseq.learn.working_set import WorkingSet
+from taskseq.settings import Learner
 
 # --- the cutting plane ---------------------------------------------------------------------------------------
 # Two classes, one feature, x = +1 of class 0 and x = -1 of class 1. With u = w0 - w1 both examples ask
@@ -445,7 +445,7 @@ class Bar:
 
 @pytest.mark.parametrize("progress", [False, True])
 def test_the_progress_bar_counts_iterations_with_the_gap_and_constraints(steps, monkeypatch, progress):
-    monkeypatch.setattr("pipeline.learn.estimator.tqdm", Bar)
+    monkeypatch.setattr("taskseq.learn.estimator.tqdm", Bar)
     Bar.made = []
     s = StepScorer("edge", **SETTINGS)
     (s.fit(steps, progress=True) if progress else s.fit(steps))
@@ -463,8 +463,8 @@ def test_a_failed_fit_closes_its_bar(steps, monkeypatch):
     def fails(self, X, y):
         raise RuntimeError("the solver gave up")
 
-    monkeypatch.setattr("pipeline.learn.estimator.tqdm", Bar)
-    monkeypatch.setattr("pipeline.learn.estimator.CuttingPlaneSSVM.fit", fails)
+    monkeypatch.setattr("taskseq.learn.estimator.tqdm", Bar)
+    monkeypatch.setattr("taskseq.learn.estimator.CuttingPlaneSSVM.fit", fails)
     Bar.made = []
     with pytest.raises(RuntimeError, match="gave up"):
         StepScorer("edge", **SETTINGS).fit(steps)
@@ -524,7 +524,7 @@ class SlowFirstSolve(WorkingSet):
 
 
 def test_oracle_and_qp_times_add_up_over_the_iterations(monkeypatch):
-    monkeypatch.setattr("pipeline.learn.ssvm.WorkingSet", SlowFirstSolve)
+    monkeypatch.setattr("taskseq.learn.ssvm.WorkingSet", SlowFirstSolve)
     SlowFirstSolve.spent, SlowFirstSolve.solves = 0.0, 0
     model = SlowFirst(1, 2)
     start = time.perf_counter()
@@ -536,9 +536,9 @@ def test_oracle_and_qp_times_add_up_over_the_iterations(monkeypatch):
 
 
 def test_each_iteration_is_logged(caplog):
-    with caplog.at_level(logging.DEBUG, logger="pipeline.learn.ssvm"):
+    with caplog.at_level(logging.DEBUG, logger="taskseq.learn.ssvm"):
         ssvm = CuttingPlaneSSVM(MulticlassModel(1, 2), C=0.1, tol=1e-9).fit(X2, Y2)
-    lines = [r.getMessage() for r in caplog.records if r.name == "pipeline.learn.ssvm"]
+    lines = [r.getMessage() for r in caplog.records if r.name == "taskseq.learn.ssvm"]
     assert lines == [f"iteration {it.iteration}: primal {it.primal:.6g} best {it.best_primal:.6g} dual {it.dual:.6g}"
                      for it in ssvm.history_]
     assert lines[0].startswith("iteration 1: primal 0.2 best 0.2 dual ")
@@ -690,10 +690,10 @@ def test_the_gram_matrix_goes_past_the_limit_and_comes_back_when_pruned():
 
 def test_a_fit_past_the_gram_limit_reaches_the_optimum(monkeypatch):
     """The whole cutting plane with every working set on explicit weights still certifies the optimum."""
-    monkeypatch.setattr("pipeline.learn.working_set.GRAM_LIMIT", 0)
+    monkeypatch.setattr("taskseq.learn.working_set.GRAM_LIMIT", 0)
     X, Y, model = blobs()
     explicit = CuttingPlaneSSVM(model, C=0.3, tol=1e-7, n_slacks=0).fit(X, Y)
-    monkeypatch.setattr("pipeline.learn.working_set.GRAM_LIMIT", 10_000)
+    monkeypatch.setattr("taskseq.learn.working_set.GRAM_LIMIT", 10_000)
     gram = CuttingPlaneSSVM(model, C=0.3, tol=1e-7, n_slacks=0).fit(X, Y)
     assert explicit.converged_ and gram.converged_
     assert explicit.primal_objective_ == pytest.approx(gram.primal_objective_, rel=1e-6)

@@ -13,9 +13,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from pipeline.features.context import candidate_index, step_context
-from pipeline.features.perception import flip_masks, noisy_perception
-from pipeline.plan.planner import (
+from taskseq.features.context import candidate_index, step_context
+from taskseq.features.perception import flip_masks, noisy_perception
+from taskseq.plan.planner import (
     DONE,
     LOOKAHEAD_DEPTH,
     LOOKAHEAD_WIDTH,
@@ -26,11 +26,11 @@ from pipeline.plan.planner import (
     lookahead,
     run_loop,
 )
-from pipeline.sim.catalog import ENVIRONMENTS_BY_ID, build_environment
-from pipeline.sim.demonstrator import demonstrate
-from pipeline.sim.primitives import Action, execute, try_execute
-from pipeline.sim.safety import violations
-from pipeline.sim.tasks import Task
+from taskseq.sim.catalog import ENVIRONMENTS_BY_ID, build_environment
+from taskseq.sim.demonstrator import demonstrate
+from taskseq.sim.primitives import Action, execute, try_execute
+from taskseq.sim.safety import violations
+from taskseq.sim.tasks import Task
 
 GLASS, CARTON, COUNTER = "obj15", "obj21", "obj03"
 TASK = Task.parse("pour(obj28)")  # the milk, in the carton; the glass stands on a shelf
@@ -265,8 +265,8 @@ def _content(ctx):
 def rollouts(benchmark_tables, benchmark_steps):
     """Scenarios of the benchmark and planners that walk into harm often: one fitted on a few steps and two with
     random weights."""
-    from pipeline.learn.estimator import StepScorer
-    from pipeline.logs.records import parse_record, state_from_dict
+    from taskseq.learn.estimator import StepScorer
+    from taskseq.logs.records import parse_record, state_from_dict
 
     starts = []
     for item in benchmark_tables[1][:60:5]:
@@ -320,7 +320,7 @@ def test_a_program_ranks_each_step_it_imagines_once(rollouts):
 def test_a_program_imagines_each_world_once(rollouts, monkeypatch):
     """The worlds the lookahead imagines are remembered: a step from one world is executed once, the real step of
     an imagined action aside."""
-    import pipeline.plan.planner as planner_module
+    import taskseq.plan.planner as planner_module
 
     calls = []
 

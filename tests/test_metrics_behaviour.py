@@ -5,13 +5,13 @@ from __future__ import annotations
 
 import pytest
 
-from pipeline.evaluate.crossval import FoldResult, SequenceOutcome
-from pipeline.evaluate.failures import FAILURES, KINDS, classify, failure_counts
-from pipeline.evaluate.metrics import confusion, headline_metrics, step_accuracy, summarize
-from pipeline.evaluate.selection import CRITERION, best_candidate
-from pipeline.features.context import StepContext
-from pipeline.plan.planner import DONE, INFEASIBLE, STEP_CAP
-from pipeline.sim.primitives import ALL_PRIMITIVES, Action
+from taskseq.evaluate.crossval import FoldResult, SequenceOutcome
+from taskseq.evaluate.failures import FAILURES, KINDS, classify, failure_counts
+from taskseq.evaluate.metrics import confusion, headline_metrics, step_accuracy, summarize
+from taskseq.evaluate.selection import CRITERION, best_candidate
+from taskseq.features.context import StepContext
+from taskseq.plan.planner import DONE, INFEASIBLE, STEP_CAP
+from taskseq.sim.primitives import ALL_PRIMITIVES, Action
 
 
 def acts(*texts: str) -> tuple[Action, ...]:

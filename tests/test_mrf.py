@@ -5,9 +5,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from pipeline.features.dataset import read_features, write_features
-from pipeline.learn.mrf import CLIQUE_FAMILIES, EDGE_FAMILIES, MRFModel, candidate_index
-from pipeline.sim.primitives import ALL_PRIMITIVES, ARITY
+from taskseq.features.dataset import read_features, write_features
+from taskseq.learn.mrf import CLIQUE_FAMILIES, EDGE_FAMILIES, MRFModel, candidate_index
+from taskseq.sim.primitives import ALL_PRIMITIVES, ARITY
 
 
 @pytest.fixture(scope="module")

@@ -20,9 +20,9 @@ def mutation():
     return module
 
 
-NAME = "pipeline.sim.primitives.x__grasp__mutmut_39"
-DIFF = """--- pipeline/sim/primitives.py
-+++ pipeline/sim/primitives.py
+NAME = "taskseq.sim.primitives.x__grasp__mutmut_39"
+DIFF = """--- taskseq/sim/primitives.py
++++ taskseq/sim/primitives.py
 @@ -4,6 +4,6 @@
      _require(
          state.reachable(a), action, "within reach", f"{a} is {state.reach_distance(a):.2f} m from the robot"
@@ -41,17 +41,17 @@ def test_a_mutants_fingerprint_is_the_lines_it_removes_and_adds(mutation):
 
 def test_a_recorded_equivalent_whose_name_now_means_another_mutant_stops_the_report(mutation):
     recorded = {NAME: mutation.Equivalent("the key is always there", mutation.fingerprint(DIFF)),
-                "pipeline.sim.tasks.x_goal_reached__mutmut_13": mutation.Equivalent("not yet recorded")}
-    mutation.check_fingerprints(recorded, {NAME: DIFF, "pipeline.sim.tasks.x_goal_reached__mutmut_13": DIFF})
+                "taskseq.sim.tasks.x_goal_reached__mutmut_13": mutation.Equivalent("not yet recorded")}
+    mutation.check_fingerprints(recorded, {NAME: DIFF, "taskseq.sim.tasks.x_goal_reached__mutmut_13": DIFF})
     with pytest.raises(mutation.MovedMutant, match=rf"(?s)1 recorded equivalent.*{NAME}\n.*recorded: - state"
                                                    r".*now:      - state.support.pop\(a, None\) \| \+ state."
                                                    r"support.pop\(None, None\)"):
-        mutation.check_fingerprints(recorded, {NAME: RENUMBERED, "pipeline.sim.tasks.x_goal_reached__mutmut_13": DIFF})
+        mutation.check_fingerprints(recorded, {NAME: RENUMBERED, "taskseq.sim.tasks.x_goal_reached__mutmut_13": DIFF})
 
 
 def test_fingerprints_are_filled_from_a_report_and_written_back_with_the_reasons(mutation, tmp_path):
     path = tmp_path / "equivalent.toml"
-    other = "pipeline.learn.estimator.xǁStepScorerǁget_params__mutmut_1"
+    other = "taskseq.learn.estimator.xǁStepScorerǁget_params__mutmut_1"
     path.write_text(f'"{NAME}" = "pop(a) \\"always\\" finds a"\n"{other}" = "another group"\n')
     report = tmp_path / "primitives.md"
     report.write_text(f"# Mutation testing\n\n## Survivors\n\n### `x` (survived)\n\n```diff\n+ a\n```\n\n"

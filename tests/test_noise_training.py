@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipeline.evaluate.methods import MRFMethod, mrf_methods
-from pipeline.features.perception import BINARY_COLUMNS, noisy_copies
-from pipeline.learn.persist import describe
-from pipeline.settings import Learner, Params
+from taskseq.evaluate.methods import MRFMethod, mrf_methods
+from taskseq.features.perception import BINARY_COLUMNS, noisy_copies
+from taskseq.learn.persist import describe
+from taskseq.settings import Learner, Params
 
 
 @pytest.fixture(scope="module")

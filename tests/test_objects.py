@@ -2,8 +2,8 @@ import math
 
 import pytest
 
-from pipeline.sim.catalog import OBJECTS
-from pipeline.sim.objects import ATTRIBUTE_NAMES, ObjectSpec, attributes_of_box
+from taskseq.sim.catalog import OBJECTS
+from taskseq.sim.objects import ATTRIBUTE_NAMES, ObjectSpec, attributes_of_box
 
 
 def test_attributes_of_a_tall_box():

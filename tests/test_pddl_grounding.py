@@ -22,10 +22,10 @@ from pddl.logic.base import And, ForallCondition, Not
 from pddl.logic.effects import Forall, When
 from pddl.logic.predicates import Predicate
 
-from pipeline.logs.benchmark import Benchmark
-from pipeline.plan.symbolic.problem import DOMAIN_PATH, GroundAction, Problem, build_problem, ground_actions
-from pipeline.plan.symbolic.roles import demonstrated_roles
-from pipeline.sim.primitives import PreconditionError, execute
+from taskseq.logs.benchmark import Benchmark
+from taskseq.plan.symbolic.problem import DOMAIN_PATH, GroundAction, Problem, build_problem, ground_actions
+from taskseq.plan.symbolic.roles import demonstrated_roles
+from taskseq.sim.primitives import PreconditionError, execute
 
 DOMAIN = parse_domain(DOMAIN_PATH)
 

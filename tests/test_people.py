@@ -8,19 +8,19 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.features.dataset import build_steps, write_features
-from pipeline.logs.ingest import write_tables
-from pipeline.logs.people import people_records
-from pipeline.serve.environments import world_environment
-from pipeline.serve.writer import RecordWriter, person_record
-from pipeline.settings import Learner, People, Teach, Train, World
-from pipeline.sim.demonstrator import demonstrate
-from pipeline.sim.scenarios import doable_tasks
-from pipeline.sim.tasks import Task
-from pipeline.stages import people as people_stage
-from pipeline.stages import teach as teach_stage
-from pipeline.stages import train as train_stage
-from pipeline.stages.paths import PeoplePaths, TeachPaths, TrainPaths
+from taskseq.features.dataset import build_steps, write_features
+from taskseq.logs.ingest import write_tables
+from taskseq.logs.people import people_records
+from taskseq.serve.environments import world_environment
+from taskseq.serve.writer import RecordWriter, person_record
+from taskseq.settings import Learner, People, Teach, Train, World
+from taskseq.sim.demonstrator import demonstrate
+from taskseq.sim.scenarios import doable_tasks
+from taskseq.sim.tasks import Task
+from taskseq.stages import people as people_stage
+from taskseq.stages import teach as teach_stage
+from taskseq.stages import train as train_stage
+from taskseq.stages.paths import PeoplePaths, TeachPaths, TrainPaths
 
 LEARNER = Learner(C=3.0, tol=1e-2, max_iter=300)
 TAUGHT = [Task("pour", ("obj27",)), Task("throw_away", ("obj43",))]  # in env01

@@ -6,12 +6,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipeline.cli import main
-from pipeline.features.dataset import build_steps
-from pipeline.learn.estimator import StepScorer
-from pipeline.learn.persist import load_model
-from pipeline.logs.records import parse_record, state_from_dict
-from pipeline.plan.planner import DONE, plan
+from taskseq.cli import main
+from taskseq.features.dataset import build_steps
+from taskseq.learn.estimator import StepScorer
+from taskseq.learn.persist import load_model
+from taskseq.logs.records import parse_record, state_from_dict
+from taskseq.plan.planner import DONE, plan
 
 
 @pytest.fixture(scope="module")

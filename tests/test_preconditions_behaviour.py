@@ -8,8 +8,8 @@ import inspect
 
 import pytest
 
-from pipeline.sim import primitives
-from pipeline.sim.primitives import Action, PreconditionError, execute
+from taskseq.sim import primitives
+from taskseq.sim.primitives import Action, PreconditionError, execute
 from tests.conftest import world
 
 TABLE, TRASH = "obj02", "obj10"
@@ -178,8 +178,8 @@ def room():
     ((0.4, -0.35), (0.25, 0.05)),  # the bowl blocks 0.30 to 0.50; 0.25 and 0.55 are as near: lattice order
 ])
 def test_a_cup_goes_to_the_free_spot_nearest_the_robot(room, robot, spot):
-    from pipeline.sim.primitives import free_spot
-    from pipeline.sim.state import ON
+    from taskseq.sim.primitives import free_spot
+    from taskseq.sim.state import ON
 
     room.robot = robot
     assert free_spot(room, CUP, TABLE) == ((*spot, 0.75), ON)
@@ -192,16 +192,16 @@ def test_an_object_that_spans_a_whole_number_of_grid_steps_can_stand_flush_with_
 
     A known deviation kept for the paper rooms' bytes (docs/world.md, the primitives): strict, so a fix shows here.
     """
-    from pipeline.sim.primitives import free_spot
-    from pipeline.sim.state import ON
+    from taskseq.sim.primitives import free_spot
+    from taskseq.sim.state import ON
 
     room = world({4: 0.0}, [(12, 4, 0, -0.3)], robot_x=3.0)  # a wastebasket on the coffee table; the robot far right
     assert free_spot(room, "obj12", "obj04") == ((0.35, 0.15, 0.45), ON)  # the wastebasket flush with the right edge
 
 
 def test_a_shelf_takes_an_object_on_the_lowest_level_it_fits_under(room):
-    from pipeline.sim.primitives import free_spot
-    from pipeline.sim.state import ON
+    from taskseq.sim.primitives import free_spot
+    from taskseq.sim.state import ON
 
     assert free_spot(room, CUP, "obj08") == ((1.65, 0.05, 0.5), ON)  # 9 cm cup: the lowest level
     # the 35 cm wastebasket fits under no level but the top one (0.3 m between levels, 2 cm to spare)
@@ -209,8 +209,8 @@ def test_a_shelf_takes_an_object_on_the_lowest_level_it_fits_under(room):
 
 
 def test_a_container_takes_what_fits_inside_at_its_centre(room):
-    from pipeline.sim.primitives import free_spot
-    from pipeline.sim.state import INSIDE
+    from taskseq.sim.primitives import free_spot
+    from taskseq.sim.state import INSIDE
 
     assert free_spot(room, CUP, TRASH) == ((-1.2, 0.2, 0.005), INSIDE)
     assert free_spot(room, CUP, "obj16") == ((0.4, 0.16, 0.755), INSIDE)  # a cup into the bowl
@@ -244,7 +244,7 @@ def test_holding_above_lifts_a_placed_object_off_its_support(kitchen):
 
 
 def test_a_long_object_fits_a_container_only_if_both_sides_do():
-    from pipeline.sim.primitives import free_spot
+    from taskseq.sim.primitives import free_spot
 
     state = world({2: 0.0}, [(13, 2, 0, 0.0), (38, 2, 0, 0.4), (15, 2, 0, -0.4), (27, 15)])
     assert free_spot(state, "obj38", "obj13") is None  # an 8 cm wide, 30 cm long spatula into a 8.5 x 12 cm mug
@@ -257,7 +257,7 @@ def test_a_spoon_exactly_as_long_as_the_glass_is_deep_stirs():
 
 
 def test_try_execute_gives_the_next_state_or_none(kitchen):
-    from pipeline.sim.primitives import try_execute
+    from taskseq.sim.primitives import try_execute
 
     assert try_execute(kitchen, Action.parse(f"grasp({CUP})")) is None  # out of reach
     near = try_execute(kitchen, Action.parse(f"move_close({CUP})"))
@@ -265,7 +265,7 @@ def test_try_execute_gives_the_next_state_or_none(kitchen):
 
 
 def test_what_a_target_receives_inside_and_on_top(kitchen):
-    from pipeline.sim.primitives import receives_inside
+    from taskseq.sim.primitives import receives_inside
 
     assert receives_inside(kitchen, TRASH) and receives_inside(kitchen, CUP)
     assert not receives_inside(kitchen, TABLE) and not receives_inside(kitchen, SPOON)
@@ -290,7 +290,7 @@ def _resized(state, obj: str, **change):
 
 
 def test_an_object_fits_inside_up_to_the_containers_own_footprint(kitchen):
-    from pipeline.sim.primitives import free_spot
+    from taskseq.sim.primitives import free_spot
 
     bin_w, bin_l, _ = kitchen.specs[TRASH].size
     exact = _resized(kitchen.copy(), CUP, size=(bin_w, bin_l, 0.09))
@@ -300,14 +300,14 @@ def test_an_object_fits_inside_up_to_the_containers_own_footprint(kitchen):
 
 
 def test_a_container_with_a_large_flat_top_takes_things_on_top(kitchen):
-    from pipeline.sim.primitives import receives_inside
+    from taskseq.sim.primitives import receives_inside
 
     flags = kitchen.specs[TRASH].flags | {"large_surface"}
     assert not receives_inside(_resized(kitchen.copy(), TRASH, flags=flags), TRASH)
 
 
 def test_every_object_on_the_level_blocks_its_footprint(room):
-    from pipeline.sim.primitives import free_spot
+    from taskseq.sim.primitives import free_spot
 
     # a second bowl at x = 0.15 also blocks 0.05 to 0.25 of the front row: the nearest free spot is 0.55
     two = world({2: 0.0, 8: 2.2, 10: -1.2}, [(16, 2, 0, 0.4), (18, 2, 0, -0.2), (14, 2, 0, -0.6)])
@@ -319,7 +319,7 @@ def test_every_object_on_the_level_blocks_its_footprint(room):
 
 @pytest.mark.parametrize("robot_x, spot_x", [(0.28, 0.3), (0.52, 0.5), (0.36, 0.3)])
 def test_touching_an_object_is_not_overlapping_it(room, robot_x, spot_x):
-    from pipeline.sim.primitives import free_spot
+    from taskseq.sim.primitives import free_spot
 
     # a 4 x 10 cm cup beside the 16 cm bowl at x = 0.4 (both reach into y 0.08 to 0.1): at 0.3 and 0.5 their
     # edges meet exactly, at 0.35 they overlap
@@ -329,7 +329,7 @@ def test_touching_an_object_is_not_overlapping_it(room, robot_x, spot_x):
 
 
 def test_objects_on_other_levels_do_not_block_a_shelf_level():
-    from pipeline.sim.primitives import free_spot
+    from taskseq.sim.primitives import free_spot
 
     shelf = world({8: 2.2}, [(13, 8, 1, 0.0), (14, 8, 0, -0.4)])  # a mug on the second level, right above x = 2.2
     shelf.robot = (2.2, -0.35)
@@ -337,7 +337,7 @@ def test_objects_on_other_levels_do_not_block_a_shelf_level():
 
 
 def test_an_object_as_large_as_the_surface_fits_at_its_centre_and_a_too_tall_one_goes_up(room):
-    from pipeline.sim.primitives import free_spot
+    from taskseq.sim.primitives import free_spot
 
     table_w, table_l, _ = room.specs[TABLE].size
     board = _resized(room.copy(), CUP, size=(table_w, table_l, 0.02))

@@ -1,7 +1,7 @@
 import pytest
 
-from pipeline.sim.primitives import Action, PreconditionError, execute
-from pipeline.sim.state import INSIDE, ON
+from taskseq.sim.primitives import Action, PreconditionError, execute
+from taskseq.sim.state import INSIDE, ON
 from tests.conftest import world
 
 TABLE, SHELF, TRASH = "obj02", "obj08", "obj10"

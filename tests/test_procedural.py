@@ -9,10 +9,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from pipeline.cli import main
-from pipeline.logs.generate import generate
-from pipeline.settings import Generate, Params, Procedural
-from pipeline.sim.catalog import (
+from taskseq.cli import main
+from taskseq.logs.generate import generate
+from taskseq.settings import Generate, Params, Procedural
+from taskseq.sim.catalog import (
     ENVIRONMENTS_BY_ID,
     OBJECTS,
     OBJECTS_BY_ID,
@@ -20,8 +20,8 @@ from pipeline.sim.catalog import (
     Placement,
     build_environment,
 )
-from pipeline.sim.primitives import execute
-from pipeline.sim.procedural import (
+from taskseq.sim.primitives import execute
+from taskseq.sim.procedural import (
     CATALOG_KINDS,
     NEW_KINDS,
     SHAPES,
@@ -34,8 +34,8 @@ from pipeline.sim.procedural import (
     check_fits,
     draw_room,
 )
-from pipeline.sim.scenarios import QUOTAS, drawn_scenarios, world_scenarios
-from pipeline.sim.tasks import goal_reached
+from taskseq.sim.scenarios import QUOTAS, drawn_scenarios, world_scenarios
+from taskseq.sim.tasks import goal_reached
 
 CATALOG_NAMES = {o.name for o in OBJECTS}
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipeline.learn.products import dot, matmul
+from taskseq.learn.products import dot, matmul
 
 
 def _reference(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.track.mlflow_runs import hash_inputs, provenance
+from taskseq.track.mlflow_runs import hash_inputs, provenance
 
 
 def _git(repo: Path, *args: str) -> str:

@@ -2,13 +2,13 @@
 
 import numpy as np
 
-from pipeline.evaluate.recipes import RECIPES, evaluate_recipes
-from pipeline.learn.estimator import StepScorer
-from pipeline.learn.mrf import MRFModel
-from pipeline.sim.catalog import ENVIRONMENTS_BY_ID, build_environment
-from pipeline.sim.demonstrator import demonstrate
-from pipeline.sim.primitives import execute
-from pipeline.sim.tasks import goal_reached
+from taskseq.evaluate.recipes import RECIPES, evaluate_recipes
+from taskseq.learn.estimator import StepScorer
+from taskseq.learn.mrf import MRFModel
+from taskseq.sim.catalog import ENVIRONMENTS_BY_ID, build_environment
+from taskseq.sim.demonstrator import demonstrate
+from taskseq.sim.primitives import execute
+from taskseq.sim.tasks import goal_reached
 
 
 def test_four_recipes_in_three_environments_each():

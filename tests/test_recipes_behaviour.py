@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from threadpoolctl import threadpool_info
 
-from pipeline.evaluate.recipes import (  # the builders too: RECIPES is built when the module loads
+from taskseq.evaluate.recipes import (  # the builders too: RECIPES is built when the module loads
     PROGRAM_COLUMNS,
     RECIPES,
     RecipeOutcome,
@@ -26,12 +26,12 @@ from pipeline.evaluate.recipes import (  # the builders too: RECIPES is built wh
     recipe_training_sets,
     run_recipe,
 )
-from pipeline.features.context import NO_PRIM
-from pipeline.features.dataset import StepMeta
-from pipeline.sim.catalog import ENVIRONMENTS_BY_ID, build_environment
-from pipeline.sim.demonstrator import choose_vessel, demonstrate
-from pipeline.sim.primitives import Action, execute
-from pipeline.sim.tasks import Task
+from taskseq.features.context import NO_PRIM
+from taskseq.features.dataset import StepMeta
+from taskseq.sim.catalog import ENVIRONMENTS_BY_ID, build_environment
+from taskseq.sim.demonstrator import choose_vessel, demonstrate
+from taskseq.sim.primitives import Action, execute
+from taskseq.sim.tasks import Task
 
 DONE = Action("done")
 
@@ -115,7 +115,7 @@ def test_a_planner_that_follows_the_demonstrator_completes_every_recipe(recipe):
 
 def test_each_program_builds_the_methods_policy_for_its_own_task(monkeypatch):
     """A policy that imagines steps (the lookahead) needs the program's task: each program passes its own."""
-    import pipeline.evaluate.recipes as recipes_module
+    import taskseq.evaluate.recipes as recipes_module
 
     built, real = [], recipes_module.learned_policy
 

@@ -2,10 +2,10 @@
 
 from rerun.chunk import RrdReader
 
-from pipeline.plan.planner import Program, run_loop
-from pipeline.sim.primitives import Action
-from pipeline.sim.tasks import Task
-from pipeline.track.recordings import record_program
+from taskseq.plan.planner import Program, run_loop
+from taskseq.sim.primitives import Action
+from taskseq.sim.tasks import Task
+from taskseq.track.recordings import record_program
 from tests.conftest import world
 
 
@@ -50,7 +50,7 @@ def test_a_recording_holds_the_objects_robot_plan_and_demonstration_per_step(tmp
 
 
 def test_a_recording_opens_framed_on_the_furniture_with_few_labels(tmp_path):
-    from pipeline.track.recordings import FURNITURE, framing
+    from taskseq.track.recordings import FURNITURE, framing
 
     state = world({2: 0.0}, [(14, 2, 0, 0.3), (20, 2, 0, -0.3), (27, 20)])
     position, target = framing(state)

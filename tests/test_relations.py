@@ -6,9 +6,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from pipeline.features.context import RELATION_COLUMNS, relations, step_context
-from pipeline.sim.state import WorldState
-from pipeline.sim.tasks import Task
+from taskseq.features.context import RELATION_COLUMNS, relations, step_context
+from taskseq.sim.state import WorldState
+from taskseq.sim.tasks import Task
 from tests.conftest import world
 
 
@@ -66,9 +66,9 @@ def test_step_contexts_carry_relations():
 
 def test_step_context_rows_agree_with_the_states_own_queries(benchmark_tables):
     """The per-step rows are built in one pass over the state; each must say what `WorldState` says."""
-    from pipeline.features.context import OBJECT_COLUMNS, scale_attribute
-    from pipeline.logs.benchmark import Benchmark
-    from pipeline.sim.primitives import execute
+    from taskseq.features.context import OBJECT_COLUMNS, scale_attribute
+    from taskseq.logs.benchmark import Benchmark
+    from taskseq.sim.primitives import execute
 
     scenarios = Benchmark.from_records([i.record for i in benchmark_tables[1]]).scenarios
     checked = 0

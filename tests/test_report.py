@@ -2,8 +2,8 @@
 
 import json
 
-from pipeline.evaluate.registry import method_labels
-from pipeline.report.summary import build_summary
+from taskseq.evaluate.registry import method_labels
+from taskseq.report.summary import build_summary
 
 
 def test_summary_sets_our_numbers_beside_the_papers(tmp_path):
@@ -65,7 +65,7 @@ def test_summary_gives_each_methods_own_c(tmp_path):
 
 def test_the_transfer_column_shows_what_transfer_md_shows(tmp_path):
     """From the unrounded means: the CSV's two decimals (2.25) would give 2.2 where the table shows 2.3."""
-    from pipeline.stages.scenes import transfer_markdown
+    from taskseq.stages.scenes import transfer_markdown
 
     row = {"method": "dagger", "sequence_arg": 65.2933, "sequence_arg_sd": 2.2549, "sequence_prim": 74.48,
            "sequence_prim_sd": 1.43, "success": 80.1249, "success_sd": 2.75, "goal_reached": 86.62,

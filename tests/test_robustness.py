@@ -3,13 +3,13 @@
 import numpy as np
 import pytest
 
-from pipeline.evaluate.methods import MRFMethod
-from pipeline.evaluate.robustness import observer
-from pipeline.features.context import step_context
-from pipeline.features.perception import BINARY_COLUMNS, flip_masks, noisy_perception
-from pipeline.logs.benchmark import Benchmark
-from pipeline.plan.planner import plan
-from pipeline.sim.primitives import Action
+from taskseq.evaluate.methods import MRFMethod
+from taskseq.evaluate.robustness import observer
+from taskseq.features.context import step_context
+from taskseq.features.perception import BINARY_COLUMNS, flip_masks, noisy_perception
+from taskseq.logs.benchmark import Benchmark
+from taskseq.plan.planner import plan
+from taskseq.sim.primitives import Action
 
 
 @pytest.fixture(scope="module")
@@ -64,7 +64,7 @@ def test_full_feedback_never_does_worse(fitted):
 
 
 def test_feedback_command_refuses_a_bad_step_count(capsys):
-    from pipeline.cli import main
+    from taskseq.cli import main
 
     assert main(["--no-mlflow", "feedback", "--set", "feedback.n=1 two", "--output", "unused"]) == 2
     assert "feedback.n must list whole numbers of steps or 'all', got 'two'" in capsys.readouterr().err

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipeline.evaluate.crossval import SequenceOutcome
-from pipeline.evaluate.robustness import (
+from taskseq.evaluate.crossval import SequenceOutcome
+from taskseq.evaluate.robustness import (
     FeedbackCondition,
     NoiseCondition,
     feedback_steps,
@@ -14,11 +14,11 @@ from pipeline.evaluate.robustness import (
     noise_runs,
     rates,
 )
-from pipeline.features.context import OBJECT_COLUMNS, step_context
-from pipeline.features.perception import BINARY_COLUMNS, flip_masks, noisy_perception
-from pipeline.settings import Feedback, Noise
-from pipeline.sim.objects import BINARY_ATTRIBUTES
-from pipeline.sim.tasks import Task
+from taskseq.features.context import OBJECT_COLUMNS, step_context
+from taskseq.features.perception import BINARY_COLUMNS, flip_masks, noisy_perception
+from taskseq.settings import Feedback, Noise
+from taskseq.sim.objects import BINARY_ATTRIBUTES
+from taskseq.sim.tasks import Task
 from tests.conftest import world
 
 

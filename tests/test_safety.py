@@ -1,5 +1,5 @@
-from pipeline.sim.primitives import Action, execute
-from pipeline.sim.safety import RULES, violations
+from taskseq.sim.primitives import Action, execute
+from taskseq.sim.safety import RULES, violations
 from tests.conftest import world
 
 

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from pipeline.serve.environments import world_environment
-from pipeline.serve.scene import support_tree, top_view
-from pipeline.sim.primitives import Action, execute
+from taskseq.serve.environments import world_environment
+from taskseq.serve.scene import support_tree, top_view
+from taskseq.sim.primitives import Action, execute
 
 
 def nodes_by_id(nodes, out=None):

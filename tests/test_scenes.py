@@ -9,14 +9,14 @@ from dataclasses import dataclass, field
 
 import pytest
 
-from pipeline.cli import main
-from pipeline.evaluate.transfer import transfer
-from pipeline.features.dataset import build_steps
-from pipeline.logs.benchmark import Benchmark
-from pipeline.logs.generate import generate
-from pipeline.logs.ingest import load_logs
-from pipeline.settings import Generate, Params, Procedural
-from pipeline.stages import scenes
+from taskseq.cli import main
+from taskseq.evaluate.transfer import transfer
+from taskseq.features.dataset import build_steps
+from taskseq.logs.benchmark import Benchmark
+from taskseq.logs.generate import generate
+from taskseq.logs.ingest import load_logs
+from taskseq.settings import Generate, Params, Procedural
+from taskseq.stages import scenes
 
 LEARN = ["--set", "train.tol=0.01", "--set", "train.max_iter=300", "--set", "train.n_slacks=0"]
 
@@ -116,7 +116,7 @@ def test_the_scenes_stage_writes_every_table_over_seeds(benchmark_logs, tmp_path
 
 def test_rooms_held_out_never_reach_training(tmp_path):
     """A spy in every fold of a drawn world's cross-validation grouped by room: no step of a tested room trains."""
-    from pipeline.evaluate.crossval import cross_validate
+    from taskseq.evaluate.crossval import cross_validate
 
     contexts, meta, bench = _world(tmp_path / "drawn", Generate(seed=1, family="procedural",
                                                                  procedural=Procedural(environments=4)))
@@ -140,9 +140,9 @@ def test_rooms_held_out_never_reach_training(tmp_path):
 
 def test_a_drawn_objects_logged_attributes_follow_from_its_size_and_flags(tmp_path):
     """A new object's flags are its kind's fixed ones and some of those drawn for it; objects of a kind differ."""
-    from pipeline.logs.records import expected_attributes
-    from pipeline.sim.objects import BINARY_ATTRIBUTES, attributes_of_box
-    from pipeline.sim.procedural import NEW_KINDS
+    from taskseq.logs.records import expected_attributes
+    from taskseq.sim.objects import BINARY_ATTRIBUTES, attributes_of_box
+    from taskseq.sim.procedural import NEW_KINDS
 
     generate(Generate(seed=2, family="procedural", procedural=Procedural(environments=3, new_objects=0.9)),
              tmp_path / "raw")
@@ -192,7 +192,7 @@ def test_with_drawn_reported_worlds_the_stage_runs_and_says_no_transfer_was_meas
 
 
 def test_the_summary_names_the_drawn_worlds_size(tmp_path):
-    from pipeline.report.summary import _scenes
+    from taskseq.report.summary import _scenes
 
     drawn = tmp_path / "scenes" / "drawn"
     drawn.mkdir(parents=True)

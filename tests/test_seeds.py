@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from pipeline.report.seeds import (
+from taskseq.report.seeds import (
     curve_over_seeds,
     failure_shares,
     failures_over_seeds,
@@ -48,7 +48,7 @@ def test_table1_keeps_every_seed_and_gives_mean_and_spread(worlds):
 
 
 def test_headline_and_failures_over_seeds(worlds):
-    from pipeline.report.seeds import crossval_over_seeds
+    from taskseq.report.seeds import crossval_over_seeds
 
     summaries = crossval_over_seeds(worlds)
     rows, means = headline_over_seeds(summaries)

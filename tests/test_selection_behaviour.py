@@ -10,10 +10,10 @@ import math
 
 import pytest
 
-from pipeline.evaluate import selection
-from pipeline.evaluate.crossval import FoldResult, SequenceOutcome
-from pipeline.evaluate.methods import MRFMethod, mrf_methods
-from pipeline.evaluate.selection import (
+from taskseq.evaluate import selection
+from taskseq.evaluate.crossval import FoldResult, SequenceOutcome
+from taskseq.evaluate.methods import MRFMethod, mrf_methods
+from taskseq.evaluate.selection import (
     DevData,
     Selection,
     choose_C,
@@ -21,13 +21,13 @@ from pipeline.evaluate.selection import (
     rank_methods,
     read_selection,
 )
-from pipeline.features.context import StepContext
-from pipeline.logs.benchmark import Benchmark
-from pipeline.settings import Folds, Learner, Params, Replay
-from pipeline.sim.primitives import ALL_PRIMITIVES
-from pipeline.stages import fold_models as fold_models_stage
-from pipeline.stages import train as train_stage
-from pipeline.stages.command import load_params
+from taskseq.features.context import StepContext
+from taskseq.logs.benchmark import Benchmark
+from taskseq.settings import Folds, Learner, Params, Replay
+from taskseq.sim.primitives import ALL_PRIMITIVES
+from taskseq.stages import fold_models as fold_models_stage
+from taskseq.stages import train as train_stage
+from taskseq.stages.command import load_params
 
 GRASP = ALL_PRIMITIVES.index("grasp")
 # per C: sequences right (of 4), successes (of 4), steps with the right arguments (of 2)
@@ -187,7 +187,7 @@ def test_a_ranking_reads_each_methods_figures_at_its_chosen_c_and_ties_within_ro
 
 
 def test_the_method_ranked_first_is_read_back_or_the_file_says_what_is_missing(tmp_path):
-    from pipeline.evaluate.selection import read_selected_method
+    from taskseq.evaluate.selection import read_selected_method
 
     path = tmp_path / "selection.json"
     path.write_text(json.dumps({"C": 3, "method": "choice_lookahead"}))

@@ -16,16 +16,16 @@ import numpy as np
 import pytest
 from werkzeug.serving import make_server
 
-from pipeline.cli import main
-from pipeline.learn.estimator import StepScorer
-from pipeline.learn.mrf import MRFModel
-from pipeline.serve.app import create_app
-from pipeline.serve.environments import world_environment
-from pipeline.serve.load import Client, LoadResult, run_load, scripted_tasks
-from pipeline.serve.writer import RecordWriter, person_record
-from pipeline.sim.demonstrator import demonstrate
-from pipeline.sim.primitives import Action
-from pipeline.sim.tasks import Task
+from taskseq.cli import main
+from taskseq.learn.estimator import StepScorer
+from taskseq.learn.mrf import MRFModel
+from taskseq.serve.app import create_app
+from taskseq.serve.environments import world_environment
+from taskseq.serve.load import Client, LoadResult, run_load, scripted_tasks
+from taskseq.serve.writer import RecordWriter, person_record
+from taskseq.sim.demonstrator import demonstrate
+from taskseq.sim.primitives import Action
+from taskseq.sim.tasks import Task
 
 POUR = Task("pour", ("obj27",))  # env01: the water in its bottle, on the kitchen table
 
@@ -147,7 +147,7 @@ def test_a_bad_task_is_refused_with_a_message(client, data, form, expected):
 
 def environment_file(edit=None) -> str:
     state = world_environment(0, "env01").state
-    from pipeline.logs.records import spec_to_dict, state_to_dict
+    from taskseq.logs.records import spec_to_dict, state_to_dict
 
     env = {"objects": [spec_to_dict(s) for s in state.specs.values()], "state": state_to_dict(state)}
     if edit:
@@ -351,7 +351,7 @@ def test_a_load_of_concurrent_browsers_loses_no_record_and_leaves_no_partial_fil
 
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
 def test_a_stopped_server_keeps_every_saved_record_whole(data, zero_model, signum):
-    proc = subprocess.Popen([sys.executable, "-m", "pipeline.cli", "serve", "--port", "0", "--data", str(data),
+    proc = subprocess.Popen([sys.executable, "-m", "taskseq.cli", "serve", "--port", "0", "--data", str(data),
                              "--model", str(zero_model)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         url = re.search(r"http://\S+/", proc.stdout.readline()).group(0).rstrip("/")

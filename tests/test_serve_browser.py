@@ -16,16 +16,16 @@ import pytest
 from playwright.sync_api import sync_playwright
 from werkzeug.serving import make_server
 
-from pipeline.cli import main
-from pipeline.features.dataset import build_steps
-from pipeline.learn.estimator import StepScorer
-from pipeline.logs.records import demonstration_record
-from pipeline.serve.app import create_app
-from pipeline.serve.environments import world_environment
-from pipeline.sim.demonstrator import demonstrate
-from pipeline.sim.primitives import Action
-from pipeline.sim.scenarios import candidate_scenarios
-from pipeline.sim.tasks import Task
+from taskseq.cli import main
+from taskseq.features.dataset import build_steps
+from taskseq.learn.estimator import StepScorer
+from taskseq.logs.records import demonstration_record
+from taskseq.serve.app import create_app
+from taskseq.serve.environments import world_environment
+from taskseq.sim.demonstrator import demonstrate
+from taskseq.sim.primitives import Action
+from taskseq.sim.scenarios import candidate_scenarios
+from taskseq.sim.tasks import Task
 
 CHROMIUM = Path("/usr/bin/chromium")  # Debian's package; .ci/run installs it
 ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
@@ -162,7 +162,7 @@ def test_two_browsers_at_once_write_two_whole_records(server, browser):
 
 
 def test_markup_in_an_uploaded_environment_file_is_shown_as_text_and_never_run(server, browser, tmp_path):
-    from pipeline.logs.records import spec_to_dict, state_to_dict
+    from taskseq.logs.records import spec_to_dict, state_to_dict
 
     url, data = server
     state = world_environment(0, "env01").state

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.settings import Params, Replay
+from taskseq.settings import Params, Replay
 
 ROOT = Path(__file__).resolve().parents[1]
 

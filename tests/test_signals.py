@@ -9,8 +9,8 @@ import time
 
 import pytest
 
-from pipeline.features.dataset import write_features
-from pipeline.logs.ingest import write_tables
+from taskseq.features.dataset import write_features
+from taskseq.logs.ingest import write_tables
 
 
 @pytest.fixture(scope="module")
@@ -39,7 +39,7 @@ def test_a_stopped_stage_marks_its_run_killed_and_writes_nothing(data, tmp_path,
     env = {**os.environ, "MLFLOW_TRACKING_URI": f"sqlite:///{db}", "TASKSEQ_N_JOBS": "1"}
     out, metrics, log, said = tmp_path / "store", tmp_path / "folds.json", tmp_path / "stderr.txt", tmp_path / "out"
     with log.open("w") as fh, said.open("w") as sh:
-        proc = subprocess.Popen([sys.executable, "-u", "-m", "pipeline.cli", "fold_models", "--features",
+        proc = subprocess.Popen([sys.executable, "-u", "-m", "taskseq.cli", "fold_models", "--features",
                                  str(data / "features"), "--processed", str(data / "processed"), "--output", str(out),
                                  "--metrics", str(metrics)], env=env, stdout=sh, stderr=fh,
                                 preexec_fn=_default_sigint)
@@ -62,7 +62,7 @@ def test_a_stopped_stage_marks_its_run_killed_and_writes_nothing(data, tmp_path,
 @pytest.fixture
 def handlers():
     """The stopping handlers installed for the test, the previous ones back afterwards."""
-    from pipeline import stopping
+    from taskseq import stopping
 
     before = signal.getsignal(signal.SIGTERM), signal.getsignal(signal.SIGINT)
     stopping.install()
@@ -86,7 +86,7 @@ def test_a_signal_inside_a_held_block_is_raised_when_the_block_is_done(handlers,
 
 def test_a_signal_while_the_run_is_being_opened_still_leaves_it_killed(handlers, tmp_path, monkeypatch):
     """A signal landing as the run's first record is sent: the run must end KILLED, not RUNNING or FAILED."""
-    from pipeline.track import mlflow_runs
+    from taskseq.track import mlflow_runs
 
     monkeypatch.setenv("MLFLOW_TRACKING_URI", f"sqlite:///{tmp_path / 'mlflow.db'}")
     real_send = mlflow_runs._Channel.send
@@ -112,7 +112,7 @@ def test_a_stage_killed_outright_leaves_no_run_running(data, tmp_path):
     env = {**os.environ, "MLFLOW_TRACKING_URI": f"sqlite:///{db}", "TASKSEQ_N_JOBS": "1"}
     said = tmp_path / "out"
     with said.open("w") as sh:
-        proc = subprocess.Popen([sys.executable, "-u", "-m", "pipeline.cli", "fold_models", "--features",
+        proc = subprocess.Popen([sys.executable, "-u", "-m", "taskseq.cli", "fold_models", "--features",
                                  str(data / "features"), "--processed", str(data / "processed"), "--output",
                                  str(tmp_path / "store")], env=env, stdout=sh, stderr=subprocess.DEVNULL)
         while proc.poll() is None and not _working(said):

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from sklearn.svm import LinearSVC
 
-from pipeline.learn.multiclass import MulticlassModel
-from pipeline.learn.ssvm import CuttingPlaneSSVM
+from taskseq.learn.multiclass import MulticlassModel
+from taskseq.learn.ssvm import CuttingPlaneSSVM
 
 
 class PairModel:
@@ -91,7 +91,7 @@ def test_every_slack_grouping_reaches_the_same_optimum(toy, n_slacks):
 
 def test_working_set_dual_matches_a_direct_cvxpy_solve():
     """The pairwise solver of the working-set QP against the same QP stated in cvxpy."""
-    from pipeline.learn.working_set import WorkingSet
+    from taskseq.learn.working_set import WorkingSet
 
     rng = np.random.default_rng(7)
     K, d, B, C = 40, 15, 3, 2.5
@@ -119,7 +119,7 @@ def test_many_groups_with_shrinking_match_a_direct_cvxpy_solve(sparse):
     (shrinking) and brings them back: the optimum is the one cvxpy finds, added in three batches."""
     import scipy.sparse as sps
 
-    from pipeline.learn.working_set import WorkingSet
+    from taskseq.learn.working_set import WorkingSet
 
     rng = np.random.default_rng(11)
     K, d, B, C = 900, 30, 300, 1.5
@@ -149,7 +149,7 @@ def test_the_gram_matrix_is_scipys_sparse_product_bit_for_bit():
     bytes they were with scipy's product), and the matrix is exactly symmetric."""
     import scipy.sparse as sps
 
-    from pipeline.learn.working_set import WorkingSet
+    from taskseq.learn.working_set import WorkingSet
 
     rng = np.random.default_rng(3)
     K, d = 260, 400

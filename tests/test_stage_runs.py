@@ -9,16 +9,16 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.cli import main
-from pipeline.evaluate import selection
-from pipeline.evaluate.selection import best_candidate
-from pipeline.learn.estimator import StepScorer
-from pipeline.logs.benchmark import load_benchmark
-from pipeline.logs.ingest import load_logs
-from pipeline.logs.records import spec_from_dict, state_from_dict
-from pipeline.plan.planner import feasible, run_loop
-from pipeline.sim.tasks import Task
-from pipeline.stages import select as select_stage
+from taskseq.cli import main
+from taskseq.evaluate import selection
+from taskseq.evaluate.selection import best_candidate
+from taskseq.learn.estimator import StepScorer
+from taskseq.logs.benchmark import load_benchmark
+from taskseq.logs.ingest import load_logs
+from taskseq.logs.records import spec_from_dict, state_from_dict
+from taskseq.plan.planner import feasible, run_loop
+from taskseq.sim.tasks import Task
+from taskseq.stages import select as select_stage
 
 FOLDS = ["--set", "crossval.folds=2", "--set", "crossval.group_by=scenario", "--set", "crossval.seed=0"]
 LEARN = ["--set", "train.tol=0.01", "--set", "train.max_iter=300", "--set", "train.n_slacks=0"]

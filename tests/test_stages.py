@@ -13,18 +13,18 @@ import pytest
 import yaml
 from params_reads import keys_read
 
-from pipeline.settings import NOT_IN_PARAMS, SECTIONS, parse_section
-from pipeline.stages import STAGES
+from taskseq.settings import NOT_IN_PARAMS, SECTIONS, parse_section
+from taskseq.stages import STAGES
 
 ROOT = Path(__file__).resolve().parents[1]
 DVC = yaml.safe_load((ROOT / "dvc.yaml").read_text())["stages"]
 
 LOADED = """
 import importlib, json, sys
-importlib.import_module("pipeline.cli")
-importlib.import_module("pipeline.stages." + sys.argv[1])
+importlib.import_module("taskseq.cli")
+importlib.import_module("taskseq.stages." + sys.argv[1])
 print(json.dumps(sorted(m.__file__ for n, m in sys.modules.items()
-                        if (n == "pipeline" or n.startswith("pipeline.")) and getattr(m, "__file__", None))))
+                        if (n == "taskseq" or n.startswith("taskseq.")) and getattr(m, "__file__", None))))
 """
 
 
@@ -50,20 +50,20 @@ def test_every_stage_of_dvc_yaml_has_its_module():
 
 @pytest.mark.parametrize("stage", STAGES)
 def test_dvc_deps_are_exactly_the_project_code_a_stage_loads(stage):
-    deps = [d for d in dvc_stage(stage)["deps"] if d.startswith("pipeline")]
+    deps = [d for d in dvc_stage(stage)["deps"] if d.startswith("taskseq")]
     loaded = loaded_files(stage)
     missing = sorted(f for f in loaded if not any(covers(d, f) for d in deps))
     assert not missing, f"dvc.yaml stage {stage} misses deps on {missing}"
     unused = sorted(d for d in deps if not any(covers(d, f) for f in loaded))
     assert not unused, f"dvc.yaml stage {stage} depends on {unused}, which it never loads"
-    assert f"pipeline/stages/{stage}.py" in deps
+    assert f"taskseq/stages/{stage}.py" in deps
 
 
 @pytest.mark.parametrize("stage", ["train", "select", "fold_models", "crossval", "noise", "feedback", "recipes"])
 def test_stages_that_load_planners_start_without_scikit_learn(stage):
     # importing scikit-learn takes about a second in every stage process and worker; only the baselines'
     # fits need it, and they import it themselves
-    code = f"import sys, pipeline.stages.{stage}; print('sklearn' in sys.modules)"
+    code = f"import sys, taskseq.stages.{stage}; print('sklearn' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT)
     assert out.stdout.strip() == "False"
 

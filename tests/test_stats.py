@@ -7,9 +7,9 @@ from math import comb
 import numpy as np
 import pytest
 
-from pipeline.cli import main
-from pipeline.report.csvs import SEQUENCE_COLUMNS, STEP_COLUMNS, csv_text
-from pipeline.report.stats import (
+from taskseq.cli import main
+from taskseq.report.csvs import SEQUENCE_COLUMNS, STEP_COLUMNS, csv_text
+from taskseq.report.stats import (
     World,
     best_baseline,
     bootstrap_rates,

@@ -6,16 +6,16 @@ from dataclasses import replace
 import pytest
 from pddl import parse_domain, parse_problem
 
-from pipeline.evaluate.methods import SymbolicMethod
-from pipeline.logs.benchmark import Benchmark
-from pipeline.plan.planner import run_loop
-from pipeline.plan.symbolic.executor import SymbolicPolicy
-from pipeline.plan.symbolic.files import file_stem, write_pddl
-from pipeline.plan.symbolic.problem import build_problem, ground_actions
-from pipeline.plan.symbolic.roles import demonstrated_roles
-from pipeline.plan.symbolic.sat import apply, solve
-from pipeline.sim.primitives import execute
-from pipeline.sim.tasks import Task, goal_reached
+from taskseq.evaluate.methods import SymbolicMethod
+from taskseq.logs.benchmark import Benchmark
+from taskseq.plan.planner import run_loop
+from taskseq.plan.symbolic.executor import SymbolicPolicy
+from taskseq.plan.symbolic.files import file_stem, write_pddl
+from taskseq.plan.symbolic.problem import build_problem, ground_actions
+from taskseq.plan.symbolic.roles import demonstrated_roles
+from taskseq.plan.symbolic.sat import apply, solve
+from taskseq.sim.primitives import execute
+from taskseq.sim.tasks import Task, goal_reached
 from tests.conftest import world
 
 
@@ -118,7 +118,7 @@ def test_rankers_pick_the_bin_the_vessel_and_the_stirrer(svm_method):
 
 def test_the_symbolic_policy_replans_when_its_next_step_cannot_run(monkeypatch):
     """A plan whose next step no longer fits the world is dropped for a fresh one from where the robot is."""
-    from pipeline.plan.symbolic import executor
+    from taskseq.plan.symbolic import executor
 
     furniture, items, task, roles = SMALL[0]
     state = world(furniture, items)
@@ -142,7 +142,7 @@ def test_the_symbolic_policy_replans_when_its_next_step_cannot_run(monkeypatch):
 
 
 def test_the_symbolic_policy_gives_up_on_a_step_after_its_replans(monkeypatch):
-    from pipeline.plan.symbolic import executor
+    from taskseq.plan.symbolic import executor
 
     furniture, items, task, roles = SMALL[0]
     state = world(furniture, items)
@@ -194,7 +194,7 @@ def _clauses_step_by_step(problem, actions, fluents, horizon):
 
 @pytest.mark.parametrize("horizon", [0, 1, 2, 5, 12])
 def test_the_shifted_encoding_is_the_step_by_step_one_clause_for_clause(scenarios, horizon):
-    from pipeline.plan.symbolic.sat import encode
+    from taskseq.plan.symbolic.sat import encode
 
     for sc in list(scenarios.values())[::20]:
         problem = build_problem("p", sc.initial, sc.task, demonstrated_roles(sc.task, sc.demonstrations[0]))
@@ -208,7 +208,7 @@ def test_the_shifted_encoding_is_the_step_by_step_one_clause_for_clause(scenario
 
 
 def test_a_kept_plan_is_the_one_a_fresh_solve_finds_and_a_copy(scenarios, monkeypatch):
-    from pipeline.plan.symbolic import sat
+    from taskseq.plan.symbolic import sat
 
     sc = next(iter(scenarios.values()))
     problem = build_problem("p", sc.initial, sc.task, demonstrated_roles(sc.task, sc.demonstrations[0]))

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from pipeline.sim.primitives import Action, execute
-from pipeline.sim.tasks import TASKS, Task, goal_reached
+from taskseq.sim.primitives import Action, execute
+from taskseq.sim.tasks import TASKS, Task, goal_reached
 from tests.conftest import world
 
 TABLE, SHELF, TRASH = "obj02", "obj08", "obj10"

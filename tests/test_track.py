@@ -9,10 +9,10 @@ from pathlib import Path
 import pytest
 from mlflow.tracking import MlflowClient
 
-from pipeline.cli import main
-from pipeline.features.dataset import write_features
-from pipeline.logs.ingest import write_tables
-from pipeline.track.mlflow_runs import EXPERIMENT
+from taskseq.cli import main
+from taskseq.features.dataset import write_features
+from taskseq.logs.ingest import write_tables
+from taskseq.track.mlflow_runs import EXPERIMENT
 
 
 @pytest.fixture
@@ -114,7 +114,7 @@ def test_train_logs_the_objective_and_gap_of_every_iteration(store, benchmark_st
 
 
 def test_under_dvc_the_store_is_the_repositorys_even_from_a_temporary_copy(monkeypatch, tmp_path):
-    from pipeline.track.mlflow_runs import tracking_uri
+    from taskseq.track.mlflow_runs import tracking_uri
 
     monkeypatch.delenv("MLFLOW_TRACKING_URI")
     monkeypatch.setenv("DVC_ROOT", str(tmp_path / "repo"))

@@ -11,8 +11,8 @@ records it and `taskseq plan` plans with it.
 
 from __future__ import annotations
 
-from pipeline.evaluate.methods import MRFMethod
-from pipeline.evaluate.registry import MethodSettings, register
+from taskseq.evaluate.methods import MRFMethod
+from taskseq.evaluate.registry import MethodSettings, register
 
 
 @register("feasible", label="ours + relations + dagger + feasible steps")

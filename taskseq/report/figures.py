@@ -1,6 +1,6 @@
 """Figures of the reports as PNG files: the confusion matrix and line plots with error bars.
 
-Written through `pipeline.io`, like every output, so a stage stopped part way
+Written through `taskseq.io`, like every output, so a stage stopped part way
 leaves each figure whole (old or new) and says which it replaced.
 """
 

@@ -14,8 +14,8 @@ its primitives' effects to imagine with, and the kitchen's safety rules.
 
 from __future__ import annotations
 
-from pipeline.evaluate.methods import MRFMethod
-from pipeline.evaluate.registry import MethodSettings, register
+from taskseq.evaluate.methods import MRFMethod
+from taskseq.evaluate.registry import MethodSettings, register
 
 
 @register("choice_lookahead", label="ours + relations + choice cues + safety lookahead")

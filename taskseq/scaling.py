@@ -6,7 +6,7 @@ each stage a `taskseq` process of its own whose wall time, CPU time and peak
 resident memory are measured (`getrusage(RUSAGE_CHILDREN)` of a small
 launcher: the largest process of the stage's tree, its loky workers included
 once reaped). After `features`, the full model is fitted alone in a process of
-its own (`python -m pipeline.scaling`), to time training to the set gap, count
+its own (`python -m taskseq.scaling`), to time training to the set gap, count
 its iterations, read that process's peak resident memory
 (`getrusage(RUSAGE_SELF).ru_maxrss`) after reading the features and after the
 fit, and time inference on the world's own steps.
@@ -183,10 +183,10 @@ def fit_and_infer(features: str, C: float, tol: float, max_iter: int, n_slacks: 
 
 
 def time_fit(world: Path, plan: Plan) -> dict[str, Any]:
-    """`fit_and_infer` on a world's features in a process of its own (`python -m pipeline.scaling`)."""
+    """`fit_and_infer` on a world's features in a process of its own (`python -m taskseq.scaling`)."""
     out = world / "fit.json"
     argv = [str(world / "features"), repr(plan.C), repr(plan.tol), str(plan.max_iter), str(plan.n_slacks), str(out)]
-    process = measured("the timed fit", [sys.executable, "-m", "pipeline.scaling", *argv], world / "logs" / "fit.log")
+    process = measured("the timed fit", [sys.executable, "-m", "taskseq.scaling", *argv], world / "logs" / "fit.log")
     result = json.loads(out.read_text(encoding="utf-8"))
     result["process_seconds"] = process.seconds
     result["ms_per_step"] = 1000 * result["seconds"] / result["steps"]
@@ -214,7 +214,7 @@ def measure_size(plan: Plan, rooms: int, world: Path, say: Callable[[str], None]
 
     def stage(name: str) -> None:
         say(f"[{rooms} rooms] {name} ...")
-        m = measured(f"taskseq {name}", [sys.executable, "-m", "pipeline.cli", "--no-mlflow", *commands[name]],
+        m = measured(f"taskseq {name}", [sys.executable, "-m", "taskseq.cli", "--no-mlflow", *commands[name]],
                      logs / f"{name}.log")
         entry["stages"][name] = asdict(m)
         say(f"[{rooms} rooms] {name}: {m.seconds:.1f} s ({m.cpu_seconds:.1f} s CPU), peak {m.peak_rss_mib:.0f} MiB")

@@ -39,7 +39,7 @@ PAPER_MODEL = "full"  # the paper's own model, as published
 
 @dataclass(frozen=True)
 class MethodSettings:
-    """What a method's factory is given: the settings in force (`pipeline.settings`) and the model store."""
+    """What a method's factory is given: the settings in force (`taskseq.settings`) and the model store."""
 
     crossval: Any  # settings.Crossval: baselines' seeds and C
     learner: Any  # settings.Learner: the structural SVM's settings, C as `select` chose it
@@ -51,7 +51,7 @@ class MethodSettings:
 class AddedMethod:
     name: str  # its key in every table, file and run
     label: str  # its row name in the tables
-    make: Callable[[MethodSettings], Any]  # an unfitted method (`pipeline.evaluate.methods.Method`)
+    make: Callable[[MethodSettings], Any]  # an unfitted method (`taskseq.evaluate.methods.Method`)
 
 
 _ADDED: dict[str, AddedMethod] = {}
@@ -73,7 +73,7 @@ def register(name: str, label: str) -> Callable[[Callable[[MethodSettings], Any]
 
 
 def added_methods() -> dict[str, AddedMethod]:
-    """Every method the modules of `pipeline.methods` register, by name (imported once, in name order)."""
+    """Every method the modules of `taskseq.methods` register, by name (imported once, in name order)."""
     global _loaded
     if not _loaded:
         _loaded = True

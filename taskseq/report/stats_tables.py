@@ -1,4 +1,4 @@
-"""The intervals and paired comparisons of `pipeline.report.stats` as CSV and Markdown tables."""
+"""The intervals and paired comparisons of `taskseq.report.stats` as CSV and Markdown tables."""
 
 from __future__ import annotations
 

@@ -3,8 +3,8 @@ environment, time the learner.
 
 Each is an entry of `TOOLS`: its help, a function adding its options to its
 parser and a function running it from the parsed options (returning the exit
-code). `pipeline.cli` builds the subcommands from this table and from the
-stages' (`pipeline.stages`).
+code). `taskseq.cli` builds the subcommands from this table and from the
+stages' (`taskseq.stages`).
 """
 
 from __future__ import annotations

@@ -18,7 +18,7 @@ it said so (SIGKILL, a crash), the writer closes every run of it still open
 as KILLED, so no run is left RUNNING. A write the store refuses is reported
 to the stage, which then fails with the store's message.
 
-Run as `python -m pipeline.track.writer TRACKING_URI` (what a stage does).
+Run as `python -m taskseq.track.writer TRACKING_URI` (what a stage does).
 """
 
 from __future__ import annotations
@@ -264,7 +264,7 @@ def _start_writer(uri: str):
     # the writer runs this very package, wherever it was imported from
     root = str(Path(__file__).resolve().parents[2])
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH")) if p)}
-    return subprocess.Popen([sys.executable, "-m", "pipeline.track.writer", uri], env=env,
+    return subprocess.Popen([sys.executable, "-m", "taskseq.track.writer", uri], env=env,
                             stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                             start_new_session=True)
 

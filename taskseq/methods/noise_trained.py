@@ -15,8 +15,8 @@ for every MRF method.
 
 from __future__ import annotations
 
-from pipeline.evaluate.methods import MRFMethod
-from pipeline.evaluate.registry import MethodSettings, register
+from taskseq.evaluate.methods import MRFMethod
+from taskseq.evaluate.registry import MethodSettings, register
 
 
 @register("noise_trained", label="ours + relations + noisy training")

@@ -1,7 +1,7 @@
 """The `taskseq` command line: subcommands from the stage and tool tables, errors and signals to exit codes.
 
-A stage's options come from its `Paths` (`pipeline.stages`), its settings from
-`params.yaml` (`pipeline.settings`), and its MLflow run from `pipeline.track`;
+A stage's options come from its `Paths` (`taskseq.stages`), its settings from
+`params.yaml` (`taskseq.settings`), and its MLflow run from `taskseq.track`;
 this module only puts them together. Exit codes: 0 done; 1 a stage that
 wrote nothing because its inputs were missing or bad, or a plan that did not
 reach its goal; 2 bad input to a command (with one line naming it); 130 and

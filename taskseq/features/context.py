@@ -3,7 +3,7 @@
 A `StepContext` holds everything the six feature families need, laid out as
 arrays over the step's objects, so that a score for every candidate
 `primitive(a1, a2)` comes from a few broadcast operations (see
-`pipeline.learn.mrf`). Object names and categories never enter it.
+`taskseq.learn.mrf`). Object names and categories never enter it.
 
 Continuous values are scaled to about [0, 1] by fixed transforms, so a model
 needs no fitted scaler and a step's features do not depend on the training

@@ -6,7 +6,7 @@ demonstrator's steps, reloading the page after each, and ends with `done`.
 Used by the tests (no record lost, no partial file) and by hand to measure
 the page's response time:
 
-    python -m pipeline.serve.load --url http://127.0.0.1:8765 --clients 4 --rounds 6
+    python -m taskseq.serve.load --url http://127.0.0.1:8765 --clients 4 --rounds 6
 """
 
 from __future__ import annotations

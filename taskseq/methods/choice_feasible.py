@@ -12,8 +12,8 @@ as this method records it and `taskseq plan` plans with it.
 
 from __future__ import annotations
 
-from pipeline.evaluate.methods import MRFMethod
-from pipeline.evaluate.registry import MethodSettings, register
+from taskseq.evaluate.methods import MRFMethod
+from taskseq.evaluate.registry import MethodSettings, register
 
 
 @register("choice_feasible", label="ours + relations + choice cues + feasible steps")

@@ -14,8 +14,8 @@ Table I row, where it pays for the chained starts as `chained` does.
 
 from __future__ import annotations
 
-from pipeline.evaluate.methods import MRFMethod
-from pipeline.evaluate.registry import MethodSettings, register
+from taskseq.evaluate.methods import MRFMethod
+from taskseq.evaluate.registry import MethodSettings, register
 
 
 @register("choice_chained_lookahead", label="ours + relations + choice cues + chained starts + safety lookahead")

@@ -263,7 +263,7 @@ def table1_methods(settings: Crossval, learner: Learner, horizon: int = Pddl.hor
     """Every method of Table I, by name, as factories of unfitted methods; `horizon` is the symbolic planners'.
 
     The built-in ones first, in the tables' order, then those the modules of
-    `pipeline.methods` register (`pipeline.evaluate.registry`), by name.
+    `taskseq.methods` register (`taskseq.evaluate.registry`), by name.
     """
     def mrf(name: str, **options: Any) -> Callable[[], MRFMethod]:
         return partial(MRFMethod, **learner.of(name).ssvm, store=store, name=name, **options)

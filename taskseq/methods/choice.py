@@ -12,8 +12,8 @@ two blocks (`learn.mrf.CUE_FAMILY`).
 
 from __future__ import annotations
 
-from pipeline.evaluate.methods import MRFMethod
-from pipeline.evaluate.registry import MethodSettings, register
+from taskseq.evaluate.methods import MRFMethod
+from taskseq.evaluate.registry import MethodSettings, register
 
 
 @register("choice", label="ours + relations + choice cues")

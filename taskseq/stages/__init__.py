@@ -3,15 +3,15 @@
 Every stage module holds two functions:
 
 - `settings(params, world_seed)`: the stage's own typed settings, picked from
-  `pipeline.settings.Params` (the whole `params.yaml`, overrides applied);
+  `taskseq.settings.Params` (the whole `params.yaml`, overrides applied);
   the keys it reads are exactly the stage's `params` in `dvc.yaml` (a test
   checks it);
 - `run(settings, paths, tracker)` (plus `n_jobs` for stages that run work in
   parallel): calls the library, writes only the paths it is given, and logs
   to the tracker.
 
-What a stage reads and writes is its `Paths` class in `pipeline.stages.paths`,
-from which `taskseq` builds the stage's options (`pipeline.stages.command`).
+What a stage reads and writes is its `Paths` class in `taskseq.stages.paths`,
+from which `taskseq` builds the stage's options (`taskseq.stages.command`).
 The table below registers each stage with its help, its paths and whether it
 runs work in parallel or on one world. Nothing here loads a stage.
 """
