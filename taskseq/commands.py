@@ -169,6 +169,18 @@ def _layout(args: argparse.Namespace) -> int:
     return 0
 
 
+def _veil_options(p: argparse.ArgumentParser) -> None:
+    from .veil.command import options
+
+    options(p)
+
+
+def _veil(args: argparse.Namespace) -> int:
+    from .veil.command import run
+
+    return run(args)
+
+
 TOOLS: dict[str, Tool] = {
     "replay": Tool("re-execute every logged sequence and report states or goals that differ", _replay_options,
                    _replay),
@@ -181,4 +193,6 @@ TOOLS: dict[str, Tool] = {
                   _bench),
     "scaling": Tool("draw procedural worlds of several sizes and time every per-world stage, training to the gap, "
                     "its memory and per-step inference", _scaling_options, _scaling),
+    "veil": Tool("VEIL-500 (Tell Me Dave): import people's sequences from a release folder (docs/veil.md)",
+                 _veil_options, _veil),
 }

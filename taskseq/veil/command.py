@@ -1,0 +1,67 @@
+"""The `taskseq veil` command's sub-commands: one table, so that more (train, evaluate, ...) are added as entries.
+
+`taskseq.commands` registers `veil` with `options` and `run` below; each entry of `SUBCOMMANDS` has a help line, a
+function adding its options and a function running it (returning the exit code).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+
+@dataclass(frozen=True)
+class SubCommand:
+    help: str
+    options: Callable[[argparse.ArgumentParser], None]
+    run: Callable[[argparse.Namespace], int]
+
+
+def _import_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--release", type=Path, required=True,
+                   help="the release folder (Objects.xml, data.xml, domainKnowledge.pddl, ControllerInstructions.xml, "
+                        "Environments/kitchen/kitchenN.xml, Environments/livingRoom/livingRoomN.xml); only read")
+    p.add_argument("--output", type=Path, required=True,
+                   help="folder to write sequences.parquet, steps.parquet, objects.parquet and import.json into "
+                        "(replaced whole, and only when the whole release is valid)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def _import(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from .ingest import format_summary, import_release
+
+    start = time.perf_counter()
+
+    def bar(items):
+        return tqdm(items, desc="replaying", unit="sequence", disable=args.quiet or None, file=sys.stderr)
+
+    summary = import_release(args.release, args.output, progress=bar)
+    print(format_summary(summary))
+    print(f"written to {args.output} in {time.perf_counter() - start:.1f} s")
+    return 0
+
+
+SUBCOMMANDS: dict[str, SubCommand] = {
+    "import": SubCommand(
+        "check a VEIL-500 release, replay its sequences (skipping steps the domain refuses, counted by reason) and "
+        "write Parquet tables; on any error in the release: exit code 2, one line naming file, line and element, "
+        "nothing written", _import_options, _import),
+}
+
+HELP = "VEIL-500 (Tell Me Dave): import people's sequences from a release folder (docs/veil.md)"
+
+
+def options(p: argparse.ArgumentParser) -> None:
+    sub = p.add_subparsers(dest="veil_command", required=True, metavar="SUBCOMMAND")
+    for name, cmd in SUBCOMMANDS.items():
+        cmd.options(sub.add_parser(name, help=cmd.help, description=cmd.help))
+
+
+def run(args: argparse.Namespace) -> int:
+    return SUBCOMMANDS[args.veil_command].run(args)
