@@ -4,6 +4,7 @@ separate sessions, whole records under concurrent appends and load, and a stop t
 from __future__ import annotations
 
 import html
+import itertools
 import json
 import re
 import signal
@@ -22,9 +23,11 @@ from taskseq.learn.mrf import MRFModel
 from taskseq.serve.app import create_app
 from taskseq.serve.environments import world_environment
 from taskseq.serve.load import Client, LoadResult, run_load, scripted_tasks
+from taskseq.serve.rules import preconditions
 from taskseq.serve.writer import RecordWriter, person_record
 from taskseq.sim.demonstrator import demonstrate
-from taskseq.sim.primitives import Action
+from taskseq.sim.primitives import ALL_PRIMITIVES, ARITY, Action, PreconditionError, execute
+from taskseq.sim.safety import RULES
 from taskseq.sim.tasks import Task
 
 POUR = Task("pour", ("obj27",))  # env01: the water in its bottle, on the kitchen table
@@ -79,7 +82,8 @@ def test_a_demonstration_is_refused_an_infeasible_step_and_saved_as_a_log_record
     assert "water_bottle" in page and "<svg" in page and "the goal does not hold yet" in page
     refused = client.post("/step", data=step_form(0, Action("grasp", ("obj20",))))
     assert refused.status_code == 409
-    assert "grasp(obj20) is refused" in message(refused) and "from the robot" in message(refused)
+    assert "grasp(water_bottle) is refused" in message(refused) and "water_bottle is" in message(refused)
+    assert "from the robot" in message(refused)
     assert not (data / "people").exists()
     early = client.post("/step", data=step_form(0, Action("done")))
     assert "no step has been taken yet" in message(early)
@@ -124,6 +128,93 @@ def test_a_bad_step_is_refused_with_a_message_and_changes_nothing(client, data, 
     assert expected in message(resp)
     assert "None yet." in client.get("/demonstrate").get_data(as_text=True)
     assert not (data / "people").exists()
+
+
+# In env01 of world 0, for each safety rule: the steps leading to a step that breaks it, that step, and what the
+# refusal must say besides the rule itself (in names: the water in its bottle, the magazine with a chopstick and
+# crumpled paper on it, the teacup on the kitchen shelf)
+UNSAFE = {
+    "liquid_grasped": (["move_close(obj20)"], "grasp(obj27)",
+                       ["grasp(water) is refused", "water is a liquid", "grasp water_bottle"]),
+    "grasp_with_load": (["move_close(obj40)"], "grasp(obj40)",
+                        ["grasp(magazine) is refused", "chopstick and crumpled_paper rest on magazine"]),
+    "over_shelf": (["move_close(obj20)", "grasp(obj20)", "move_close(obj17)", "hold_above(obj20,obj17)"],
+                   "follow_traj_pour(obj20,obj17)",
+                   ["follow_traj_pour(water_bottle, teacup) is refused", "teacup is on kitchen_shelf"]),
+}
+
+
+@pytest.mark.parametrize("rule", sorted(RULES))  # a rule added to the simulator without a case here fails
+def test_a_step_that_breaks_a_safety_rule_is_refused_naming_the_rule_and_the_objects(client, data, rule):
+    before, unsafe, said = UNSAFE[rule]
+    start(client)
+    for k, text in enumerate(before):
+        assert client.post("/step", data=step_form(k, Action.parse(text))).status_code == 303
+    refused = client.post("/step", data=step_form(len(before), Action.parse(unsafe)))
+    assert refused.status_code == 409
+    text = message(refused)
+    assert f"breaks the safety rule \u201c{RULES[rule]}\u201d" in text and text.endswith("nothing was done")
+    assert all(s in text for s in said), text
+    assert not re.search(r"\bobj\d+\b|\bNone\b", text), text  # names, never ids or Python's None
+    page = client.get("/demonstrate").get_data(as_text=True)
+    assert f'name="n" value="{len(before)}"' in page  # nothing was done: the steps are those before
+    assert not (data / "people").exists()
+
+
+def test_a_liquid_carried_out_of_its_container_is_never_saved_as_pouring(client, data):
+    """The reported case: grasp the water itself, hold it above the cup, release it, done."""
+    start(client, Task("pour_to", ("obj27", "obj14")))
+    assert client.post("/step", data=step_form(0, Action("move_close", ("obj20",)))).status_code == 303
+    for text in ("grasp(obj27)", "hold_above(obj27,obj14)", "release(obj27)", "done"):
+        assert client.post("/step", data=step_form(1, Action.parse(text))).status_code == 409, text
+    assert not (data / "people").exists()
+
+
+def test_the_writer_refuses_a_record_with_an_unsafe_step_naming_it(tmp_path):
+    """A record that replays and reaches its goal, but only by carrying the water out of its bottle: ingest would
+    accept it, the people's log must not."""
+    env = world_environment(0, "env01")
+    actions = [Action.parse(t) for t in ("move_close(obj20)", "grasp(obj27)", "hold_above(obj27,obj14)",
+                                         "release(obj27)")]
+    record = person_record(env, Task("pour_to", ("obj27", "obj14")), actions)
+    with pytest.raises(ValueError, match=r"steps\[1\]: grasp\(water\): it breaks the safety rule .a liquid is "
+                                         r"handled only through its container"):
+        RecordWriter(tmp_path / "people").append(record)
+    assert not (tmp_path / "people").exists()
+
+
+def test_the_page_states_the_rules_the_simulator_applies(client):
+    start(client)
+    rules = html.unescape(client.get("/demonstrate").get_data(as_text=True).split('id="rules"')[1])
+    for words in RULES.values():
+        assert f"<li>{words}</li>" in rules
+    assert "<code>grasp(a1)</code>: gripper empty, movable, within reach</li>" in rules
+    assert "<code>follow_traj_pour(a1, a2)</code>: held, held above, liquid inside, container</li>" in rules
+
+
+def test_the_checks_the_page_lists_are_the_checks_the_simulator_makes():
+    """Every check that refuses a step in some states of env01 is among its primitive's listed checks, and every
+    listed check refuses some step there: the list is read from the simulator's code, and matches what it does."""
+    initial = world_environment(0, "env01").state
+    states = []
+    for task in (POUR, Task("stir", ("obj32",))):  # states holding a bottle, and a stirrer over the coffee
+        state = initial
+        for action in demonstrated(task):
+            states.append(state)
+            state = execute(state, action)
+        states.append(state)
+    holding = next(s for s in states if s.held == "obj20")
+    states.append(execute(holding, Action("hold_above", ("obj20", "obj02"))))  # the bottle over the table itself
+    ids = sorted(state.specs)
+    seen: dict[str, set[str]] = {p: set() for p in ALL_PRIMITIVES}
+    for s in states:
+        for p in ALL_PRIMITIVES:
+            for args in itertools.permutations(ids, ARITY[p]):
+                try:
+                    execute(s, Action(p, args))
+                except PreconditionError as err:
+                    seen[p].add(err.check)
+    assert seen == {p: set(c) for p, c in preconditions().items()}
 
 
 @pytest.mark.parametrize("form, expected", [

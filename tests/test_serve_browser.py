@@ -24,6 +24,7 @@ from taskseq.serve.app import create_app
 from taskseq.serve.environments import world_environment
 from taskseq.sim.demonstrator import demonstrate
 from taskseq.sim.primitives import Action
+from taskseq.sim.safety import RULES
 from taskseq.sim.scenarios import candidate_scenarios
 from taskseq.sim.tasks import Task
 
@@ -103,7 +104,7 @@ def test_a_person_demonstrates_a_task_in_the_browser_and_the_record_ingests(serv
     choose(page, url, task, "demonstrate", participant="p01")
     assert page.locator("#scene").is_visible() and "water_bottle" in page.inner_text("#tree")
     click_step(page, Action("grasp", ("obj20",)))  # the bottle is out of reach from where the robot starts
-    assert "grasp(obj20) is refused" in page.inner_text("#message")
+    assert "grasp(water_bottle) is refused" in page.inner_text("#message")
     assert "from the robot" in page.inner_text("#message")
     page.screenshot(path=str(tmp_path / "refused.png"), full_page=True)
     assert not (data / "people").exists()
@@ -119,6 +120,21 @@ def test_a_person_demonstrates_a_task_in_the_browser_and_the_record_ingests(serv
     assert record["participant"] == "p01" and len(record["steps"]) == len(actions)
     assert main(["--no-mlflow", "ingest", "--input", str(data / "people"), "--output", str(tmp_path / "t")]) == 0
     assert "ingested 1 sequences" in capsys.readouterr().out
+
+
+def test_a_step_that_breaks_a_safety_rule_is_refused_naming_the_rule(server, browser, tmp_path):
+    """The water grasped out of its bottle: the page says which rule, in words, with the objects' names."""
+    url, data = server
+    page = browser.new_page(viewport={"width": 1200, "height": 900})
+    choose(page, url, Task("pour_to", ("obj27", "obj14")), "demonstrate")
+    assert RULES["liquid_grasped"] in page.inner_text("#rules")  # stated before anyone breaks it
+    click_step(page, Action("move_close", ("obj20",)))
+    click_step(page, Action("grasp", ("obj27",)))
+    said = page.inner_text("#message")
+    assert said == ("grasp(water) is refused: it breaks the safety rule \u201ca liquid is handled only through its "
+                    "container\u201d: water is a liquid; grasp water_bottle, which holds it; nothing was done")
+    page.screenshot(path=str(tmp_path / "unsafe.png"), full_page=True)
+    assert page.locator("#steps li").count() == 1 and not (data / "people").exists()
 
 
 def test_a_person_corrects_the_planner_in_assist_mode(server, browser, tmp_path):

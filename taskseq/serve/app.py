@@ -20,10 +20,13 @@ from ..features.context import step_context
 from ..learn.estimator import StepScorer
 from ..plan.planner import Policy
 from ..sim.catalog import ENVIRONMENTS, OBJECTS_BY_ID
-from ..sim.primitives import ALL_PRIMITIVES, ARITY, Action, PreconditionError, execute
+from ..sim.primitives import ALL_PRIMITIVES, ARITY, Action, PreconditionError
+from ..sim.safety import RULES
 from ..sim.tasks import TASK_ARITY, Task, goal_reached
 from ..tools import LIQUID_TASKS, parse_task, recorded_policy
 from .environments import SAFE_NAME, file_environment, named_files, read_named, world_environment
+from .rules import UnsafeStep, named, preconditions, step_text
+from .rules import refusal as step_refusal
 from .scene import support_tree, top_view
 from .sessions import ASSIST, DEMONSTRATE, MODES, Activity, Session, SessionStore
 from .writer import RecordWriter, WriterClosed, person_record
@@ -85,13 +88,10 @@ class Served:
 
 
 def _refusal(activity: Activity, action: Action) -> str | None:
+    """Why the page would refuse `action` now (a precondition, a safety rule, or for done the goal), or None."""
     if action.primitive == "done":
         return None if activity.actions and activity.goal_reached else "the goal does not hold yet"
-    try:
-        execute(activity.state, action)
-    except PreconditionError as err:
-        return err.reason
-    return None
+    return step_refusal(activity.state, action)
 
 
 def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
@@ -136,7 +136,7 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
         assert activity is not None
         candidates = served.candidates(activity) if activity.mode == ASSIST else []
         return page("run.html", s, status, error=error, candidates=candidates, primitives=ALL_PRIMITIVES,
-                    arity=ARITY, goal=activity.goal_reached)
+                    arity=ARITY, goal=activity.goal_reached, preconditions=preconditions(), safety=RULES)
 
     @app.errorhandler(413)
     def too_large(_err):
@@ -271,7 +271,11 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
                     return finish(s, activity, overridden)
                 activity.step(action, overridden)
             except PreconditionError as err:
-                return run_page(s, 409, f"{err.action} is refused: {err.reason} (check: {err.check}); "
+                state = s.activity.state
+                return run_page(s, 409, f"{step_text(state, err.action)} is refused: {named(state, err.reason)} "
+                                        f"(check: {err.check}); nothing was done")
+            except UnsafeStep as err:
+                return run_page(s, 409, f"{step_text(s.activity.state, err.action)} is refused: {err.reason}; "
                                         "nothing was done")
             except Refused as err:
                 return (run_page(s, err.status, str(err)) if s.activity is not None

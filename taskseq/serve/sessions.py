@@ -17,6 +17,7 @@ from ..sim.primitives import Action, execute
 from ..sim.state import WorldState
 from ..sim.tasks import Task, goal_reached
 from .environments import Environment
+from .rules import UnsafeStep, unsafe_reason
 
 DEMONSTRATE, ASSIST = "demonstrate", "assist"
 MODES = (DEMONSTRATE, ASSIST)
@@ -49,10 +50,16 @@ class Activity:
         return goal_reached(self.task, self.states[0], self.state)
 
     def step(self, action: Action, overridden: bool = False) -> None:
-        """Execute `action`; raises `PreconditionError` (nothing changes) where the simulator refuses it."""
+        """Execute `action`; raises `PreconditionError` where the simulator cannot run it and `UnsafeStep` where it
+        would break a safety rule (nothing changes). The simulator itself lets an unsafe step happen, so that a
+        planner can be judged on safety; a person's record is training data, so an unsafe step never enters one."""
         if len(self.actions) >= MAX_STEPS:
             raise ValueError(f"a demonstration has at most {MAX_STEPS} steps; undo some or start again")
-        self.states.append(execute(self.state, action))
+        after = execute(self.state, action)
+        reason = unsafe_reason(self.state, action)
+        if reason is not None:
+            raise UnsafeStep(action, reason)
+        self.states.append(after)
         if overridden:
             self.corrected.append(len(self.actions))
         self.actions.append(action)

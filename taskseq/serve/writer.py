@@ -17,12 +17,13 @@ import threading
 from pathlib import Path
 from typing import Any
 
-from ..logs.records import demonstration_record, dumps
-from ..logs.validate import LoggedRecord, check_record
-from ..sim.primitives import Action
+from ..logs.records import demonstration_record, dumps, parse_record, state_from_dict
+from ..logs.validate import LogError, LoggedRecord, check_record
+from ..sim.primitives import Action, execute
 from ..sim.scenarios import Scenario
 from ..sim.tasks import Task
 from .environments import SAFE_NAME, Environment
+from .rules import step_text, unsafe_reason
 
 LOCK_NAME = ".lock"
 
@@ -44,6 +45,21 @@ def person_record(env: Environment, task: Task, actions: list[Action], participa
     return record
 
 
+def check_safe(item: LoggedRecord) -> None:
+    """Raise `LogError` at the first step of a checked record that breaks a safety rule.
+
+    Ingest accepts such a record (the simulator lets an unsafe step happen, and an evaluation counts it), but a
+    person's record teaches the planner: the pages refuse an unsafe step, and this keeps one out of a log even
+    from another writer of records (the teaching script)."""
+    specs, _, actions = parse_record(item.record)
+    state = state_from_dict(specs, item.record["steps"][0]["state"])
+    for k, action in enumerate(actions):
+        reason = unsafe_reason(state, action)
+        if reason is not None:
+            raise LogError(item.path, item.line, f"steps[{k}]", f"{step_text(state, action)}: {reason}")
+        state = execute(state, action)
+
+
 class RecordWriter:
     """Appends checked records to `<folder>/<env_id>.jsonl`; never writes anywhere else."""
 
@@ -61,9 +77,12 @@ class RecordWriter:
         return path
 
     def append(self, record: dict[str, Any]) -> Path:
-        """Check the record as `taskseq ingest` will (schema, references, replay, goal), then append it."""
+        """Check the record as `taskseq ingest` will (schema, references, replay, goal) and that no step breaks a
+        safety rule, then append it."""
         path = self.path_for(record["env_id"])
-        check_record(LoggedRecord(path, 0, record))
+        item = LoggedRecord(path, 0, record)
+        check_record(item)
+        check_safe(item)
         line = (dumps(record) + "\n").encode("utf-8")
         with self._busy:
             if self._closed:

@@ -1,0 +1,108 @@
+"""The simulator's rules as a person reads them: its preconditions and safety rules, and why a step is refused.
+
+The page states the rules the simulator applies, so they are read from its
+code rather than written again here: the preconditions of each primitive
+are the checks its effect function makes (`sim.primitives`, read once from
+its source), the safety rules are `sim.safety.RULES`. A rule changed there
+changes the page with it.
+
+A refusal names objects by their names, as the page shows them, never by
+ids a person never sees, and never prints Python's `None`.
+"""
+
+from __future__ import annotations
+
+import ast
+import functools
+import inspect
+import re
+
+from ..sim import primitives
+from ..sim.primitives import ALL_PRIMITIVES, Action, PreconditionError
+from ..sim.safety import RULES, violations
+from ..sim.state import WorldState
+
+
+class UnsafeStep(ValueError):
+    """A step the page refuses because it breaks a safety rule; `reason` says which and why, in names."""
+
+    def __init__(self, action: Action, reason: str) -> None:
+        super().__init__(f"{action}: {reason}")
+        self.action, self.reason = action, reason
+
+
+@functools.cache
+def preconditions() -> dict[str, tuple[str, ...]]:
+    """Per primitive, the names of the checks the simulator makes before running it, in the order it makes them.
+
+    Read from the source of `sim.primitives`: every `_require(cond, action, check, reason)` in the primitive's
+    effect function, and in the module's helpers it calls (`_check_target`), in order."""
+    tree = ast.parse(inspect.getsource(primitives))
+    functions = {node.name: node for node in tree.body if isinstance(node, ast.FunctionDef)}
+
+    def checks(name: str) -> list[str]:
+        out: list[str] = []
+        calls = [n for n in ast.walk(functions[name]) if isinstance(n, ast.Call) and isinstance(n.func, ast.Name)]
+        for node in sorted(calls, key=lambda n: (n.lineno, n.col_offset)):  # ast.walk is breadth first
+            if node.func.id == "_require":
+                out.append(node.args[2].value)
+            elif node.func.id in functions and node.func.id != name:
+                out += checks(node.func.id)
+        return out
+
+    effects = primitives._EFFECTS
+    return {p: tuple(dict.fromkeys(checks(effects[p].__name__))) for p in ALL_PRIMITIVES}
+
+
+def named(state: WorldState, text: str) -> str:
+    """`text` with every object id replaced by the object's name, and Python's `None` by "nothing"."""
+    text = re.sub(r"\bNone\b", "nothing", text)
+    ids = sorted(state.specs, key=len, reverse=True)  # obj1 must not eat the start of obj14
+    if not ids:
+        return text
+    pattern = re.compile(r"\b(" + "|".join(re.escape(o) for o in ids) + r")\b")
+    return pattern.sub(lambda m: state.specs[m.group(1)].name, text)
+
+
+def step_text(state: WorldState, action: Action) -> str:
+    """The step as the page names it: `grasp(oolong)`, with the objects' names."""
+    return f"{action.primitive}({', '.join(state.specs[a].name for a in action.args)})"
+
+
+def _why(state: WorldState, action: Action, rule: str) -> str:
+    """What in this world makes `action` break `rule`, in names."""
+    name = state.specs
+    if rule == "liquid_grasped":
+        target = action.args[0]
+        container = state.container_of(target)
+        where = f"; grasp {name[container].name}, which holds it" if container else ""
+        return f"{name[target].name} is a liquid{where}"
+    if rule == "grasp_with_load":
+        target = action.args[0]
+        loads = [name[o].name for o in state.loads(target)]
+        verb, them = ("rests", "it") if len(loads) == 1 else ("rest", "them")
+        return f"{' and '.join(loads)} {verb} on {name[target].name}; take {them} off first"
+    if rule == "over_shelf":
+        below = state.held_above
+        shelf = next(a for a in state.ancestors(below) if state.specs[a].has("multi_surface"))
+        return f"{name[below].name} is on {name[shelf].name}; bring it to a table first"
+    return RULES[rule]  # a rule added to sim.safety without its own explanation here: its words say it
+
+
+def unsafe_reason(state: WorldState, action: Action) -> str | None:
+    """Why `action` breaks a safety rule in `state` (each rule in words, and what in the world breaks it), or None
+    when it breaks none."""
+    broken = violations(state, action)
+    if not broken:
+        return None
+    return "; and ".join(f"it breaks the safety rule \u201c{RULES[r]}\u201d: {_why(state, action, r)}" for r in broken)
+
+
+def refusal(state: WorldState, action: Action) -> str | None:
+    """Why the page refuses `action` in `state`, a failed precondition or a broken safety rule, in names; None
+    when it runs. (`done` is judged by the task's goal, which only the activity knows.)"""
+    try:
+        primitives.execute(state, action)
+    except PreconditionError as err:
+        return f"{named(state, err.reason)} (check: {err.check})"
+    return unsafe_reason(state, action)
