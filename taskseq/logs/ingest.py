@@ -1,7 +1,9 @@
 """Validated logs to Parquet tables with explicit schemas, and back.
 
 Tables (one Parquet file each):
-  objects       one row per distinct object: size, levels, the 14 attributes
+  objects       one row per distinct object: size, levels, the 14 attributes; where environments of a folder
+                describe one object id differently (two versions of a room in people's demonstrations), one row
+                per object of each environment, with its `env_id` first
   environments  which objects each environment holds, in log order
   scenarios     environment + task + task arguments, with its number of sequences
   sequences     one row per demonstration, with the file and line it came from
@@ -11,6 +13,7 @@ Tables (one Parquet file each):
 
 from __future__ import annotations
 
+import json
 from collections import Counter
 from pathlib import Path
 from typing import Any
@@ -45,6 +48,8 @@ SCHEMAS: dict[str, pa.Schema] = {
     ),
 }
 TABLES = tuple(SCHEMAS)
+# the objects table where an object id means different objects in different environments
+OBJECTS_BY_ENVIRONMENT = pa.schema([("env_id", STR), *SCHEMAS["objects"]])
 
 
 def _arg(args: list[str], i: int) -> str | None:
@@ -52,14 +57,32 @@ def _arg(args: list[str], i: int) -> str | None:
 
 
 class _Collector:
-    """Accumulates rows and checks what only shows across records."""
+    """Accumulates rows and checks what only shows across records.
 
-    def __init__(self) -> None:
+    An environment always describes its objects alike, in every record of it. `one_catalog` asks more, as the
+    benchmark's logs promise: an object id names one object in every environment (its objects come from one
+    catalog, so a difference is a bug of the generator). People's rooms promise less: a person saves a room file
+    again with a mug made larger, and its records go to a new environment (the id carries the file's hash) in
+    which the same id describes another object.
+    """
+
+    def __init__(self, one_catalog: bool = True) -> None:
+        self.one_catalog = one_catalog
         self.rows: dict[str, list[dict[str, Any]]] = {t: [] for t in TABLES}
         self.objects: dict[str, tuple[dict[str, Any], str]] = {}
-        self.envs: dict[str, tuple[list[str], str]] = {}
+        self.envs: dict[str, tuple[list[dict[str, Any]], str]] = {}  # its objects' descriptions, first seen where
         self.scenarios: dict[str, dict[str, Any]] = {}
         self.sequence_ids: dict[str, str] = {}
+
+    def checkpoint(self) -> tuple[Any, ...]:
+        """What `restore` needs to undo every record added after this call."""
+        return ({t: len(r) for t, r in self.rows.items()}, dict(self.objects), dict(self.envs),
+                {k: dict(v) for k, v in self.scenarios.items()}, dict(self.sequence_ids))
+
+    def restore(self, checkpoint: tuple[Any, ...]) -> None:
+        lengths, self.objects, self.envs, self.scenarios, self.sequence_ids = checkpoint
+        for t, n in lengths.items():
+            del self.rows[t][n:]
 
     def add(self, item: LoggedRecord) -> None:
         rec = item.record
@@ -71,18 +94,24 @@ class _Collector:
         if rec["demo_id"] in self.sequence_ids:
             fail("demo_id", f"{rec['demo_id']!r} already used at {self.sequence_ids[rec['demo_id']]}")
         self.sequence_ids[rec["demo_id"]] = where
-        for i, obj in enumerate(rec["objects"]):
-            seen = self.objects.get(obj["id"])
-            if seen is None:
-                self.objects[obj["id"]] = (obj, where)
-            elif seen[0] != obj:
-                fail(f"objects[{i}]", f"object {obj['id']} differs from its description at {seen[1]}")
         ids = [o["id"] for o in rec["objects"]]
         env = self.envs.get(rec["env_id"])
         if env is None:
-            self.envs[rec["env_id"]] = (ids, where)
-        elif env[0] != ids:
+            self.envs[rec["env_id"]] = (rec["objects"], where)
+        elif [o["id"] for o in env[0]] != ids:
             fail("objects", f"environment {rec['env_id']} holds other objects at {env[1]}")
+        else:
+            for i, (obj, seen) in enumerate(zip(rec["objects"], env[0], strict=True)):
+                if obj != seen:
+                    fail(f"objects[{i}]", f"object {obj['id']} differs from its description in environment "
+                                          f"{rec['env_id']} at {env[1]}")
+        for i, obj in enumerate(rec["objects"]):
+            first = self.objects.setdefault(obj["id"], (obj, where))
+            if self.one_catalog and first[0] != obj:
+                fail(f"objects[{i}]", f"object {obj['id']} differs from its description at {first[1]} (in the "
+                                      "benchmark's logs an object id names one object in every environment; a folder "
+                                      "of people's demonstrations, where two versions of a room may describe it "
+                                      "differently, ingests with --people)")
         task = rec["task"]
         scenario = self.scenarios.get(rec["scenario_id"])
         key = {"env_id": rec["env_id"], "task": task["name"], "arg1": task["args"][0], "arg2": _arg(task["args"], 1)}
@@ -115,26 +144,36 @@ class _Collector:
                 )
 
     def tables(self) -> dict[str, pa.Table]:
-        for oid in sorted(self.objects):
-            obj = self.objects[oid][0]
+        """The tables; the objects table per environment only where an object id means different objects."""
+        one_each = all(obj == self.objects[obj["id"]][0] for objects, _ in self.envs.values() for obj in objects)
+        if one_each:
+            described = [(None, self.objects[oid][0]) for oid in sorted(self.objects)]
+        else:
+            described = [(env_id, obj) for env_id in sorted(self.envs)
+                         for obj in sorted(self.envs[env_id][0], key=lambda o: o["id"])]
+        for env_id, obj in described:
             w, l, h = obj["size"]  # noqa: E741
             self.rows["objects"].append(
-                {"object_id": oid, "name": obj["name"], "category": obj["category"], "w": w, "l": l, "h": h,
-                 "levels": obj["levels"], **{a: float(obj["attributes"][a]) for a in ATTRIBUTE_NAMES}}
+                {**({} if env_id is None else {"env_id": env_id}), "object_id": obj["id"], "name": obj["name"],
+                 "category": obj["category"], "w": w, "l": l, "h": h, "levels": obj["levels"],
+                 **{a: float(obj["attributes"][a]) for a in ATTRIBUTE_NAMES}}
             )
         for env_id in sorted(self.envs):
-            for pos, oid in enumerate(self.envs[env_id][0]):
-                self.rows["environments"].append({"env_id": env_id, "position": pos, "object_id": oid})
+            for pos, obj in enumerate(self.envs[env_id][0]):
+                self.rows["environments"].append({"env_id": env_id, "position": pos, "object_id": obj["id"]})
         for scen_id in sorted(self.scenarios):
             s = self.scenarios[scen_id]
             self.rows["scenarios"].append(
                 {"scenario_id": scen_id, **{k: s[k] for k in ("env_id", "task", "arg1", "arg2", "n_sequences")}}
             )
-        return {t: pa.Table.from_pylist(self.rows[t], schema=SCHEMAS[t]) for t in TABLES}
+        schemas = {**SCHEMAS, "objects": SCHEMAS["objects"] if one_each else OBJECTS_BY_ENVIRONMENT}
+        return {t: pa.Table.from_pylist(self.rows[t], schema=schemas[t]) for t in TABLES}
 
 
 def load_logs(input_dir: Path | str) -> tuple[dict[str, pa.Table], list[LoggedRecord]]:
-    """Validate every record of every log file; the first problem raises `LogError`."""
+    """Validate every record of every log file; the first problem raises `LogError`.
+
+    For the pipeline's own logs (the generated worlds): any problem in them is a bug to see at once."""
     collector = _Collector()
     records = []
     for path in log_files(Path(input_dir)):
@@ -147,6 +186,30 @@ def load_logs(input_dir: Path | str) -> tuple[dict[str, pa.Table], list[LoggedRe
     return collector.tables(), records
 
 
+def load_people_logs(folder: Path | str) -> tuple[dict[str, pa.Table], list[LoggedRecord], list[LogError]]:
+    """The records of a folder of people's demonstrations, and the problem of each file left out.
+
+    A file with a problem (not JSON, a record failing the schema or the replay, a record at odds with an earlier
+    file) is left out whole, where it is, and the others are used: one bad file, a log edited by hand or cut
+    short by a full disk, must not strand every other person's work. Each environment describes its objects
+    alike, but one object id may mean different objects in different environments (two versions of a room)."""
+    collector = _Collector(one_catalog=False)
+    records: list[LoggedRecord] = []
+    skipped: list[LogError] = []
+    for path in log_files(Path(folder)):
+        checkpoint, kept = collector.checkpoint(), len(records)
+        try:
+            for item in read_records(path):
+                check_record(item)
+                collector.add(item)
+                records.append(item)
+        except LogError as err:
+            collector.restore(checkpoint)
+            del records[kept:]
+            skipped.append(err)
+    return collector.tables(), records, skipped
+
+
 def dataset_summary(tables: dict[str, pa.Table]) -> dict[str, Any]:
     steps = tables["steps"].to_pylist()
     seqs = tables["sequences"].to_pylist()
@@ -155,7 +218,7 @@ def dataset_summary(tables: dict[str, pa.Table]) -> dict[str, Any]:
     lengths = [s["n_steps"] for s in seqs]
     return {
         "environments": len(set(tables["environments"].column("env_id").to_pylist())),
-        "objects": tables["objects"].num_rows,
+        "objects": _distinct_objects(tables["objects"]),
         "tasks": len(set(scen.values())),
         "scenarios": tables["scenarios"].num_rows,
         "sequences": len(seqs),
@@ -168,6 +231,13 @@ def dataset_summary(tables: dict[str, pa.Table]) -> dict[str, Any]:
     }
 
 
+def _distinct_objects(objects: pa.Table) -> int:
+    """How many different objects the objects table describes (one row each, unless it is per environment)."""
+    if "env_id" not in objects.column_names:
+        return objects.num_rows
+    return len({json.dumps(row, sort_keys=True) for row in objects.drop_columns(["env_id"]).to_pylist()})
+
+
 def write_tables(tables: dict[str, pa.Table], output: Path | str) -> None:
     """Replace `output` with one Parquet file per table; bytes depend only on the data."""
     with atomic_directory(output) as tmp:
@@ -176,12 +246,17 @@ def write_tables(tables: dict[str, pa.Table], output: Path | str) -> None:
 
 
 def read_tables(directory: Path | str) -> dict[str, pa.Table]:
-    return {t: pq.read_table(Path(directory) / f"{t}.parquet", schema=SCHEMAS[t]) for t in TABLES}
+    """The tables `write_tables` wrote; the objects table as it was written, per environment or not."""
+    directory = Path(directory)
+    per_env = pq.read_schema(directory / "objects.parquet").names[0] == "env_id"
+    schemas = {**SCHEMAS, "objects": OBJECTS_BY_ENVIRONMENT if per_env else SCHEMAS["objects"]}
+    return {t: pq.read_table(directory / f"{t}.parquet", schema=schemas[t]) for t in TABLES}
 
 
 def records_from_tables(tables: dict[str, pa.Table]) -> list[dict[str, Any]]:
     """Rebuild the log records from the tables, in their original file and line order."""
-    objects = {o["object_id"]: o for o in tables["objects"].to_pylist()}
+    objects = {(o.get("env_id"), o["object_id"]): o for o in tables["objects"].to_pylist()}
+    per_env = "env_id" in tables["objects"].column_names
     env_objects: dict[str, list[str]] = {}
     for row in sorted(tables["environments"].to_pylist(), key=lambda r: (r["env_id"], r["position"])):
         env_objects.setdefault(row["env_id"], []).append(row["object_id"])
@@ -207,8 +282,8 @@ def records_from_tables(tables: dict[str, pa.Table]) -> list[dict[str, Any]]:
             },
         }
 
-    def obj_record(oid: str) -> dict[str, Any]:
-        o = objects[oid]
+    def obj_record(env_id: str, oid: str) -> dict[str, Any]:
+        o = objects[env_id if per_env else None, oid]
         return {
             "id": oid, "name": o["name"], "category": o["category"], "size": [o["w"], o["l"], o["h"]],
             "levels": list(o["levels"]),
@@ -225,7 +300,7 @@ def records_from_tables(tables: dict[str, pa.Table]) -> list[dict[str, Any]]:
             "scenario_id": seq["scenario_id"],
             "env_id": scen["env_id"],
             "task": {"name": scen["task"], "args": [a for a in (scen["arg1"], scen["arg2"]) if a is not None]},
-            "objects": [obj_record(o) for o in env_objects[scen["env_id"]]],
+            "objects": [obj_record(scen["env_id"], o) for o in env_objects[scen["env_id"]]],
             "steps": [
                 {"primitive": r["primitive"], "args": [a for a in (r["arg1"], r["arg2"]) if a is not None],
                  "state": state(sid, r["step"])}

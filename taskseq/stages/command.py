@@ -44,6 +44,9 @@ def add_parser(sub: Any, name: str) -> None:
     p = sub.add_parser(name, help=stage.help, description=f"{stage.help}. Settings are read from params.yaml "
                        "(the keys this stage's `params` list in dvc.yaml names); --set overrides one.")
     for f in fields(stage.paths):
+        if f.metadata["kind"] is bool:  # a switch, off unless given
+            p.add_argument("--" + f.name.replace("_", "-"), dest=f.name, action="store_true", help=f.metadata["help"])
+            continue
         required = f.default is MISSING
         shown = "" if required or f.default is None else f" (default {f.default})"
         p.add_argument("--" + f.name.replace("_", "-"), dest=f.name, type=f.metadata["kind"], required=required,

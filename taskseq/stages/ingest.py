@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import sys
 from typing import Any
 
 from ..io import write_json_atomic
-from ..logs.ingest import dataset_summary, load_logs, write_tables
+from ..logs.ingest import dataset_summary, load_logs, load_people_logs, write_tables
+from ..logs.validate import LogError
 from ..settings import Params
 from ..track.mlflow_runs import NO_RUN, Tracker, flatten
 from .paths import IngestPaths
@@ -16,9 +18,19 @@ def settings(params: Params, world_seed: int | None = None) -> None:
 
 
 def run(settings: None, paths: IngestPaths, tracker: Tracker = NO_RUN) -> dict[str, Any]:
-    """Raises `LogError` (file, record, field) or `FileNotFoundError` before anything is written."""
+    """Raises `LogError` (file, record, field) or `FileNotFoundError` before anything is written.
+
+    With `people`, a file with a problem is named on stderr and left out, and the others are ingested; it raises
+    only when no file is usable."""
     input_dir, output, metrics = paths.input, paths.output, paths.metrics
-    tables, _ = load_logs(input_dir)
+    if paths.people:
+        tables, records, skipped = load_people_logs(input_dir)
+        for err in skipped:
+            print(f"left out {err.path} (the file stays where it is): {err}", file=sys.stderr)
+        if not records:
+            raise LogError(input_dir, 0, "(file)", f"no usable records: {len(skipped)} file(s) left out")
+    else:
+        tables, _ = load_logs(input_dir)
     summary = dataset_summary(tables)
     write_tables(tables, output)
     if metrics:

@@ -52,6 +52,9 @@ class IngestPaths:
     input: Path = option("folder of *.jsonl logs", WORLD / "raw", input=True)
     output: Path = option("folder of Parquet tables (replaced)")
     metrics: Path | None = option("dataset counts as JSON (default: not written)", None)
+    people: bool = option("the folder holds people's demonstrations (`taskseq serve`): a file with a problem is "
+                          "reported and left out, and an object id may mean different objects in different "
+                          "environments (versions of a room)", False, kind=bool)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -1,0 +1,141 @@
+"""A folder of people's demonstrations never strands data: two versions of one room ingest together, and a bad
+file is reported and left out, where it is, while the others are used. The benchmark's own logs still fail at
+their first problem.
+
+Every file here is written as a person's web session writes it: the server's environment reader and record
+writer (`taskseq.serve`)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import pytest
+
+from taskseq.cli import main
+from taskseq.logs.ingest import load_logs, load_people_logs, read_tables, records_from_tables
+from taskseq.logs.people import people_records
+from taskseq.logs.records import spec_to_dict, state_to_dict
+from taskseq.logs.validate import LogError
+from taskseq.serve.environments import file_environment, world_environment
+from taskseq.serve.writer import RecordWriter, person_record
+from taskseq.sim.demonstrator import demonstrate
+from taskseq.sim.tasks import Task
+
+TASKS = [Task("pour", ("obj27",)), Task("throw_away", ("obj43",))]  # in env01: the water, the crumpled paper
+
+
+def room_file(cup_width: float | None = None) -> str:
+    """env01 of world 0 as a person's room file (`tearoom.json`); `cup_width` saves it again with the cup wider."""
+    state = world_environment(0, "env01").state
+    specs = dict(state.specs)
+    if cup_width is not None:
+        cup = specs["obj14"]
+        specs["obj14"] = dataclasses.replace(cup, size=(cup_width, *cup.size[1:]))
+    return json.dumps({"objects": [spec_to_dict(s) for s in specs.values()], "state": state_to_dict(state)})
+
+
+def demonstrate_in(folder: Path, text: str) -> Path:
+    """Demonstrate every task of TASKS in the room file, as the web page does; the log file written."""
+    env = file_environment("tearoom.json", text)
+    writer = RecordWriter(folder)
+    for task in TASKS:
+        path = writer.append(person_record(env, task, demonstrate(env.state, task)[0]))
+    return path
+
+
+@pytest.fixture
+def two_versions(tmp_path) -> tuple[Path, Path, Path]:
+    """A people's folder holding the records of a room and of the same room saved again with a wider cup."""
+    folder = tmp_path / "people"
+    return folder, demonstrate_in(folder, room_file()), demonstrate_in(folder, room_file(cup_width=0.095))
+
+
+def lines(path: Path) -> list[dict]:
+    return [json.loads(line) for line in path.read_text().splitlines()]
+
+
+def test_two_versions_of_a_room_ingest_together_and_the_tables_give_back_every_record(two_versions, tmp_path):
+    folder, v1, v2 = two_versions
+    assert v1 != v2 and v1.name.startswith("tearoom-") and v2.name.startswith("tearoom-")
+    assert main(["--no-mlflow", "ingest", "--people", "--input", str(folder), "--output", str(tmp_path / "t")]) == 0
+    tables = read_tables(tmp_path / "t")
+    cups = {(r["env_id"], r["w"]) for r in tables["objects"].to_pylist() if r["object_id"] == "obj14"}
+    assert cups == {(v1.stem, 0.075), (v2.stem, 0.095)}
+    written = sorted([*lines(v1), *lines(v2)], key=lambda r: r["env_id"])
+    assert records_from_tables(tables) == written
+    records, summary = people_records(folder)
+    assert len(records) == 4 and summary["environments"] == 2
+    assert summary["objects"] == len(world_environment(0, "env01").state.specs) + 1  # the two cups
+
+
+def test_the_benchmark_logs_keep_one_description_per_object_id(two_versions, tmp_path, capsys):
+    """Without --people the folder is read as the benchmark's logs are, and the message says what to do."""
+    folder, *versions = two_versions
+    first, second = sorted(versions)  # the order ingest reads them in
+    assert main(["--no-mlflow", "ingest", "--input", str(folder), "--output", str(tmp_path / "t")]) != 0
+    said = capsys.readouterr().err
+    assert f"{second.name}:1: objects[6]: object obj14 differs from its description at {first.name}:1" in said
+    assert "ingests with --people" in said
+    assert not (tmp_path / "t").exists()
+
+
+def test_an_environment_describes_its_objects_alike_in_every_record(tmp_path):
+    """Per environment the check stays: a record of one room version with another cup is refused."""
+    folder = tmp_path / "people"
+    path = demonstrate_in(folder, room_file())
+    first, second = lines(path)
+    next(o for o in second["objects"] if o["id"] == "obj14")["name"] = "teacup_with_handle"
+    path.write_text("\n".join(json.dumps(r) for r in (first, second)) + "\n")
+    _, records, [problem] = load_people_logs(folder)
+    assert records == []
+    assert problem.line == 2 and f"object obj14 differs from its description in environment {path.stem}" in str(problem)
+
+
+@pytest.mark.parametrize("damage, reason", [
+    (lambda text: text[: len(text) // 2], "not valid JSON"),  # cut short: a full disk, a copy stopped
+    (lambda text: text.replace('"name":"pour"', '"name":"fly"', 1), "task.name: 'fly' is not one of"),
+])
+def test_a_bad_file_of_a_people_folder_is_left_out_where_it_is_and_the_others_are_used(tmp_path, capsys, damage,
+                                                                                        reason):
+    folder = tmp_path / "people"
+    writer = RecordWriter(folder)
+    for env_id in ("env01", "env02"):
+        env = world_environment(0, env_id)
+        task = Task("pour", ("obj27",)) if env_id == "env01" else Task("pour", ("obj29",))
+        writer.append(person_record(env, task, demonstrate(env.state, task)[0]))
+    bad = folder / "w0-env01.jsonl"
+    bad.write_text(damage(bad.read_text()))
+    damaged = bad.read_bytes()
+
+    records, summary = people_records(folder)
+    assert [r["env_id"] for r in records] == ["w0-env02"] and summary["sequences"] == 1
+    said = capsys.readouterr().err
+    assert f"left out {bad}" in said and reason in said
+    assert main(["--no-mlflow", "ingest", "--people", "--input", str(folder), "--output", str(tmp_path / "t")]) == 0
+    out = capsys.readouterr()
+    assert "ingested 1 sequences" in out.out and f"left out {bad}" in out.err and reason in out.err
+    assert bad.read_bytes() == damaged  # nothing is lost: the file stays as it was
+    with pytest.raises(LogError, match=reason):  # the benchmark's own logs fail at their first problem
+        load_logs(folder)
+
+
+def test_a_file_at_odds_with_an_earlier_one_is_left_out(tmp_path):
+    """A log copied under another name repeats its demo ids: the copy read second is left out, named."""
+    folder = tmp_path / "people"
+    path = demonstrate_in(folder, room_file())
+    copy = folder / "zz-copy.jsonl"
+    copy.write_bytes(path.read_bytes())
+    _, records, [problem] = load_people_logs(folder)
+    assert len(records) == len(TASKS) and problem.path == str(copy) and "already used at" in str(problem)
+
+
+def test_a_people_folder_with_no_usable_file_is_an_error_naming_them(tmp_path, capsys):
+    folder = tmp_path / "people"
+    folder.mkdir()
+    (folder / "w0-env01.jsonl").write_text("{not json\n")
+    assert main(["--no-mlflow", "ingest", "--people", "--input", str(folder), "--output", str(tmp_path / "t")]) != 0
+    said = capsys.readouterr().err
+    assert "w0-env01.jsonl:1" in said and "no usable records: 1 file(s) left out" in said
+    assert not (tmp_path / "t").exists()
