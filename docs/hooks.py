@@ -1,21 +1,37 @@
-"""Build-time hook of the documentation site: the Results page, made from `reports/` as it is.
+"""Build-time hooks of the documentation site: every figure and listing that a file already holds.
 
-The page is the pipeline's own `reports/summary.md`, followed by the Markdown tables the
-`aggregate` and `crossval` stages write, each included as the file stands, and links to the
-report files themselves. Nothing on it is copied by hand, so a build after `dvc repro` shows
-that run's numbers. The DVC-cached per-program tables (the names DVC lists in the
-`.gitignore` beside them) are left out: they are large, and a fresh clone does not have them
-until `dvc repro` has run, while every other report is committed.
+- The Results page is the pipeline's own `reports/summary.md`, followed by the Markdown tables
+  the `aggregate` and `crossval` stages write, each included as the file stands, and links to
+  the report files themselves. The DVC-cached per-program tables (the names DVC lists in the
+  `.gitignore` beside them) are left out: they are large, and a fresh clone does not have them
+  until `dvc repro` has run, while every other report is committed.
+- The CLI reference page is the help of `taskseq.cli.build_parser()`, every subcommand's.
+- A page line `<!-- generated: NAME -->` is replaced by the table `GENERATED[NAME]` makes:
+  the timings of `reports/bench.json` and `reports/scaling.json`, the mutation scores of
+  `reports/mutation/`, the development world's ranking in `reports/selection.json`, and the
+  package's layout from its modules' docstrings.
+
+Nothing is copied by hand, so a build after `dvc repro` (or `taskseq bench`, `taskseq
+scaling`, `scripts/mutation.py`) shows that run's numbers.
 """
 
 from __future__ import annotations
 
+import ast
+import json
+import os
+import re
 from pathlib import Path
 
 from mkdocs.config.defaults import MkDocsConfig
 from mkdocs.structure.files import File, Files
 
-REPORTS = Path(__file__).resolve().parents[1] / "reports"
+ROOT = Path(__file__).resolve().parents[1]
+REPORTS = ROOT / "reports"
+PACKAGE = ROOT / "taskseq"
+CLI_PAGE = "reference/cli.md"
+PARAMS_PAGE = "reference/params.md"
+CHANGELOG_PAGE = "changelog.md"
 SITE = "results"  # the report files are published under it as they lie in reports/, so summary.md's
 # relative links to its figures hold on the page
 LINKED = {".csv", ".json", ".tex", ".png"}  # report files a reader may download
@@ -90,9 +106,339 @@ def results_page(files: list[Path]) -> str:
 
 
 def on_files(files: Files, config: MkDocsConfig) -> Files:
-    """Add the Results page and the report files it shows and links."""
+    """Add the Results page and the report files it shows and links, and the CLI reference page."""
     report_files = _report_files()
     files.append(File.generated(config, f"{SITE}/index.md", content=results_page(report_files)))
+    files.append(File.generated(config, CLI_PAGE, content=cli_page()))
+    files.append(File.generated(config, PARAMS_PAGE, content=params_page()))
+    files.append(File.generated(config, CHANGELOG_PAGE, content=(ROOT / "CHANGELOG.md").read_text()))
     for rel in report_files:
         files.append(File.generated(config, f"{SITE}/{rel.as_posix()}", abs_src_path=str(REPORTS / rel)))
     return files
+
+
+# ---------------------------------------------------------------------------------------------
+# Tables generated into hand-written pages
+
+MARKER = re.compile(r"^<!-- generated: ([\w-]+) -->$", re.M)
+
+
+def on_page_markdown(markdown: str, page, config: MkDocsConfig, files: Files) -> str:
+    """Replace each `<!-- generated: NAME -->` line by the table it names (an unknown name fails the build)."""
+    def replace(match: re.Match) -> str:
+        name = match.group(1)
+        if name not in GENERATED:
+            raise ValueError(f"{page.file.src_uri}: no generated table named {name!r} (docs/hooks.py)")
+        return GENERATED[name]().rstrip("\n")
+    return MARKER.sub(replace, markdown)
+
+
+def _json(name: str) -> dict | None:
+    path = REPORTS / name
+    return json.loads(path.read_text()) if path.is_file() else None
+
+
+def _missing(name: str, command: str) -> str:
+    return f"`reports/{name}` has not been written yet: run `{command}`.\n"
+
+
+def _rows(header: list[str], align: str, rows: list[list]) -> str:
+    """A Markdown table; `align` has one letter per column, l or r."""
+    out = ["| " + " | ".join(header) + " |", "|" + "|".join("---" if a == "l" else "---:" for a in align) + "|"]
+    out += ["| " + " | ".join(str(cell) for cell in row) + " |" for row in rows]
+    return "\n".join(out) + "\n"
+
+
+def _machine(report: dict) -> str:
+    m = report.get("machine", {})
+    return f"{m.get('cpus', '?')} CPUs, {m.get('processor', '?')}, Python {m.get('python', '?')}"
+
+
+BENCH_COMMAND = "taskseq bench --set train.C=3 --output reports/bench.json"
+
+
+def bench_training() -> str:
+    """The learner's fits of `reports/bench.json`."""
+    bench = _json("bench.json")
+    if bench is None:
+        return _missing("bench.json", BENCH_COMMAND)
+    train = bench["train"]
+    rows = []
+    for run in train["runs"]:
+        excess = f"{run['excess']:.1e}" if "excess" in run else "-"
+        rows.append([run["features"], f"{run['tol']:.0e}", "n" if run["n_slacks"] == 0 else run["n_slacks"],
+                     f"{run['seconds']:.2f}", run["iterations"], f"{100 * run['oracle_share']:.0f}%",
+                     f"{100 * run['qp_share']:.0f}%", f"{run['primal_objective']:.3f}", excess])
+    ref = train["reference"]
+    return (f"`{BENCH_COMMAND}`: {train['steps']} steps, C = {train['C']:g}, on {_machine(bench)}; "
+            f"peak resident memory {train['peak_rss_mib']:.0f} MiB.\n\n"
+            + _rows(["model", "gap", "slacks", "seconds", "iterations", "oracle", "QP", "objective", "excess"],
+                    "lrrrrrrrr", rows)
+            + f"\nReference: the full model to a gap of {ref['tol']:.0e} in {ref['seconds']:.1f} s; certified "
+            f"lower bound on the optimum {train['lower_bound']:.3f}. Peak memory of the features stage: "
+            f"{bench['features_peak_mib']:.1f} MiB.\n")
+
+
+def bench_latency() -> str:
+    """Per-step inference and planner step of `reports/bench.json`."""
+    bench = _json("bench.json")
+    if bench is None:
+        return _missing("bench.json", BENCH_COMMAND)
+    rows = [[n, f"{v['candidates']:,}", f"{v['inference_ms']:.3f}", f"{v['step_ms']:.3f}"]
+            for n, v in sorted(bench["latency"].items(), key=lambda kv: int(kv[0]))]
+    return (f"`{BENCH_COMMAND}`, on {_machine(bench)}:\n\n"
+            + _rows(["objects", "candidates", "inference ms", "planner step ms"], "rrrr", rows))
+
+
+SCALING_COMMAND = ("taskseq scaling --rooms 13 39 130 --selection reports/selection.json "
+                   "--plot docs/img/scaling.png --output reports/scaling.json")
+STAGE_ORDER = ("generate", "ingest", "features", "fold_models", "crossval", "noise", "feedback")
+
+
+def _load(size: dict) -> str:
+    load = size.get("load_average", {})
+    if not load:
+        return "-"
+    return f"{load['before'][0]:.1f} → {load['after'][0]:.1f}"
+
+
+def scaling_fit() -> str:
+    """The timed fit and inference per world size of `reports/scaling.json`."""
+    scaling = _json("scaling.json")
+    if scaling is None:
+        return _missing("scaling.json", SCALING_COMMAND)
+    s = scaling["settings"]
+    rows = []
+    for size in scaling["sizes"]:
+        t, inf = size.get("train"), size.get("inference")
+        if not t or not inf:
+            continue
+        rows.append([size["rooms"], f"{size['scenarios']:,}", f"{size['steps']:,}", f"{t['seconds']:.2f}",
+                     f"{t['cpu_seconds']:.2f}", t["iterations"], f"{t['cpu_ms_per_step']:.2f}",
+                     f"{100 * t['qp_share']:.0f}%", f"{t['peak_rss_mib']:.0f} ({t['loaded_rss_mib']:.0f})",
+                     f"{inf['median_ms']:.3f}", _load(size)])
+    return (f"`{SCALING_COMMAND}`: world seed {s['world_seed']}, C = {s['C']:g} (selection: {s['selection']}), "
+            f"gap {s['tol']:g}, {s['n_jobs']} processes per parallel stage, on {_machine(scaling)}.\n\n"
+            + _rows(["rooms", "scenarios", "steps", "fit, wall s", "fit, CPU s", "iterations", "CPU ms a step",
+                     "QP share", "peak MiB (after reading the features)", "inference ms a step",
+                     "load average (1 min)"], "rrrrrrrrrrl", rows))
+
+
+def scaling_stages() -> str:
+    """Each stage's wall and CPU time and peak memory per world size of `reports/scaling.json`."""
+    scaling = _json("scaling.json")
+    if scaling is None:
+        return _missing("scaling.json", SCALING_COMMAND)
+    stages = [name for name in STAGE_ORDER if any(name in size.get("stages", {}) for size in scaling["sizes"])]
+    rows = []
+    for size in scaling["sizes"]:
+        timed = size.get("stages", {})
+        cells = [f"{timed[n]['seconds']:.1f} ({timed[n]['cpu_seconds']:.1f}) · {timed[n]['peak_rss_mib']:.0f}"
+                 if n in timed else "-" for n in stages]
+        rows.append([size["rooms"], *cells, f"{sum(v['cpu_seconds'] for v in timed.values()):.0f}"])
+    return ("Each stage: wall seconds (CPU seconds) · peak MiB of its largest process.\n\n"
+            + _rows(["rooms", *stages, "all, CPU s"], "r" * (len(stages) + 2), rows))
+
+
+def scaling_growth() -> str:
+    """Log-log slopes against steps of `reports/scaling.json` (`growth`)."""
+    scaling = _json("scaling.json")
+    if scaling is None:
+        return _missing("scaling.json", SCALING_COMMAND)
+    growth = scaling["growth"]
+    names = ["train_cpu_seconds", "train_seconds", "train_peak_rss_mib", "inference_ms"]
+    names += [f"stage.{n}.cpu" for n in STAGE_ORDER] + [f"stage.{n}" for n in STAGE_ORDER]
+    rows = []
+    for name in names:
+        if name not in growth:
+            continue
+        g = growth[name]
+        between = " · ".join(f"{b['slope']:.2f} ({b['steps'][0]:,} to {b['steps'][1]:,})" for b in g["between"])
+        rows.append([f"`{name}`", f"{g['overall']:.2f}", between])
+    return _rows(["figure", "slope, smallest to largest", "between neighbouring sizes (steps)"], "lrl", rows)
+
+
+MUTATION = REPORTS / "mutation"
+_MUTATION_HEAD = re.compile(r"^(?P<date>\d{4}-\d\d-\d\d), `(?P<command>[^`]+)`(?: \((?P<tool>[^)]*)\))?,? ?(?P<rest>.*)$")
+_MODULE_ROW = re.compile(r"^\| `(taskseq\.[\w.]+)` \| (\d+) \| (\d+) \| (\d+) \| (\d+) \| ([\d.]+%) \|$")
+_TOTAL_ROW = re.compile(r"^\| (\d+) \| (\d+) \| (\d+) \| (\d+) \| ([\d.]+%) \|$")
+
+
+def mutation_report(path: Path) -> dict:
+    """A group's report of `scripts/mutation.py`: its run line, its total and its modules' rows."""
+    lines = path.read_text().splitlines()
+    head = next((m for m in map(_MUTATION_HEAD.match, lines) if m), None)
+    total = next((m.groups() for m in map(_TOTAL_ROW.match, lines) if m), None)
+    modules = [m.groups() for m in map(_MODULE_ROW.match, lines) if m]
+    return {"group": path.stem, "head": head.groupdict() if head else None, "total": total, "modules": modules}
+
+
+def mutation_scores() -> str:
+    """Every group's mutants, per module, from `reports/mutation/GROUP.md`."""
+    reports = [mutation_report(p) for p in sorted(MUTATION.glob("*.md"))] if MUTATION.is_dir() else []
+    if not reports:
+        return "`reports/mutation/` holds no report yet: run `python scripts/mutation.py GROUP`.\n"
+    rows = []
+    for report in reports:
+        group = f"`{report['group']}`"
+        rows += [[group, f"`{name}`", *counts] for name, *counts in report["modules"]]
+        if report["total"]:
+            *counts, score = report["total"]
+            rows.append([group, "**all**", *counts, f"**{score}**"])
+    runs = []
+    for report in reports:
+        head = report["head"] or {}
+        minutes = re.search(r"(\d+(?:\.\d+)?) min", head.get("rest", ""))
+        runs.append([f"`{report['group']}`", f"`reports/mutation/{report['group']}.md`", head.get("date", "-"),
+                     minutes.group(1) if minutes else "-", head.get("tool") or "-"])
+    return (_rows(["group", "module", "mutants", "killed", "survived", "equivalent", "score"], "llrrrrr", rows)
+            + "\n" + _rows(["group", "report", "run on", "minutes", "tool"], "llrrl", runs))
+
+
+def selection_ranking() -> str:
+    """The development world's ranking of `reports/selection.json`, each method at its own C."""
+    selection = _json("selection.json")
+    if selection is None:
+        return _missing("selection.json", "dvc repro select")
+    from taskseq.evaluate.registry import method_labels
+
+    labels = method_labels()
+    rows = []
+    for entry in selection["methods"]:
+        name = entry["method"]
+        tried = " ".join(f"{c['C']:g}" for c in selection["settings"].get(name, {}).get("candidates", []))
+        capped = " (capped)" if selection["settings"].get(name, {}).get("capped") else ""
+        rows.append([labels.get(name, name), f"{entry['C']:g}{capped}", tried or "-",
+                     f"{entry['sequence_arg']:.1f}", f"{entry['success']:.1f}"])
+    return (f"`reports/selection.json` (development world seed {selection['dev_seed']}), ranked; the first is "
+            f"the shipped method (`{selection['method']}`).\n\n"
+            + _rows(["method", "C", "C tried", "sequence arg", "success"], "lrlrr", rows))
+
+
+# the one-line summary of a subpackage whose __init__.py has no docstring
+SUBPACKAGES = {
+    "sim": "the simulated world: objects and attributes, state, primitives, tasks, safety rules, the catalog, "
+           "drawn rooms, the demonstrator",
+    "logs": "the demonstration log format: records and schema, validation and replay, generation, ingest to Parquet",
+    "features": "what the model sees of a step, the choice cues, perception noise, the feature files",
+    "learn": "the structural SVM, its working-set QP, the unrolled MRF, the estimator, model files",
+    "plan": "the step-by-step planner; `symbolic/`: PDDL problems, the SAT planner, the symbolic policy",
+    "evaluate": "methods, folds, cross-validation, failures, selection of C, noise and feedback, recipes, transfer",
+    "report": "Table I, figures over world seeds, statistics, long CSV files, figures, summary.md",
+    "track": "MLflow runs of the stages and their writer process, Rerun recordings",
+}
+
+
+def _summary(path: Path) -> str:
+    """The first sentence of a module's docstring."""
+    doc = ast.get_docstring(ast.parse(path.read_text())) or ""
+    first = " ".join(doc.split("\n\n")[0].split())
+    return first.replace("|", "\\|")
+
+
+def package_layout() -> str:
+    """Every module of `taskseq/`, with the first sentence of its docstring, read from the source."""
+    top = [[f"`taskseq/{p.name}`", _summary(p)] for p in sorted(PACKAGE.glob("*.py"))]
+    parts = ["### Top-level modules\n\n" + _rows(["module", "what it is"], "ll", top)]
+    for package in sorted(p for p in PACKAGE.iterdir() if (p / "__init__.py").is_file()):
+        summary = _summary(package / "__init__.py") or SUBPACKAGES.get(package.name, "")
+        modules = sorted(m for m in package.rglob("*.py") if m.name != "__init__.py" and "__pycache__" not in m.parts)
+        rows = [[f"`{m.relative_to(package).as_posix()}`", _summary(m)] for m in modules]
+        parts.append(f"### `taskseq/{package.name}/`\n\n{summary}\n\n"
+                     + (_rows(["module", "what it is"], "ll", rows) if rows else ""))
+    return "\n".join(parts)
+
+
+GENERATED = {
+    "bench-training": bench_training,
+    "bench-latency": bench_latency,
+    "scaling-fit": scaling_fit,
+    "scaling-stages": scaling_stages,
+    "scaling-growth": scaling_growth,
+    "mutation-scores": mutation_scores,
+    "selection-ranking": selection_ranking,
+    "package-layout": package_layout,
+}
+
+
+# ---------------------------------------------------------------------------------------------
+# The CLI reference
+
+def cli_page() -> str:
+    """Every subcommand of `taskseq`, with its help as argparse prints it."""
+    import argparse
+
+    from taskseq.cli import build_parser
+    from taskseq.stages import STAGES
+
+    columns = os.environ.get("COLUMNS")
+    os.environ["COLUMNS"] = "100"  # argparse wraps to the terminal: the same page on every machine
+    try:
+        parser = build_parser()
+        sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+        import taskseq.cli
+
+        doc = " ".join(taskseq.cli.__doc__.split())
+        about = doc[doc.index("Exit codes"):] if "Exit codes" in doc else ""
+        parts = ["# Command line\n\nGenerated from `taskseq.cli.build_parser()` when the site is built: the help "
+                 "of `taskseq` and of every subcommand. Each pipeline stage is a subcommand, which `dvc.yaml` runs "
+                 f"with the options it lists; the other subcommands are tools. {about}\n\n"
+                 "```text\n" + parser.format_help().rstrip() + "\n```"]
+        for kind, names in (("Pipeline stages", [n for n in sub.choices if n in STAGES]),
+                            ("Tools", [n for n in sub.choices if n not in STAGES])):
+            parts.append(f"## {kind}\n\n" + ", ".join(f"[`{n}`](#taskseq-{n.replace('_', '-')})" for n in names))
+            for name in names:
+                command = sub.choices[name]
+                parts.append(f"### taskseq {name} {{ #taskseq-{name.replace('_', '-')} }}\n\n"
+                             f"{command.description or ''}\n\n```text\n{command.format_help().rstrip()}\n```")
+    finally:
+        if columns is None:
+            os.environ.pop("COLUMNS", None)
+        else:
+            os.environ["COLUMNS"] = columns
+    return "\n\n".join(parts) + "\n"
+
+
+# ---------------------------------------------------------------------------------------------
+# The params reference
+
+_SECTION = re.compile(r"^(\w+):\s*(?:#\s*(.*))?$")
+_KEY = re.compile(r"^\s+(\w+):\s*(.*?)\s*(?:#\s*(.*))?$")
+
+
+def params_page() -> str:
+    """Every setting of `params.yaml` with its value and its comment, section by section."""
+    path = ROOT / "params.yaml"
+    parts = ["# Parameters\n\nEvery setting of `params.yaml`, the file `dvc.yaml`'s stages read, with the value it "
+             "holds and its comment there; this page is generated from the file when the site is built. The "
+             "defaults in code are `taskseq/settings.py`, which keeps them equal to this file. Change one for a "
+             "run with `--set SECTION.KEY=VALUE` on a stage's command, or as an experiment with "
+             "`dvc exp run -S SECTION.KEY=VALUE` ([the pipeline](../pipeline.md#params)).\n"]
+    rows: list[list[str]] = []
+    section, pending = None, []
+
+    def flush():
+        if section and rows:
+            parts.append(f"## `{section}`\n\n" + _rows(["setting", "value", "what it sets"], "lll", rows))
+
+    for line in path.read_text().splitlines():
+        if not line.strip():
+            continue
+        if line.lstrip().startswith("#"):
+            pending.append(line.strip().lstrip("#").strip())
+            continue
+        match = _SECTION.match(line)
+        if match:
+            flush()
+            section, rows, pending = match.group(1), [], []
+            if match.group(2):
+                parts.append("")  # section comments go with its heading below
+            continue
+        match = _KEY.match(line)
+        if match and section:
+            key, value, comment = match.groups()
+            text = " ".join([*pending, comment or ""]).strip().replace("|", "\\|")
+            rows.append([f"`{section}.{key}`", f"`{value}`" if value else "-", text])
+            pending = []
+    flush()
+    return "\n\n".join(p for p in parts if p) + "\n"

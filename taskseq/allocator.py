@@ -5,12 +5,12 @@ free space at the top of its heap) to the kernel at once, and the next array
 of that size is faulted back in page by page, each page zeroed by the kernel.
 A fit builds and drops its score tables, oracle answers and padded feature
 rows on every cutting-plane iteration, hundreds of MiB each on a large world,
-so large fits spent more time in the kernel than in their own arithmetic: the
-fold models of the 130-room world took 626 s with 433 s of system time and 55
-million page faults with glibc mapping large blocks, and with this policy 316
-to 343 s, 37 to 40 s and 0.4 million, the same models to the byte
-(docs/scaling-benchmark.md). On a virtual machine whose host backs guest
-memory only when the guest first touches it, a page given back costs most.
+so without this policy large fits spend more time in the kernel than in their
+own arithmetic (docs/scaling-benchmark.md times the fold models of a 130-room
+world both ways: the same models to the byte, about half the wall time and a
+tenth of the system time with the policy). On a virtual machine whose host
+backs guest memory only when the guest first touches it, a page given back
+costs most.
 
 The policy: no block is served by `mmap` of its own (`M_MMAP_MAX` 0; glibc
 still maps memory when the heap cannot grow, so nothing fails for want of

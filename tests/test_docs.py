@@ -36,6 +36,10 @@ def test_the_site_builds_without_a_warning(tmp_path):
     assert "Table I per primitive" in results
     api = (tmp_path / "site" / "api" / "learn" / "index.html").read_text()
     assert "CuttingPlaneSSVM" in api and "StepScorer" in api
+    cli = (tmp_path / "site" / "reference" / "cli" / "index.html").read_text()
+    assert "taskseq fold_models" in cli and "--selection" in cli
+    for page in (tmp_path / "site").rglob("*.html"):
+        assert "<!-- generated:" not in page.read_text(), f"{page}: a generated table was not filled in"
 
 
 def test_the_results_page_holds_the_reports_as_they_are():
@@ -51,7 +55,7 @@ def test_every_module_has_its_api_reference():
     """A subpackage's page renders its modules (show_submodules); top-level modules each need a block."""
     blocks = set()
     for page in (DOCS / "api").glob("*.md"):
-        blocks |= set(re.findall(r"^::: (pipeline(?:\.\w+)*)\s*$", page.read_text(), re.M))
+        blocks |= set(re.findall(r"^::: (taskseq(?:\.\w+)*)\s*$", page.read_text(), re.M))
     package = ROOT / "taskseq"
     wanted = {f"taskseq.{p.name}" for p in package.iterdir() if (p / "__init__.py").is_file()}
     wanted |= {f"taskseq.{p.stem}" for p in package.glob("*.py") if p.stem != "__init__"}
@@ -75,3 +79,144 @@ def test_the_readme_results_are_rows_of_the_summary():
     assert rows, "the README shows no result rows"
     for row in rows:
         assert row in summary, f"README row not in reports/summary.md: {row}"
+
+
+def test_every_subcommand_is_on_the_cli_reference_page_with_every_option():
+    import argparse
+
+    from taskseq.cli import build_parser
+
+    page = _hooks().cli_page()
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    for name, command in sub.choices.items():
+        assert f"### taskseq {name} " in page, name
+        for action in command._actions:
+            for option in action.option_strings:
+                assert option in page, f"{name} {option}"
+
+
+def test_every_setting_of_params_yaml_is_on_the_parameters_page():
+    import yaml
+
+    page = _hooks().params_page()
+    params = yaml.safe_load((ROOT / "params.yaml").read_text())
+    for section, values in params.items():
+        for key in values:
+            assert f"`{section}.{key}`" in page, f"{section}.{key}"
+
+
+def test_the_generated_tables_read_the_reports():
+    hooks = _hooks()
+    for name, make in hooks.GENERATED.items():
+        assert "has not been written yet" not in make() and "holds no report yet" not in make(), name
+    bench = (ROOT / "reports" / "bench.json").read_text()
+    first = __import__("json").loads(bench)["train"]["runs"][0]
+    assert f"{first['seconds']:.2f}" in hooks.bench_training()
+    for report in (ROOT / "reports" / "mutation").glob("*.md"):
+        assert f"`{report.stem}`" in hooks.mutation_scores()
+    markers = set()
+    for page in DOCS.rglob("*.md"):
+        markers |= set(hooks.MARKER.findall(page.read_text()))
+    assert markers == set(hooks.GENERATED), "a generated table that no page shows, or a marker without a table"
+
+
+def test_the_layout_page_lists_every_module_and_names_only_paths_that_exist():
+    hooks = _hooks()
+    layout = hooks.package_layout()
+    package = ROOT / "taskseq"
+    for module in package.rglob("*.py"):
+        if "__pycache__" in module.parts:
+            continue
+        rel = module.relative_to(package)
+        shown = f"`taskseq/{rel.as_posix()}`" if len(rel.parts) == 1 else f"`{rel.relative_to(rel.parts[0]).as_posix()}`"
+        assert module.name == "__init__.py" or shown in layout, rel
+    for sub in package.iterdir():
+        if (sub / "__init__.py").is_file():
+            assert f"### `taskseq/{sub.name}/`\n\n\n" not in layout, f"taskseq/{sub.name}/ has no summary: " \
+                "give its __init__.py a docstring or docs/hooks.py's SUBPACKAGES an entry"
+    page = (DOCS / "layout.md").read_text()
+    around = page[page.index("## Around the package"):page.index("## Libraries")]
+    for cell in re.findall(r"^\| ([^|]+) \|", around, re.M)[1:]:  # the table's first column, header left out
+        for path in re.findall(r"`([^`]+)`", cell):
+            assert (ROOT / path).exists(), f"docs/layout.md names {path}, which does not exist"
+    scripts = around[around.index("`scripts/`"):].split("\n")[0]
+    for script in (ROOT / "scripts").iterdir():
+        if script.suffix in {".py", ".toml"}:
+            assert f"`{script.name}`" in scripts, f"docs/layout.md does not name scripts/{script.name}"
+
+
+# "about 20 minutes", "4 min", "1,057 s", "1 h 36 min": a duration as a reader would quote it
+_DURATION = re.compile(r"\b(\d+(?:[.,]\d+)?(?: to \d+(?:[.,]\d+)?)?)\s*(h|hours?|min|minutes?|s|seconds?)\b")
+_UNIT = {"h": "h", "hour": "h", "hours": "h", "min": "min", "minute": "min", "minutes": "min",
+         "s": "s", "second": "s", "seconds": "s"}
+
+
+def _quick_start_figures(text: str) -> dict[str, set[tuple[str, str]]]:
+    """The durations each quick-start command is said to take, keyed by the command's last word.
+
+    The quick start of README.md and of docs/index.md introduce the same two commands, each
+    with a sentence saying how long it takes. A figure belongs to the command whose code block
+    follows its sentence, so the two pages can be compared command by command.
+    """
+    section = text[text.index("## Quick start"):]
+    section = section[:section.index("\n## ", 4)]
+    figures: dict[str, set[tuple[str, str]]] = {}
+    prose = ""
+    for chunk in re.split(r"(```bash\n.*?```)", section, flags=re.S):
+        if chunk.startswith("```bash"):
+            command = chunk.strip("`\n").split()[-1]  # `repro` or `-q`
+            figures[command] = {(n, _UNIT[u]) for n, u in _DURATION.findall(prose)}
+            prose = ""
+        else:
+            prose = chunk
+    return figures
+
+
+def test_readme_and_the_sites_front_page_give_the_same_running_times():
+    """README.md and docs/index.md both say how long the install and run, and the tests, take.
+
+    They drifted apart once (half an hour against 15 minutes). Each page must state a time for
+    each command, and the same one.
+    """
+    readme = _quick_start_figures(README.read_text())
+    index = _quick_start_figures((DOCS / "index.md").read_text())
+    assert set(readme) == set(index) == {"repro", "-q"}, (readme, index)
+    for command in readme:
+        assert readme[command], f"README.md's quick start gives no time for the command ending {command}"
+        assert readme[command] == index[command], \
+            f"the command ending {command}: README.md says {readme[command]}, docs/index.md {index[command]}"
+
+
+def test_the_duration_reader_sees_a_disagreement():
+    page = "## Quick start\n\nRun it (about {} on 2 cores):\n\n```bash\ndvc repro\n```\n\nTests:\n\n```bash\npytest -q\n```\n\n## Next\n"
+    assert _quick_start_figures(page.format("20 minutes")) == {"repro": {("20", "min")}, "-q": set()}
+    assert _quick_start_figures(page.format("20 min")) == _quick_start_figures(page.format("20 minutes"))
+    assert _quick_start_figures(page.format("half an hour")) != _quick_start_figures(page.format("20 min"))
+    assert _quick_start_figures(page.format("15 min")) != _quick_start_figures(page.format("20 min"))
+
+
+def test_the_project_files_say_how_to_cite_and_license_it():
+    import tomllib
+
+    import yaml
+
+    citation = yaml.safe_load((ROOT / "CITATION.cff").read_text())
+    assert citation["cff-version"] == "1.2.0" and citation["type"] == "software"
+    paper = citation["references"][0]
+    assert paper["title"].startswith("Synthesizing Manipulation Sequences for Under-Specified Tasks")
+    assert [a["family-names"] for a in paper["authors"]] == ["Sung", "Selman", "Saxena"] and paper["year"] == 2014
+    assert "BSD 3-Clause" in (ROOT / "LICENSE").read_text()
+    assert tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["license"] == {"file": "LICENSE"}
+    readme = README.read_text()
+    assert "(LICENSE)" in readme and "(CITATION.cff)" in readme
+
+
+_DATED = re.compile(r"\b(?:\d{1,2} )?(?:January|February|March|April|June|July|August|September|October|November|"
+                    r"December) 20\d\d\b|\b20\d\d-\d\d-\d\d\b|Later that day|/work/")
+
+
+def test_the_docs_and_docstrings_hold_no_dated_run_log():
+    """History goes to CHANGELOG.md; pages and docstrings say how things are (generated tables may show dates)."""
+    paths = [README, *DOCS.rglob("*.md"), *(ROOT / "taskseq").rglob("*.py")]
+    found = [f"{p.relative_to(ROOT)}: {m.group(0)}" for p in paths for m in _DATED.finditer(p.read_text())]
+    assert not found, found

@@ -46,7 +46,7 @@ gradient is one sparse product with `w`, a group's steps need only its own
 cuts' cross products, and moving weight updates `w` over the cut's non-zeros,
 so a pass costs time and memory in proportion to the set's non-zeros. It needs
 more passes than the greedy order above to close a tight gap (on a paper-shaped
-world's 886 steps, the relations model's QP took 2.9 s this way against 1.5 s
+world's 886 steps, the relations model's QP takes 2.9 s this way against 1.5 s
 with the Gram matrix), so when pruning brings the set back under the limit the
 Gram matrix is formed again and the steps go back to it. A fit that never holds
 more than `gram_limit` cuts takes only the greedy steps, bit for bit.
