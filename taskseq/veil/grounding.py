@@ -2,16 +2,16 @@
 step the learner sees.
 
 Which domain action: the object-specific action `<verb>_<Object>` when the domain defines one (`turn_StoveKnob_1`,
-`press_MicrowaveButton`, `add_Ramen_1 ?x`: the line's remaining objects are its parameters), else the generic
+`press_MicrowaveButton`; `add_<Object> ?x`: the line's remaining objects are its parameters), else the generic
 action of the verb with as many parameters as the line has arguments (`grasp ?o`, `pour ?x` or `pour ?x ?y`). For
 `keep X <Rel> Y` it is `keep_<Rel>_<Y> ?x` when defined, else the generic `keep ?x ?rel ?z`.
 
 Names (checked on the release): the domain writes an object-specific name as the object is written in the
-sequences, but for case and, for the stove's burners, an underscore (`keep_On_StoveFire2` for the object
-`StoveFire_2`, `open_BagOfChips_1` for `bagOfChips_1`). So an action is looked up by its object's name without case
-and underscores (`release.loose_key`); two actions of one verb whose names meet under that key are an error of
-the domain. The relation words of the sequences are `On` and `Inside`; the domain writes `Inside` as `In`
-(`keep_In_Microwave`, `(= ?rel In)`), so `RELATIONS` maps one to the other.
+sequences, but for case and, for some objects, an underscore (`keep_On_StoveFire2` for the object
+`StoveFire_2`; the fixture's `keep_On_HotPlate1` for `HotPlate_1`). So an action is looked up by its object's
+name without case and underscores (`release.loose_key`); two actions of one verb whose names meet under that
+key are an error of the domain. The relation words of the sequences are `On` and `Inside`; the domain writes
+`Inside` as `In` (`keep_In_<Object>`, `(= ?rel In)`), so `RELATIONS` maps one to the other.
 
 `wait` is an instruction of `ControllerInstructions.xml` but no action of the domain: it grounds to `WAIT`, an
 action with no precondition and no effect, unless the domain defines one.

@@ -1,11 +1,11 @@
 """A tolerant reader of the release's `domainKnowledge.pddl`: its actions are parsed, never re-typed.
 
 Why a reader of our own: the `pddl` package (a dev dependency of the project, used for the benchmark's own domain)
-refuses this file. The file uses the constant `Robot` (and object names such as `Microwave` or `StoveFire1`)
+refuses this file. The file uses the constant `Robot` (and object names such as `StoveFire2`)
 without declaring them, declares no `:requirements` although it uses `:conditional-effects`, `forall` and
 equality, overloads `pour` with one and with two parameters, and has actions without parameters or without a
-precondition. This reader accepts all of that and keeps every formula as written (also where it looks like a slip
-of the release, e.g. `(state Ramen ?y)` in the two-argument `pour`); what the formulas mean is `taskseq.veil.state`.
+precondition. This reader accepts all of that and keeps every formula as written (also where one looks like a slip
+of the release, docs/veil.md); what the formulas mean is `taskseq.veil.state`.
 
 Grammar read: s-expressions with `;` comments; `(define (domain N) (:predicates ...) (:action ...)*)`; an action
 has `:parameters (?a ...)`, an optional `:precondition` and an `:effect`; formulas are `and`, `or`, `not`, `when`,
@@ -22,7 +22,7 @@ from .xmltree import VeilFormatError
 
 @dataclass(frozen=True)
 class Atom:
-    """A predicate applied to terms: variables (`?x`) or constants (`Robot`, `Microwave`, `Water`)."""
+    """A predicate applied to terms: variables (`?x`) or constants (`Robot`, `StoveFire2`, a state name)."""
 
     predicate: str
     args: tuple[str, ...]

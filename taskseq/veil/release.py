@@ -8,7 +8,7 @@ Environment ids (checked on the release's 360 training points, docs/veil.md): `k
 is `Environments/kitchen/kitchenN.xml` and `living_room_scenario_environment_numberN` is
 `Environments/livingRoom/livingRoom(10-N).xml`, as the release's PROVENANCE.md states. Under this mapping every
 object named by a sequence (8,066 names) is an object of its environment when names are compared without case
-(`Loveseat_1` in a sequence, `loveseat_1` in the file); under `livingRoomN.xml` many are not.
+(as the fixture's `Bench_1` in a sequence, `bench_1` in the file); under `livingRoomN.xml` many are not.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ ROOMS = ("kitchen", "livingRoom")
 _KITCHEN_ID = re.compile(r"kitchen_scenario_environment_number_(\d+)")
 _LIVING_ID = re.compile(r"living_room_scenario_environment_number(\d+)")
 _INSTANCE = re.compile(r"_\d+$")  # `Mug_1` is instance 1 of `Mug`
-_TRAILING = re.compile(r"[_\d]+$")  # `Counter1_1` is a `Counter`
+_TRAILING = re.compile(r"[_\d]+$")  # `Crate2_1` is a `Crate`
 
 
 def environment_file(env_id: str) -> tuple[str, int] | None:
@@ -47,7 +47,7 @@ def environment_id(room: str, number: int) -> str:
 class NameIndex:
     """Object names of one environment, looked up without case, and failing that without case and underscores.
 
-    Sequences name objects as their environment does but for case (`Loveseat_1`, `loveseat_1`); the domain's
+    Sequences name objects as their environment does but for case (`Bench_1`, `bench_1`); the domain's
     object-specific actions and constants drop an underscore too (`keep_On_StoveFire2`, `(On ?x StoveFire2)` for
     the object `StoveFire_2`). The looser key is used only when it names one object of the environment.
     """
@@ -76,9 +76,9 @@ def loose_key(name: str) -> str:
 # Objects.xml ----------------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Category:
-    """An object category of `Objects.xml`, merged over every <object> naming it (the file declares `Kettle`,
-    `Coke`, `SinkKnob`, ... more than once): default state values (None when the file gives no default) and
-    affordances."""
+    """An object category of `Objects.xml`, merged over every <object> naming it (the release declares
+    several categories more than once, as the fixture does `Teapot`): default state values (None when the file
+    gives no default) and affordances."""
 
     name: str
     defaults: tuple[tuple[str, str | None], ...]
@@ -97,8 +97,8 @@ class Catalog:
     def category_of(self, name: str) -> tuple[str, Category | None]:
         """An object's category from its name: the whole name, else the name without its instance suffix `_N`,
         else without any trailing digits and underscores, matched without case (`Mug_1` -> `Mug`,
-        `Tv_1Remote_1` -> `Tv_1Remote`, `StoveKnob_1` -> `StoveKnob_1`, `Counter1_1` -> `Counter`). A name with
-        no category in the file (buttons, `Light_1`, `tvTable_1`, ...) gets its base name (`Light`, `tvTable`)
+        `A_1B_1` -> `A_1B`, `StoveKnob_1` -> `StoveKnob_1` when that is a category, `Crate2_1` -> `Crate`). A name
+        with no category in the file (the release's buttons and a few others) gets its base name (`Crate_1` -> `Crate`)
         as category and None: no affordances and no default states."""
         candidates = [name, _INSTANCE.sub("", name), _TRAILING.sub("", name)]
         for c in candidates:
@@ -111,7 +111,7 @@ class Catalog:
 
 def _states(path: Path, parent: Node) -> list[tuple[str, str | None]]:
     """(state, default) pairs under `parent`: from <state><stateName/><default/></state>, or a <stateName> held
-    directly by a <property> (the file's `Kettle` has one)."""
+    directly by a <property> (the release has one)."""
     out = []
     for st in parent.iter("state"):
         name, _ = child_text(path, st, "stateName")

@@ -2,7 +2,7 @@
 
 A `State` is a `World` (the environment's objects: category, affordances, position, non-boolean state values;
 shared by every state of a sequence) and a frozenset of facts: ("Near", "Robot", "Mug_1"),
-("Grasping", "Robot", "Mug_1"), ("On", "Kettle", "Sink"), ("In", "X", "Y"), ("state", "Mug_1", "Water").
+("Grasping", "Robot", "Mug_1"), ("On", "Kettle", "StoveFire_2"), ("In", "X", "Y"), ("state", "Mug_1", "Water").
 
 Initial facts: an object's states are its category's defaults in `Objects.xml` overridden by the values its
 environment file lists; a value `True` or `1` is a fact ("state", obj, name) (the domain's comment: a state
