@@ -259,7 +259,8 @@ def scaling_growth() -> str:
 
 
 MUTATION = REPORTS / "mutation"
-_MUTATION_HEAD = re.compile(r"^(?P<date>\d{4}-\d\d-\d\d), `(?P<command>[^`]+)`(?: \((?P<tool>[^)]*)\))?,? ?(?P<rest>.*)$")
+_MUTATION_HEAD = re.compile(r"^(?P<date>\d{4}-\d\d-\d\d), `(?P<command>[^`]+)`"
+                            r"(?: \((?P<tool>[^)]*)\))?,? ?(?P<rest>.*)$")
 _MODULE_ROW = re.compile(r"^\| `(taskseq\.[\w.]+)` \| (\d+) \| (\d+) \| (\d+) \| (\d+) \| ([\d.]+%) \|$")
 _TOTAL_ROW = re.compile(r"^\| (\d+) \| (\d+) \| (\d+) \| (\d+) \| ([\d.]+%) \|$")
 

@@ -128,7 +128,8 @@ def test_the_layout_page_lists_every_module_and_names_only_paths_that_exist():
         if "__pycache__" in module.parts:
             continue
         rel = module.relative_to(package)
-        shown = f"`taskseq/{rel.as_posix()}`" if len(rel.parts) == 1 else f"`{rel.relative_to(rel.parts[0]).as_posix()}`"
+        inside = rel.relative_to(rel.parts[0]).as_posix() if len(rel.parts) > 1 else ""
+        shown = f"`taskseq/{rel.as_posix()}`" if len(rel.parts) == 1 else f"`{inside}`"
         assert module.name == "__init__.py" or shown in layout, rel
     for sub in package.iterdir():
         if (sub / "__init__.py").is_file():
@@ -188,7 +189,8 @@ def test_readme_and_the_sites_front_page_give_the_same_running_times():
 
 
 def test_the_duration_reader_sees_a_disagreement():
-    page = "## Quick start\n\nRun it (about {} on 2 cores):\n\n```bash\ndvc repro\n```\n\nTests:\n\n```bash\npytest -q\n```\n\n## Next\n"
+    page = ("## Quick start\n\nRun it (about {} on 2 cores):\n\n```bash\ndvc repro\n```\n\n"
+            "Tests:\n\n```bash\npytest -q\n```\n\n## Next\n")
     assert _quick_start_figures(page.format("20 minutes")) == {"repro": {("20", "min")}, "-q": set()}
     assert _quick_start_figures(page.format("20 min")) == _quick_start_figures(page.format("20 minutes"))
     assert _quick_start_figures(page.format("half an hour")) != _quick_start_figures(page.format("20 min"))
