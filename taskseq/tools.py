@@ -10,14 +10,17 @@ from typing import Any
 
 from jsonschema import Draft202012Validator
 
+from .features.context import StepContext
 from .learn.estimator import StepScorer
 from .learn.persist import describe, policy_of
 from .logs.records import load_schema, spec_from_dict, state_from_dict
 from .logs.validate import LogError, check_record, check_references, check_schema, log_files, read_records
 from .logs.validate import _field as field_name  # the log checks' way of writing a field's path
-from .plan.planner import POLICIES, Policy, Program, learned_policy, run_loop
+from .plan.planner import DONE, POLICIES, Abstain, Policy, Program, Ranked, learned_policy, run_loop
+from .sim.primitives import Action, try_execute
+from .sim.safety import violations
 from .sim.state import WorldState
-from .sim.tasks import Task
+from .sim.tasks import Task, goal_reached
 
 
 def replay(input_dir: Path) -> tuple[int, list[str]]:
@@ -94,13 +97,48 @@ def _check_environment(path: Path, env: Any) -> None:
 LIQUID_TASKS = ("pour", "pour_to", "stir")  # tasks whose first argument is a liquid
 
 
-def recorded_policy(planner: StepScorer, model_path: Path, top_k: int) -> Callable[[Task], Policy]:
-    """The loaded model as the policy its file records (greedy when it records none), for a task, offering
-    `top_k` candidates; a policy this version does not know is refused with the file's name, at once."""
+def recorded_policy(planner: StepScorer, model_path: Path, top_k: int) -> Callable[[Task, WorldState], Policy]:
+    """The loaded model as the policy its file records (greedy when it records none), for a task begun in a
+    state, offering `top_k` candidates that can run (`runnable_first`); a policy this version does not know is
+    refused with the file's name, at once."""
     name = policy_of(planner.meta_)
     if name not in POLICIES:
         raise ValueError(f"{model_path}: policy {name!r} is not one this version plans with ({', '.join(POLICIES)})")
-    return lambda task: learned_policy(name, planner, task, top_k)
+    return lambda task, initial: runnable_first(learned_policy(name, planner, task, top_k), planner, task, initial,
+                                                top_k)
+
+
+def runnable_first(policy: Policy, planner: StepScorer, task: Task, initial: WorldState, top_k: int) -> Policy:
+    """`policy`'s proposals without those the simulator refuses, filled up to `top_k` from further down the model's
+    ranking; `Abstain` when no candidate of the step can run.
+
+    Refused: a step whose preconditions fail, a step that breaks a safety rule (the web page refuses it), and `done`
+    before the task's goal holds. A person correcting the planner, or a robot running `taskseq plan`, is never
+    offered first a step that cannot be taken. This is the product's filter, not a method's: Table I's policies
+    (`plan.planner`, `evaluate.methods`) keep their rules, and their results with them."""
+
+    def runs(state: WorldState, action: Action) -> bool:
+        if action.primitive == DONE:
+            return goal_reached(task, initial, state)
+        return try_execute(state, action) is not None and not violations(state, action)
+
+    def checked(ctx: StepContext, state: WorldState) -> Ranked:
+        ranked = policy(ctx, state)
+        out = [(y, score) for y, score in ranked if runs(state, ctx.action(y))]
+        offered = {y for y, _ in ranked}
+        more = planner.ranked(ctx)
+        while len(out) < top_k:
+            y, score = next(more, (None, 0.0))
+            if y is None:
+                break
+            if y not in offered and runs(state, ctx.action(y)):
+                out.append((y, score))
+        if not out:
+            raise Abstain("the planner has no step that can run here: the simulator refuses every candidate (a check "
+                          "fails, a safety rule would be broken, or it is done before the goal holds)")
+        return out
+
+    return checked
 
 
 def plan_task(model_path: Path, env: Path, record: int, task_text: str, max_steps: int,
@@ -114,7 +152,7 @@ def plan_task(model_path: Path, env: Path, record: int, task_text: str, max_step
     specs = {o["id"]: spec_from_dict(o) for o in objects}
     state = state_from_dict(specs, state_dict)
     task = parse_task(task_text, state)
-    program = run_loop(policy_for(task), state, task, max_steps)
+    program = run_loop(policy_for(task, state), state, task, max_steps)
     return program, {o: s.name for o, s in specs.items()}, describe(planner.meta_)
 
 

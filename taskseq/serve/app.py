@@ -18,15 +18,15 @@ from flask import Flask, Response, g, redirect, render_template, request
 
 from ..features.context import step_context
 from ..learn.estimator import StepScorer
-from ..plan.planner import Policy
+from ..plan.planner import Abstain, Policy
 from ..sim.catalog import ENVIRONMENTS, OBJECTS_BY_ID
 from ..sim.primitives import ALL_PRIMITIVES, ARITY, Action, PreconditionError
 from ..sim.safety import RULES
+from ..sim.state import WorldState
 from ..sim.tasks import TASK_ARITY, Task, goal_reached
 from ..tools import LIQUID_TASKS, parse_task, recorded_policy
 from .environments import SAFE_NAME, file_environment, named_files, read_named, world_environment
 from .rules import UnsafeStep, named, preconditions, step_text
-from .rules import refusal as step_refusal
 from .scene import support_tree, top_view
 from .sessions import ASSIST, DEMONSTRATE, MODES, Activity, Session, SessionStore
 from .writer import RecordWriter, WriterClosed, person_record
@@ -49,7 +49,6 @@ class Refused(Exception):
 class Candidate:
     action: Action
     score: float
-    refusal: str | None  # why the simulator (or the goal, for done) would refuse it; None if it can run
 
 
 class Served:
@@ -63,15 +62,17 @@ class Served:
         self.top_k = top_k
         self.sessions = SessionStore()
         self.writer = RecordWriter(self.people)
-        self._policy_for: Callable[[Task], Policy] | None = None  # the model as its recorded policy, loaded once
+        # the model as its recorded policy, loaded once
+        self._policy_for: Callable[[Task, WorldState], Policy] | None = None
         self._planner_lock = threading.Lock()  # one scoring at a time: the model caches per batch
 
-    def candidates(self, activity: Activity) -> list[Candidate]:
-        """The planner's top k for the next step, in the policy's order, each marked with whether it can run.
+    def candidates(self, activity: Activity) -> tuple[list[Candidate], str | None]:
+        """The planner's top k for the next step, in the policy's order, and why there are none when there are none.
 
         They are ranked by the policy the model file records (`greedy`: the best scores; `feasible`: the best
         scores among the steps that can run; `lookahead`: those, checked for the safety of what follows), as
-        `taskseq plan` would run the model."""
+        `taskseq plan` would run the model, and only steps the page would take are proposed
+        (`tools.runnable_first`)."""
         with self._planner_lock:
             if self._policy_for is None:
                 try:
@@ -79,19 +80,15 @@ class Served:
                 except (FileNotFoundError, ValueError) as err:
                     raise Refused(f"the planner cannot be loaded: {err}", 503) from None
             ctx = step_context(activity.state, activity.task, activity.actions)
-            ranked = self._policy_for(activity.task)(ctx, activity.state)
+            try:
+                ranked = self._policy_for(activity.task, activity.states[0])(ctx, activity.state)
+            except Abstain as why:
+                return [], str(why)
         out = []
         for y, score in ranked:
             action = ctx.action(y)
-            out.append(Candidate(action, float(score), _refusal(activity, action)))
-        return out
-
-
-def _refusal(activity: Activity, action: Action) -> str | None:
-    """Why the page would refuse `action` now (a precondition, a safety rule, or for done the goal), or None."""
-    if action.primitive == "done":
-        return None if activity.actions and activity.goal_reached else "the goal does not hold yet"
-    return step_refusal(activity.state, action)
+            out.append(Candidate(action, float(score)))
+        return out, None
 
 
 def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
@@ -134,9 +131,10 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
     def run_page(s: Session, status: int = 200, error: str | None = None):
         activity = s.activity
         assert activity is not None
-        candidates = served.candidates(activity) if activity.mode == ASSIST else []
-        return page("run.html", s, status, error=error, candidates=candidates, primitives=ALL_PRIMITIVES,
-                    arity=ARITY, goal=activity.goal_reached, preconditions=preconditions(), safety=RULES)
+        candidates, none_runs = served.candidates(activity) if activity.mode == ASSIST else ([], None)
+        return page("run.html", s, status, error=error, candidates=candidates, none_runs=none_runs,
+                    primitives=ALL_PRIMITIVES, arity=ARITY, goal=activity.goal_reached, preconditions=preconditions(),
+                    safety=RULES)
 
     @app.errorhandler(413)
     def too_large(_err):
@@ -242,7 +240,7 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
     def chosen(activity: Activity) -> tuple[Action, bool]:
         """The step the form names and whether it overrides the planner's best (assist only)."""
         form = request.form
-        candidates = served.candidates(activity) if activity.mode == ASSIST else []
+        candidates = served.candidates(activity)[0] if activity.mode == ASSIST else []
         if "choice" in form:
             if not candidates:
                 raise Refused("there are no proposals to choose from in this mode")

@@ -18,7 +18,7 @@ import inspect
 import re
 
 from ..sim import primitives
-from ..sim.primitives import ALL_PRIMITIVES, Action, PreconditionError
+from ..sim.primitives import ALL_PRIMITIVES, Action
 from ..sim.safety import RULES, violations
 from ..sim.state import WorldState
 
@@ -96,13 +96,3 @@ def unsafe_reason(state: WorldState, action: Action) -> str | None:
     if not broken:
         return None
     return "; and ".join(f"it breaks the safety rule \u201c{RULES[r]}\u201d: {_why(state, action, r)}" for r in broken)
-
-
-def refusal(state: WorldState, action: Action) -> str | None:
-    """Why the page refuses `action` in `state`, a failed precondition or a broken safety rule, in names; None
-    when it runs. (`done` is judged by the task's goal, which only the activity knows.)"""
-    try:
-        primitives.execute(state, action)
-    except PreconditionError as err:
-        return f"{named(state, err.reason)} (check: {err.check})"
-    return unsafe_reason(state, action)
