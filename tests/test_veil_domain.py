@@ -82,7 +82,7 @@ def test_initial_facts_come_from_true_states_and_category_defaults_and_other_val
     assert s.holds("state", "Beaker_2", "Tea")  # `1` is true
     assert not s.holds("state", "Teapot_1", "Tea")
     assert s.holds("state", "Honey_1", "Honey")  # the category's default
-    assert s.holds("state", "Sorbet_1", "ScoopsLeft")
+    assert s.holds("state", "Sorbet_1", "ScoopsLeft")  # a count of 2: it holds while any is left
     assert not any(f[0] in ("Near", "On", "In", "Grasping") for f in s.facts)
     beaker = s.world.objects["Beaker_2"]
     assert beaker.category == "Beaker" and beaker.catalogued
@@ -91,7 +91,7 @@ def test_initial_facts_come_from_true_states_and_category_defaults_and_other_val
     assert beaker.position == (14.0, 40.0, -3.0)
     crate = s.world.objects["Crate_1"]  # no category Crate in Objects.xml
     assert (crate.category, crate.catalogued, crate.affordances) == ("Crate", False, frozenset())
-    assert dict(crate.attributes) == {"Weight": "3"}
+    assert dict(crate.attributes) == {"Weight": "Heavy"}
     teapot = release.catalog.categories["teapot"]  # declared twice: merged
     assert dict(teapot.defaults)["Hot"] is None and "IsPourable" in teapot.affordances
     living = initial_state(release.environments[LIVING], release.catalog)

@@ -5,9 +5,10 @@ shared by every state of a sequence) and a frozenset of facts: ("Near", "Robot",
 ("Grasping", "Robot", "Mug_1"), ("On", "Kettle", "StoveFire_2"), ("In", "X", "Y"), ("state", "Mug_1", "Water").
 
 Initial facts: an object's states are its category's defaults in `Objects.xml` overridden by the values its
-environment file lists; a value `True` or `1` is a fact ("state", obj, name) (the domain's comment: a state
-predicate holds when its value is 1, is false at 0), `False` and `0` are no fact, and any other value (`2`, `12`,
-`Low`, `Null`) is kept as an attribute of the object and makes no fact. The environments give no relations, so
+environment file lists; a value `True` or a whole number other than 0 is a fact ("state", obj, name) (the
+domain's comment: a state predicate holds when its value is 1, is false at 0; a count such as an ice-cream tub's
+`ScoopsLeft` of 2 holds while any is left), `False` and `0` are no fact, and any other value (`Low`, `Null`) is
+kept as an attribute of the object and makes no fact. The environments give no relations, so
 no Near, On or In holds at first.
 
 Meaning of the parsed formulas (`apply`): parameters are bound to the step's arguments; the constant `Robot` is
@@ -32,8 +33,8 @@ from .release import Catalog, Environment, NameIndex
 
 ROBOT = "Robot"
 MAX_GRASPED = 2  # the release's implicit rule: the robot holds at most two objects at once
-TRUE_VALUES = frozenset({"true", "1"})
-FALSE_VALUES = frozenset({"false", "0"})
+TRUE_VALUES = frozenset({"true"})
+FALSE_VALUES = frozenset({"false"})
 
 Fact = tuple[str, ...]
 
@@ -86,6 +87,8 @@ class StepRefused(Exception):
 
 def _boolean(value: str) -> bool | None:
     v = value.strip().lower()
+    if v.isdigit():  # a count (an ice-cream tub's `ScoopsLeft` is 2): the state holds while any is left
+        return int(v) != 0
     return True if v in TRUE_VALUES else False if v in FALSE_VALUES else None
 
 
