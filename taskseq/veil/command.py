@@ -47,14 +47,48 @@ def _import(args: argparse.Namespace) -> int:
     return 0
 
 
+def _evaluate_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--release", type=Path, required=True, help="the release folder (as for import); only read")
+    p.add_argument("--output", type=Path, required=True,
+                   help="folder to write report.json and tables.md into (replaced whole when the run ends)")
+    p.add_argument("--params", type=Path, default=Path("params.yaml"),
+                   help="settings file whose `veil` section sets folds, C_grid, max_steps, methods, policies "
+                        "(default params.yaml; the built-in defaults where it has no such section)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def _evaluate(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from .experiment import read_settings, run_experiment, tables, write_reports
+
+    settings = read_settings(args.params)
+    start = time.perf_counter()
+
+    def bar(items):
+        return tqdm(items, desc="closed loop", unit="sequence", leave=False, disable=args.quiet or None,
+                    file=sys.stderr)
+
+    report = run_experiment(args.release, settings, progress=bar)
+    write_reports(report, args.output)
+    print(tables(report))
+    print(f"written to {args.output} in {time.perf_counter() - start:.0f} s")
+    return 0
+
+
 SUBCOMMANDS: dict[str, SubCommand] = {
     "import": SubCommand(
         "check a VEIL-500 release, replay its sequences (skipping steps the domain refuses, counted by reason) and "
         "write Parquet tables; on any error in the release: exit code 2, one line naming file, line and element, "
         "nothing written", _import_options, _import),
+    "evaluate": SubCommand(
+        "every method (baselines and MRF rows) over folds of held-out environments: next-step accuracy with the "
+        "people's history and closed-loop runs (goal reached, edit distance to people); writes report.json and "
+        "tables.md", _evaluate_options, _evaluate),
 }
 
-HELP = "VEIL-500 (Tell Me Dave): import people's sequences from a release folder (docs/veil.md)"
+HELP = "VEIL-500 (Tell Me Dave): import people's sequences from a release folder, evaluate methods on them "\
+       "(docs/veil.md)"
 
 
 def options(p: argparse.ArgumentParser) -> None:

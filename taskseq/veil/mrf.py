@@ -68,6 +68,26 @@ class Block:
         return math.prod(self.shape)
 
 
+@dataclass(frozen=True)
+class Pairs:
+    """The pair term's scores where two objects are related: step, a1, a2 (M,) and scores (M, V)."""
+
+    step: np.ndarray
+    a1: np.ndarray
+    a2: np.ndarray
+    scores: np.ndarray
+
+    @classmethod
+    def of(cls, X: Sequence[StepInput], w: np.ndarray | None, n_verbs: int) -> Pairs:
+        steps = np.concatenate([np.full(len(x.pair_index), s, dtype=int) for s, x in enumerate(X)] + [np.zeros(0, int)])
+        index = np.concatenate([x.pair_index.reshape(-1, 2) for x in X] + [np.zeros((0, 2), int)]).astype(int)
+        if w is None or len(steps) == 0:
+            scores = np.zeros((len(steps), n_verbs))
+        else:
+            scores = matmul(np.concatenate([x.pair_rows.reshape(-1, w.shape[1]) for x in X]), w.T)
+        return cls(steps, index[:, 0], index[:, 1], scores)
+
+
 class DomainMRF:
     """The structured model: sizes of the domain in, joint features and (loss-augmented) inference out.
 
@@ -116,9 +136,10 @@ class DomainMRF:
     # --- scores -----------------------------------------------------------------------------------------------
 
     def tables(self, X: Sequence[StepInput], w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
-                                                                      np.ndarray, np.ndarray]:
+                                                                      Pairs, np.ndarray]:
         """Factor tables of a batch padded to its largest step: P (S, V), U1 and U2 (S, V, N), the pair
-        scores (S, V, N, N) and which objects are present (S, N)."""
+        scores of the related pairs only (most pairs have no relation: a dense (S, V, N, N) table of a
+        training set would take gigabytes) and which objects are present (S, N)."""
         S, N, V = len(X), max(x.n for x in X), self.n_verbs
         rows, hist = np.zeros((S, N, self.n_row)), np.zeros((S, N, 4))
         valid = np.zeros((S, N), dtype=bool)
@@ -144,12 +165,7 @@ class DomainMRF:
             if (wt := self._w(w, f"tpae{slot}")) is not None:
                 table += matmul(rows, wt[task].transpose(0, 2, 1))
             U.append(table.transpose(0, 2, 1))
-        pair = np.zeros((S, V, N, N))
-        if (wt := self._w(w, "pair")) is not None:
-            for s, x in enumerate(X):
-                if len(x.pair_index):
-                    scores = matmul(x.pair_rows, wt.T)  # (M, V)
-                    pair[s][:, x.pair_index[:, 0], x.pair_index[:, 1]] = scores.T
+        pair = Pairs.of(X, self._w(w, "pair"), V)
         return P, U[0], U[1], pair, valid
 
     def _best(self, X: Sequence[StepInput], w: np.ndarray, gold: np.ndarray | None) -> np.ndarray:
@@ -179,8 +195,8 @@ class DomainMRF:
                 a = sc.argmax(axis=1)
                 best[:, v], arg1[:, v] = P[:, v] + sc[rows, a] + none2, a
             else:
-                sc = ((U1[:, v] + l1 + neg)[:, :, None] + (U2[:, v] + l2 + neg)[:, None, :]
-                      + pair[:, v] + distinct[None])
+                sc = (U1[:, v] + l1 + neg)[:, :, None] + (U2[:, v] + l2 + neg)[:, None, :] + distinct[None]
+                sc[pair.step, pair.a1, pair.a2] += pair.scores[:, v]
                 flat = sc.reshape(S, N * N).argmax(axis=1)
                 best[:, v] = P[:, v] + sc.reshape(S, N * N)[rows, flat]
                 arg1[:, v], arg2[:, v] = flat // N, flat % N
@@ -203,7 +219,9 @@ class DomainMRF:
                 a1, a2 = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
                 keep = a1 != a2
                 labels.append(np.stack([np.full(keep.sum(), v), a1[keep], a2[keep]], axis=1))
-                values.append((P[0, v] + U1[0, v, :n, None] + U2[0, v, None, :n] + pair[0, v, :n, :n])[keep])
+                table = P[0, v] + U1[0, v, :n, None] + U2[0, v, None, :n]
+                table[pair.a1, pair.a2] += pair.scores[:, v]
+                values.append(table[keep])
         labels_all, values_all = np.concatenate(labels), np.concatenate(values)
         order = np.argsort(-values_all, kind="stable")
         return labels_all[order], values_all[order]

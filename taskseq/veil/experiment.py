@@ -1,0 +1,245 @@
+"""The people's-demonstrations experiment: every method over environment folds, written as reports.
+
+For each fold the MRF rows choose C inside the training environments (the
+fold's training environments split once more by number, the best next-step
+accuracy, action and arguments, on the inner held-out ones), then refit on all
+training environments. Every figure is a mean over held-out sequences per
+fold, reported as mean ± sd over folds, with a bootstrap interval that
+resamples held-out environments and a paired sign-flip test of the best MRF
+row against each baseline on the same sequences.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import asdict, dataclass, field, fields
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from ..io import atomic_directory
+from .baselines import Chance, MostFrequent, MulticlassSVM, NearestDemonstration
+from .evaluate import (
+    Executor,
+    Run,
+    closed_loop,
+    derive_goals,
+    env_number,
+    environment_folds,
+    next_steps,
+    people_runs,
+    split,
+)
+from .methods import MRFMethod, VeilMethod
+from .metrics import bootstrap_by_group, paired_sign_flip
+from .release import Release, read_release
+from .replay import Replay, replay_release
+
+BASELINES = ("chance", "most_frequent", "nearest_demonstration", "multiclass_svm")
+MRF_ROWS = {"mrf_attributes": {"features": "full", "categories": False},
+            "mrf_categories": {"features": "full", "categories": True}}
+LABELS = {"chance": "chance", "most_frequent": "most frequent next step",
+          "nearest_demonstration": "nearest demonstration, replayed", "multiclass_svm": "multiclass SVM",
+          "mrf_attributes": "ours - full (attributes)", "mrf_categories": "ours - full + categories",
+          "people": "people (leave one out): a ceiling"}
+
+
+@dataclass(frozen=True)
+class Settings:
+    """The experiment's settings (params.yaml, section `veil`)."""
+
+    folds: int = 4
+    C_grid: tuple[float, ...] = (0.1, 1.0, 10.0)
+    tol: float = 1e-3
+    max_steps: int = 40
+    methods: tuple[str, ...] = BASELINES + tuple(MRF_ROWS)
+    policies: tuple[str, ...] = ("plain", "feasible")
+    resamples: int = 2000
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        unknown = set(self.methods) - set(BASELINES) - set(MRF_ROWS)
+        if unknown:
+            raise ValueError(f"veil.methods: unknown {sorted(unknown)} (known: {list(BASELINES) + list(MRF_ROWS)})")
+        if self.folds < 2 or self.max_steps < 1 or not self.C_grid or min(self.C_grid) <= 0:
+            raise ValueError("veil: folds >= 2, max_steps >= 1 and a C_grid of positive values are required")
+
+
+@dataclass
+class FoldResult:
+    fold: int
+    held_out: list[int]
+    C: dict[str, float] = field(default_factory=dict)
+    next_step: dict[str, dict[str, float]] = field(default_factory=dict)
+    closed_loop: dict[str, dict[str, float]] = field(default_factory=dict)
+    seconds: dict[str, float] = field(default_factory=dict)
+
+
+def read_settings(path: Path | str) -> Settings:
+    """The `veil` section of a params file (missing file or section: the defaults); unknown keys are refused."""
+    path = Path(path)
+    section = (yaml.safe_load(path.read_text()) or {}).get("veil", {}) if path.is_file() else {}
+    known = {f.name for f in fields(Settings)}
+    if unknown := set(section) - known:
+        raise ValueError(f"{path}: veil: unknown settings {sorted(unknown)} (known: {sorted(known)})")
+    return Settings(**{k: tuple(v) if isinstance(v, list) else v for k, v in section.items()})
+
+
+def make_method(name: str, release: Release, objectives: Sequence[str], settings: Settings,
+                C: float | None = None) -> VeilMethod:
+    if name == "chance":
+        return Chance(settings.seed)
+    if name == "most_frequent":
+        return MostFrequent()
+    if name == "nearest_demonstration":
+        return NearestDemonstration()
+    if name == "multiclass_svm":
+        return MulticlassSVM()
+    return MRFMethod(name, release.catalog, objectives, C=C if C is not None else settings.C_grid[0],
+                     tol=settings.tol, **MRF_ROWS[name])
+
+
+def both_accuracy(method: VeilMethod, test: Sequence[Replay]) -> float:
+    rows = next_steps(method, test)
+    return float(np.mean([r.both for r in rows])) if rows else 0.0
+
+
+def choose_C(name: str, release: Release, objectives: Sequence[str], train: Sequence[Replay],
+             settings: Settings) -> float:
+    """C of an MRF row from its training environments alone: the grid's best on an inner held-out number."""
+    if len(settings.C_grid) == 1:
+        return settings.C_grid[0]
+    numbers = {env_number(r.point.env_id) for r in train}
+    if len(numbers) < 2:
+        raise ValueError(f"choosing C among {settings.C_grid} needs training environments of two numbers or more, "
+                         f"got {sorted(numbers)}: give one C or fewer folds")
+    inner = environment_folds(train, min(settings.folds, len(numbers)))[0]
+    fit_on, check_on = split(train, inner)
+    scores = [both_accuracy(make_method(name, release, objectives, settings, C).fit(fit_on), check_on)
+              for C in settings.C_grid]
+    return settings.C_grid[int(np.argmax(scores))]  # ties: the smallest C, the most regularised
+
+
+def _mean(runs: Sequence[Run], attr: str) -> float:
+    values = [getattr(r, attr) for r in runs if getattr(r, attr) is not None]
+    return float(np.mean(values)) if values else float("nan")
+
+
+def run_experiment(release_root: Path | str, settings: Settings,
+                   progress: Callable[[Iterable], Iterable] = iter) -> dict:
+    """Every method on every fold; returns the report (per fold, per method, with tests and intervals)."""
+    release = read_release(release_root)
+    replays = replay_release(release)
+    objectives = sorted({r.point.objective for r in replays})
+    executor = Executor(release)
+    folds = environment_folds(replays, settings.folds)
+    results: list[FoldResult] = []
+    per_sequence: dict[str, list[Run]] = {}
+    people: list[Run] = []
+    for k, held_out in enumerate(folds):
+        train, test = split(replays, held_out)
+        goals = derive_goals(train)
+        fr = FoldResult(k, sorted(held_out))
+        for name in settings.methods:
+            start = time.perf_counter()
+            C = choose_C(name, release, objectives, train, settings) if name in MRF_ROWS else None
+            method = make_method(name, release, objectives, settings, C).fit(train)
+            if C is not None:
+                fr.C[name] = C
+            rows = next_steps(method, test)
+            fr.next_step[name] = {part: float(np.mean([getattr(r, part) for r in rows]))
+                                  for part in ("verb", "args", "both")}
+            for policy in settings.policies:
+                runs = closed_loop(method, executor, test, goals, policy, settings.max_steps, progress)
+                key = f"{name}/{policy}"
+                fr.closed_loop[key] = {"goal_share": _mean(runs, "goal_share"),
+                                       "edit_distance": _mean(runs, "edit_distance"),
+                                       "exact": _mean(runs, "exact"), "stopped": _mean(runs, "stopped"),
+                                       "refused_per_run": _mean(runs, "refused")}
+                per_sequence.setdefault(key, []).extend(runs)
+            fr.seconds[name] = time.perf_counter() - start
+        own = people_runs(test, goals)
+        people.extend(own)
+        fr.closed_loop["people"] = {"goal_share": _mean(own, "goal_share"),
+                                    "edit_distance": _mean(own, "edit_distance"), "exact": _mean(own, "exact"),
+                                    "stopped": 1.0, "refused_per_run": 0.0}
+        results.append(fr)
+    return summarize(results, per_sequence, people, settings)
+
+
+def summarize(results: Sequence[FoldResult], per_sequence: dict[str, list[Run]], people: Sequence[Run],
+              settings: Settings) -> dict:
+    def over_folds(get: Callable[[FoldResult], float]) -> dict[str, float]:
+        values = np.array([get(fr) for fr in results], dtype=float)
+        return {"mean": float(np.nanmean(values)), "sd": float(np.nanstd(values)), "folds": values.tolist()}
+
+    next_step = {name: {part: over_folds(lambda fr, n=name, p=part: fr.next_step[n][p])
+                        for part in ("verb", "args", "both")} for name in settings.methods}
+    loop_keys = list(per_sequence) + ["people"]
+    closed = {key: {figure: over_folds(lambda fr, k=key, f=figure: fr.closed_loop[k][f])
+                    for figure in ("goal_share", "edit_distance", "exact", "stopped", "refused_per_run")}
+              for key in loop_keys}
+    intervals = {}
+    for key, runs in list(per_sequence.items()) + [("people", list(people))]:
+        scored = [r for r in runs if r.goal_share is not None]
+        if scored:
+            intervals[key] = asdict(bootstrap_by_group([r.goal_share for r in scored], [r.env_id for r in scored],
+                                                       settings.resamples, settings.seed))
+    mrf_keys = [k for k in per_sequence if k.split("/")[0] in MRF_ROWS]
+    baseline_keys = [k for k in per_sequence if k.split("/")[0] in BASELINES]
+    tests = {}
+    if mrf_keys and baseline_keys:
+        best = max(mrf_keys, key=lambda k: closed[k]["goal_share"]["mean"])
+        by_seq = {k: {r.seq_id: r.goal_share for r in per_sequence[k] if r.goal_share is not None}
+                  for k in per_sequence}
+        for other in baseline_keys:
+            common = sorted(set(by_seq[best]) & set(by_seq[other]))
+            if not common:
+                continue
+            tests[other] = {"best_mrf": best, "difference": float(np.mean([by_seq[best][s] - by_seq[other][s]
+                                                                          for s in common])),
+                            "p": paired_sign_flip([by_seq[best][s] for s in common],
+                                                  [by_seq[other][s] for s in common], seed=settings.seed)}
+    return {"settings": asdict(settings), "folds": [asdict(fr) for fr in results], "next_step": next_step,
+            "closed_loop": closed, "goal_share_intervals": intervals, "paired_tests": tests}
+
+
+def write_reports(report: dict, output: Path | str) -> None:
+    """`report.json` and `tables.md` into `output`, replaced whole."""
+    with atomic_directory(output) as tmp:
+        (tmp / "report.json").write_text(json.dumps(report, indent=2, sort_keys=True) + "\n")
+        (tmp / "tables.md").write_text(tables(report))
+
+
+def _pm(figure: dict, scale: float = 100.0) -> str:
+    return f"{scale * figure['mean']:.1f} ± {scale * figure['sd']:.1f}"
+
+
+def tables(report: dict) -> str:
+    s = report["settings"]
+    lines = [f"# People's demonstrations (VEIL-500): {s['folds']} folds of held-out environments", "",
+             "Next step with the people's history, % (mean ± sd over folds):", "",
+             "| method | verb | arguments | both |", "|---|---:|---:|---:|"]
+    for name, parts in report["next_step"].items():
+        lines.append(f"| {LABELS[name]} | {_pm(parts['verb'])} | {_pm(parts['args'])} | {_pm(parts['both'])} |")
+    lines += ["", f"Closed loop (at most {s['max_steps']} steps): goal reached %, mean ± sd over folds "
+              "[95% interval over environments]; edit distance to the nearest person (0 same, 1 nothing shared); "
+              "exact match %:", "",
+              "| method | policy | goal reached | interval | edit distance | exact | stops |",
+              "|---|---|---:|---:|---:|---:|---:|"]
+    for key, figs in report["closed_loop"].items():
+        name, _, policy = key.partition("/")
+        iv = report["goal_share_intervals"].get(key)
+        interval = f"[{100 * iv['low']:.1f}, {100 * iv['high']:.1f}]" if iv else "-"
+        lines.append(f"| {LABELS[name]} | {policy or '-'} | {_pm(figs['goal_share'])} | "
+                     f"{interval} | {figs['edit_distance']['mean']:.3f} | "
+                     f"{100 * figs['exact']['mean']:.1f} | {100 * figs['stopped']['mean']:.0f} |")
+    if report["paired_tests"]:
+        lines += ["", "Paired sign-flip tests on goal reached, per held-out sequence:", "",
+                  "| best MRF row | against | difference (points) | p |", "|---|---|---:|---:|"]
+        for other, t in report["paired_tests"].items():
+            lines.append(f"| {t['best_mrf']} | {other} | {100 * t['difference']:+.1f} | {t['p']:.4f} |")
+    return "\n".join(lines) + "\n"
