@@ -17,7 +17,8 @@ def random_step(rng: np.random.Generator, n: int, n_row: int = 6, n_pair: int = 
     return StepInput(rows=(rng.random((n, n_row)) < 0.4).astype(float),
                      history=(rng.random((n, 4)) < 0.2).astype(float),
                      pair_index=pairs, pair_rows=(rng.random((len(pairs), n_pair)) < 0.5).astype(float),
-                     task=int(rng.integers(n_tasks)), prev=(int(rng.integers(6)), int(rng.integers(6))))
+                     task=int(rng.integers(n_tasks)), prev=(int(rng.integers(6)), int(rng.integers(6))),
+                     holding=bool(rng.random() < 0.5))
 
 
 def candidates(x: StepInput) -> list[tuple[int, int, int]]:
@@ -62,7 +63,7 @@ def test_the_ssvm_learns_a_rule_that_depends_on_an_attribute_and_the_task() -> N
         rows[:, 0] = 0.0
         target = int(rng.integers(5))
         rows[target, 0] = 1.0
-        x = StepInput(rows, x.history, x.pair_index, x.pair_rows, x.task, x.prev)
+        x = StepInput(rows, x.history, x.pair_index, x.pair_rows, x.task, x.prev, x.holding)
         X.append(x)
         Y.append((1 + x.task % 2, target, -1))
     model = DomainMRF(ARITIES, n_tasks=3, n_row=6, n_pair=3)

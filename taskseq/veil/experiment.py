@@ -203,15 +203,20 @@ def summarize(results: Sequence[FoldResult], per_sequence: dict[str, list[Run]],
                                                                           for s in common])),
                             "p": paired_sign_flip([by_seq[best][s] for s in common],
                                                   [by_seq[other][s] for s in common], seed=settings.seed)}
-    return {"settings": asdict(settings), "folds": [asdict(fr) for fr in results], "next_step": next_step,
-            "closed_loop": closed, "goal_share_intervals": intervals, "paired_tests": tests}
+    folds = [{k: v for k, v in asdict(fr).items() if k != "seconds"} for fr in results]
+    return {"settings": asdict(settings), "folds": folds, "next_step": next_step, "closed_loop": closed,
+            "goal_share_intervals": intervals, "paired_tests": tests,
+            "seconds": {name: [fr.seconds[name] for fr in results] for name in settings.methods}}
 
 
 def write_reports(report: dict, output: Path | str) -> None:
-    """`report.json` and `tables.md` into `output`, replaced whole."""
+    """`report.json` and `tables.md` into `output`, replaced whole; the seconds each method took per fold go to
+    `timing.json`, apart, since they differ from run to run while everything else is the same bytes."""
+    figures = {k: v for k, v in report.items() if k != "seconds"}
     with atomic_directory(output) as tmp:
-        (tmp / "report.json").write_text(json.dumps(report, indent=2, sort_keys=True) + "\n")
-        (tmp / "tables.md").write_text(tables(report))
+        (tmp / "report.json").write_text(json.dumps(figures, indent=2, sort_keys=True) + "\n")
+        (tmp / "tables.md").write_text(tables(figures))
+        (tmp / "timing.json").write_text(json.dumps({"seconds_per_fold": report["seconds"]}, indent=2) + "\n")
 
 
 def _pm(figure: dict, scale: float = 100.0) -> str:

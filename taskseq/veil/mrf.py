@@ -7,10 +7,13 @@ release (VEIL-500) brings its own verbs, objectives and object attributes
 this model takes them as sizes and keeps the paper's factor families:
 
     S(v, a1, a2) = pt[g, v] + ppt1[g, v', v] + ppt2[g, v'', v]           (verb, task, history)
-                 + sum_s  x_as . (aet_s[g] + pae_s[v]) + h_as . paae_s[v] (each filled slot s)
+                 + sum_s  x_as . (aet_s[g, e] + pae_s[v]) + h_as . paae_s[v] (each filled slot s)
                  + r(a1, a2) . pair[v]                                      (the two arguments' relations)
 
-with g the task, v' and v'' the verbs of the last two steps, x_a an object's
+with g the task, e whether the robot's hands are empty (as the paper's model
+splits its argument-environment-task term by whether the gripper holds
+something: the same cup is the thing to fetch with empty hands and the thing
+already fetched otherwise), v' and v'' the verbs of the last two steps, x_a an object's
 attribute row, h_a whether it was an argument of the last two steps and
 r(a1, a2) the relations between the two arguments. The `crossed` feature set
 adds tpae_s[g, v] . x_as: which attributes an argument has, for this verb, for
@@ -52,6 +55,7 @@ class StepInput:
     pair_rows: np.ndarray  # (M, R) float: those relations
     task: int
     prev: tuple[int, int]  # verbs of the last two steps; the model's `n_verbs` where there is none
+    holding: bool  # the robot grasps something
 
     @property
     def n(self) -> int:
@@ -115,7 +119,7 @@ class DomainMRF:
         self.families = FEATURE_SETS[features]
         V, T, K = self.n_verbs, n_tasks, n_row
         shapes = {"pt": [("pt", (T, V))], "ppt": [("ppt1", (T, V + 1, V)), ("ppt2", (T, V + 1, V))],
-                  "aet": [("aet1", (T, K)), ("aet2", (T, K))], "pae": [("pae1", (V, K)), ("pae2", (V, K))],
+                  "aet": [("aet1", (T, 2, K)), ("aet2", (T, 2, K))], "pae": [("pae1", (V, K)), ("pae2", (V, K))],
                   "paae": [("paae1", (V, 4)), ("paae2", (V, 4))], "pair": [("pair", (V, n_pair))],
                   "tpae": [("tpae1", (T, V, K)), ("tpae2", (T, V, K))]}
         self.blocks = [Block(name, shape) for family in self.families for name, shape in shapes[family]]
@@ -147,6 +151,7 @@ class DomainMRF:
             rows[s, : x.n], hist[s, : x.n], valid[s, : x.n] = x.rows, x.history, True
         task = np.array([x.task for x in X], dtype=int)
         prev = np.array([x.prev for x in X], dtype=int).reshape(S, 2)
+        empty = np.array([0 if x.holding else 1 for x in X], dtype=int)
         P = np.zeros((S, V))
         if (wt := self._w(w, "pt")) is not None:
             P += wt[task]
@@ -161,7 +166,7 @@ class DomainMRF:
             if (wt := self._w(w, f"paae{slot}")) is not None:
                 table += matmul(hist, wt.T)
             if (wt := self._w(w, f"aet{slot}")) is not None:
-                table += matmul(rows, wt[task][:, :, None])
+                table += matmul(rows, wt[task, empty][:, :, None])
             if (wt := self._w(w, f"tpae{slot}")) is not None:
                 table += matmul(rows, wt[task].transpose(0, 2, 1))
             U.append(table.transpose(0, 2, 1))
@@ -275,7 +280,7 @@ class DomainMRF:
                 if a < 0:
                     continue
                 row, cols = x.rows[a], np.arange(K)
-                add(f"aet{slot}", g * K + cols, row)
+                add(f"aet{slot}", (g * 2 + (0 if x.holding else 1)) * K + cols, row)
                 add(f"pae{slot}", v * K + cols, row)
                 add(f"paae{slot}", v * 4 + np.arange(4), x.history[a])
                 add(f"tpae{slot}", (g * V + v) * K + cols, row)
