@@ -14,13 +14,21 @@ from pathlib import Path
 import pytest
 
 from taskseq.cli import main
-from taskseq.logs.ingest import load_logs, load_people_logs, read_tables, records_from_tables
+from taskseq.logs.ingest import (
+    is_person_record,
+    load_logs,
+    load_people_logs,
+    people_folder,
+    read_tables,
+    records_from_tables,
+)
 from taskseq.logs.people import people_records
-from taskseq.logs.records import spec_to_dict, state_to_dict
+from taskseq.logs.records import demonstration_record, spec_to_dict, state_to_dict
 from taskseq.logs.validate import LogError
 from taskseq.serve.environments import file_environment, world_environment
 from taskseq.serve.writer import RecordWriter, person_record
 from taskseq.sim.demonstrator import demonstrate
+from taskseq.sim.scenarios import candidate_scenarios
 from taskseq.sim.tasks import Task
 
 TASKS = [Task("pour", ("obj27",)), Task("throw_away", ("obj43",))]  # in env01: the water, the crumpled paper
@@ -70,9 +78,20 @@ def test_two_versions_of_a_room_ingest_together_and_the_tables_give_back_every_r
     assert summary["objects"] == len(world_environment(0, "env01").state.specs) + 1  # the two cups
 
 
+def as_benchmark(path: Path) -> None:
+    """Rewrite a log's records as the scripted demonstrator writes them: a sequence number for a demo_id."""
+    records = lines(path)
+    for k, record in enumerate(records, start=1):
+        record["demo_id"] = f"{record['scenario_id']}/{k}"
+    path.write_text("".join(json.dumps(r) + "\n" for r in records))
+
+
 def test_the_benchmark_logs_keep_one_description_per_object_id(two_versions, tmp_path, capsys):
-    """Without --people the folder is read as the benchmark's logs are, and the message says what to do."""
+    """Records without the marks of `taskseq serve` are read as the benchmark's logs are, and the message says
+    what to do."""
     folder, *versions = two_versions
+    for path in versions:
+        as_benchmark(path)
     first, second = sorted(versions)  # the order ingest reads them in
     assert main(["--no-mlflow", "ingest", "--input", str(folder), "--output", str(tmp_path / "t")]) != 0
     said = capsys.readouterr().err
@@ -139,3 +158,64 @@ def test_a_people_folder_with_no_usable_file_is_an_error_naming_them(tmp_path, c
     said = capsys.readouterr().err
     assert "w0-env01.jsonl:1" in said and "no usable records: 1 file(s) left out" in said
     assert not (tmp_path / "t").exists()
+
+
+def people_and_benchmark(folder: Path) -> tuple[Path, Path]:
+    """A person's log of env01 (written by the server's writer, no participant, demonstrate mode) and the
+    scripted demonstrator's log of env02, each in its own file of `folder`."""
+    env = world_environment(0, "env01")
+    person = RecordWriter(folder).append(person_record(env, POUR, demonstrate(env.state, POUR)[0]))
+    scenarios = [s for s in candidate_scenarios(0) if s.env_id == "env02"][:2]
+    bench = folder / "env02.jsonl"
+    bench.write_text("".join(json.dumps(demonstration_record(s, 0)) + "\n" for s in scenarios))
+    return person, bench
+
+
+POUR = TASKS[0]
+
+
+def test_a_record_of_the_web_app_is_told_from_the_scripted_demonstrators(tmp_path):
+    """Even a record with neither a participant nor corrections (demonstrate mode, no id typed) says who wrote it:
+    the writer's demo_id; the generator's sequence numbers never look like one."""
+    person, bench = people_and_benchmark(tmp_path)
+    [record] = lines(person)
+    assert "participant" not in record and "corrected" not in record and is_person_record(record)
+    assert not any(is_person_record(r) for r in lines(bench))
+    assert is_person_record({**lines(bench)[0], "participant": "p07"})
+    assert is_person_record({**lines(bench)[0], "corrected": []})
+
+
+def test_ingest_reads_a_people_folder_the_peoples_way_without_the_flag(tmp_path, capsys):
+    """A cut-short file of a people's folder is left out, named, and the others ingest, with no --people."""
+    folder = tmp_path / "people"
+    writer = RecordWriter(folder)
+    for env_id, task in (("env01", POUR), ("env02", Task("pour", ("obj29",)))):
+        env = world_environment(0, env_id)
+        writer.append(person_record(env, task, demonstrate(env.state, task)[0]))
+    bad = folder / "w0-env01.jsonl"
+    bad.write_text(bad.read_text()[:500])
+    (folder / "README.md").write_text("not a log\n")
+    assert people_folder(folder)
+    assert main(["--no-mlflow", "ingest", "--input", str(folder), "--output", str(tmp_path / "t")]) == 0
+    out = capsys.readouterr()
+    assert "ingested 1 sequences" in out.out
+    assert "ingested as a folder of people's demonstrations" in out.err
+    assert f"left out {bad}" in out.err and "not valid JSON" in out.err
+
+
+def test_the_benchmarks_logs_and_a_mixed_folder_still_fail_at_their_first_problem(tmp_path, capsys):
+    """The generator's logs are the pipeline's own data: a bad line there is a bug to see, not a file to skip. A
+    folder holding both kinds of record is not a people's folder either."""
+    bench_only = tmp_path / "bench"
+    bench_only.mkdir()
+    _, bench = people_and_benchmark(tmp_path / "mixed")
+    (bench_only / bench.name).write_bytes(bench.read_bytes())
+    for folder in (bench_only, tmp_path / "mixed"):
+        assert not people_folder(folder)
+        target = folder / "env02.jsonl"
+        target.write_text(target.read_text().replace('"name":"pour"', '"name":"fly"', 1)
+                          .replace('"name": "pour"', '"name": "fly"', 1))
+        assert main(["--no-mlflow", "ingest", "--input", str(folder), "--output", str(tmp_path / "t")]) != 0
+        said = capsys.readouterr().err
+        assert "env02.jsonl:1: task.name: 'fly' is not one of" in said and "people's" not in said
+        assert not (tmp_path / "t").exists()

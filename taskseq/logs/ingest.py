@@ -14,6 +14,7 @@ Tables (one Parquet file each):
 from __future__ import annotations
 
 import json
+import re
 from collections import Counter
 from pathlib import Path
 from typing import Any
@@ -208,6 +209,43 @@ def load_people_logs(folder: Path | str) -> tuple[dict[str, pa.Table], list[Logg
             del records[kept:]
             skipped.append(err)
     return collector.tables(), records, skipped
+
+
+# the demo_id `taskseq serve` gives a record (`serve.writer.person_record`): the scenario, then the participant (or
+# "person") and 12 random hex digits, where the scripted demonstrator's is the scenario and a sequence number
+PERSON_DEMO_ID = re.compile(r"/[A-Za-z0-9][A-Za-z0-9_-]{0,63}-[0-9a-f]{12}$")
+
+
+def is_person_record(record: dict[str, Any]) -> bool:
+    """Whether a record was written by `taskseq serve` (or the teaching script through its writer): it carries a
+    participant, the corrections of assist mode, or the writer's demo_id; the scripted demonstrator's never does."""
+    demo_id = record.get("demo_id")
+    return ("participant" in record or "corrected" in record
+            or (isinstance(demo_id, str) and PERSON_DEMO_ID.search(demo_id) is not None))
+
+
+def people_folder(folder: Path | str) -> bool:
+    """Whether `folder` is a folder of people's demonstrations: at least one record was written by `taskseq serve`
+    and none by the scripted demonstrator.
+
+    `taskseq ingest` reads such a folder the people's way (a file with a problem is left out) without `--people`,
+    while the benchmark's generated logs, and any folder mixing both, keep failing at their first problem. Lines
+    that do not parse say nothing either way (the loader names them); the first benchmark record decides at once,
+    so a benchmark folder costs one line to recognise."""
+    person = False
+    for path in sorted(Path(folder).glob("*.jsonl")):
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            for text in fh:
+                try:
+                    record = json.loads(text)
+                except ValueError:
+                    continue
+                if not isinstance(record, dict) or "demo_id" not in record:
+                    continue
+                if not is_person_record(record):
+                    return False
+                person = True
+    return person
 
 
 def dataset_summary(tables: dict[str, pa.Table]) -> dict[str, Any]:

@@ -6,7 +6,7 @@ import sys
 from typing import Any
 
 from ..io import write_json_atomic
-from ..logs.ingest import dataset_summary, load_logs, load_people_logs, write_tables
+from ..logs.ingest import dataset_summary, load_logs, load_people_logs, people_folder, write_tables
 from ..logs.validate import LogError
 from ..settings import Params
 from ..track.mlflow_runs import NO_RUN, Tracker, flatten
@@ -20,10 +20,16 @@ def settings(params: Params, world_seed: int | None = None) -> None:
 def run(settings: None, paths: IngestPaths, tracker: Tracker = NO_RUN) -> dict[str, Any]:
     """Raises `LogError` (file, record, field) or `FileNotFoundError` before anything is written.
 
-    With `people`, a file with a problem is named on stderr and left out, and the others are ingested; it raises
-    only when no file is usable."""
+    A folder of people's demonstrations (`--people`, or records `taskseq serve` wrote and none of the scripted
+    demonstrator's, `logs.ingest.people_folder`): a file with a problem is named on stderr and left out, and the
+    others are ingested; it raises only when no file is usable. The benchmark's logs fail at their first problem."""
     input_dir, output, metrics = paths.input, paths.output, paths.metrics
-    if paths.people:
+    people = paths.people
+    if not people and people_folder(input_dir):
+        people = True
+        print(f"{input_dir}: records written by taskseq serve; ingested as a folder of people's demonstrations "
+              "(as with --people: a file with a problem is left out)", file=sys.stderr)
+    if people:
         tables, records, skipped = load_people_logs(input_dir)
         for err in skipped:
             print(f"left out {err.path} (the file stays where it is): {err}", file=sys.stderr)
