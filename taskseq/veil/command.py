@@ -41,11 +41,15 @@ def _import(args: argparse.Namespace) -> int:
     def bar(items):
         return tqdm(items, desc="replaying", unit="sequence", disable=args.quiet or None, file=sys.stderr)
 
-    summary = import_release(args.release, args.output, progress=bar)
-    print(format_summary(summary))
-    print(f"written to {args.output} in {time.perf_counter() - start:.1f} s")
-    return 0
+    def body(run) -> int:
+        summary = import_release(args.release, args.output, progress=bar)
+        run.metrics({k: float(v) for k, v in summary.items() if isinstance(v, int | float)})
+        run.artifact(args.output / "import.json")
+        print(format_summary(summary))
+        print(f"written to {args.output} in {time.perf_counter() - start:.1f} s")
+        return 0
 
+    return _tracked(args, "veil-import", {"release": str(args.release)}, body)
 
 def _evaluate_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--release", type=Path, required=True, help="the release folder (as for import); only read")
@@ -58,6 +62,8 @@ def _evaluate_options(p: argparse.ArgumentParser) -> None:
 
 
 def _evaluate(args: argparse.Namespace) -> int:
+    from dataclasses import asdict
+
     from tqdm import tqdm
 
     from .experiment import read_settings, run_experiment, tables, write_reports
@@ -69,12 +75,39 @@ def _evaluate(args: argparse.Namespace) -> int:
         return tqdm(items, desc="closed loop", unit="sequence", leave=False, disable=args.quiet or None,
                     file=sys.stderr)
 
-    report = run_experiment(args.release, settings, progress=bar)
-    write_reports(report, args.output)
-    print(tables(report))
-    print(f"written to {args.output} in {time.perf_counter() - start:.0f} s")
-    return 0
+    def body(run) -> int:
+        report = run_experiment(args.release, settings, progress=bar)
+        write_reports(report, args.output)
+        record(run, report)
+        run.artifact(args.output / "tables.md")
+        print(tables(report))
+        print(f"written to {args.output} in {time.perf_counter() - start:.0f} s")
+        return 0
 
+    return _tracked(args, "veil-evaluate", {**asdict(settings), "release": str(args.release)}, body)
+
+
+def record(run, report: dict) -> None:
+    """A child run per method: its next-step accuracy, per policy the goal reached and edit distance, and the
+    seconds it took over all folds (C's choice, fits and runs): where the time goes."""
+    for name, parts in report["next_step"].items():
+        with run.child(name, {"method": name}) as child:
+            values = {f"next_step_{part}": figure["mean"] for part, figure in parts.items()}
+            for key, figures in report["closed_loop"].items():
+                method, _, policy = key.partition("/")
+                if method == name:
+                    values |= {f"{policy}_{f}": figures[f]["mean"] for f in ("goal_share", "edit_distance", "exact")}
+            seconds = report.get("seconds", {}).get(name, [])
+            child.metrics(values | {"seconds": float(sum(seconds))})
+
+
+def _tracked(args: argparse.Namespace, stage: str, params: dict, body: Callable[..., int]) -> int:
+    """`body` inside the command's MLflow run, as the pipeline's stages are recorded (none with --no-mlflow)."""
+    from ..track.mlflow_runs import NO_RUN, tracked
+
+    if args.no_mlflow:
+        return body(NO_RUN)
+    return tracked(stage, params, [args.release], None, body)
 
 SUBCOMMANDS: dict[str, SubCommand] = {
     "import": SubCommand(

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from ..io import atomic_directory
+from ..runtime.atomic import atomic_directory
 from .baselines import Chance, MostFrequent, MulticlassSVM, NearestDemonstration
 from .evaluate import (
     Executor,
@@ -33,6 +33,7 @@ from .evaluate import (
     people_runs,
     split,
 )
+from .features import Vocabulary
 from .methods import MRFMethod, VeilMethod
 from .metrics import bootstrap_by_group, paired_sign_flip
 from .release import Release, read_release
@@ -98,8 +99,9 @@ def make_method(name: str, release: Release, objectives: Sequence[str], settings
         return NearestDemonstration()
     if name == "multiclass_svm":
         return MulticlassSVM()
-    return MRFMethod(name, release.catalog, objectives, C=C if C is not None else settings.C_grid[0],
-                     tol=settings.tol, **MRF_ROWS[name])
+    row = MRF_ROWS[name]
+    vocabulary = Vocabulary.of(release.catalog, objectives, row["categories"])
+    return MRFMethod(name, vocabulary, row["features"], C=C if C is not None else settings.C_grid[0], tol=settings.tol)
 
 
 def both_accuracy(method: VeilMethod, test: Sequence[Replay]) -> float:
@@ -210,13 +212,12 @@ def summarize(results: Sequence[FoldResult], per_sequence: dict[str, list[Run]],
 
 
 def write_reports(report: dict, output: Path | str) -> None:
-    """`report.json` and `tables.md` into `output`, replaced whole; the seconds each method took per fold go to
-    `timing.json`, apart, since they differ from run to run while everything else is the same bytes."""
+    """`report.json` and `tables.md` into `output`, replaced whole. The seconds each method took are left out
+    (the command records them in MLflow): they differ from run to run while everything written is the same bytes."""
     figures = {k: v for k, v in report.items() if k != "seconds"}
     with atomic_directory(output) as tmp:
         (tmp / "report.json").write_text(json.dumps(figures, indent=2, sort_keys=True) + "\n")
         (tmp / "tables.md").write_text(tables(figures))
-        (tmp / "timing.json").write_text(json.dumps({"seconds_per_fold": report["seconds"]}, indent=2) + "\n")
 
 
 def _pm(figure: dict, scale: float = 100.0) -> str:

@@ -118,6 +118,8 @@ class Vocabulary:
             for slot, name in enumerate((s.a1, s.a2)):
                 if name is not None and name in index:
                     hist[index[name], 2 * back + slot] = 1.0
+        if objective not in self.objectives:
+            raise ValueError(f"objective {objective!r} is not one this model knows ({', '.join(self.objectives)})")
         return StepInput(rows, hist, pair_index, pair_rows, self.objectives.index(objective), (prev[0], prev[1]),
                          bool(state.grasped()))
 

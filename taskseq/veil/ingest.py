@@ -24,7 +24,7 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from ..io import atomic_directory
+from ..runtime.atomic import atomic_directory
 from .grounding import ARITIES, ActionError, ActionIndex
 from .release import Release, read_release
 from .replay import KEPT, SEQUENCE_STATUSES, SKIPPED, Replay, replay_release

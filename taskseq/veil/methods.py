@@ -20,7 +20,6 @@ from ..learn.ssvm import CuttingPlaneSSVM
 from .features import ARITIES, DONE, PAIR_COLUMNS, Vocabulary, label_of, step_of
 from .grounding import Step
 from .mrf import DomainMRF, StepInput
-from .release import Catalog
 from .replay import Replay
 from .state import State
 
@@ -48,29 +47,26 @@ def training_steps(replays: Sequence[Replay]) -> Iterator[tuple[State, list[Step
 class MRFMethod:
     """The unrolled MRF's weights from the structural SVM (`DomainMRF`, `CuttingPlaneSSVM`).
 
-    `categories` adds each object's category to its row (the paper's model sees attributes only)."""
+    The vocabulary fixes what an object's row holds (`features.Vocabulary`; with categories or, as the paper's
+    model, attributes only) and which objectives the model knows."""
 
     name: str
-    catalog: Catalog
-    objectives: Sequence[str]
+    vocabulary: Vocabulary
     features: str = "full"
-    categories: bool = False
     C: float = 1.0
     tol: float = 1e-3
     max_iter: int = 500
-    vocabulary_: Vocabulary = field(init=False, repr=False)
     model_: DomainMRF = field(init=False, repr=False)
     w_: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        self.vocabulary_ = Vocabulary.of(self.catalog, self.objectives, self.categories)
-        self.model_ = DomainMRF(ARITIES, len(self.vocabulary_.objectives), len(self.vocabulary_.columns),
+        self.model_ = DomainMRF(ARITIES, len(self.vocabulary.objectives), len(self.vocabulary.columns),
                                 len(PAIR_COLUMNS), self.features)
 
     def inputs(self, replays: Sequence[Replay]) -> tuple[list[StepInput], list[tuple[int, int, int]]]:
         X, Y = [], []
         for state, history, objective, s in training_steps(replays):
-            X.append(self.vocabulary_.step_input(state, history, objective))
+            X.append(self.vocabulary.step_input(state, history, objective))
             Y.append(label_of(s, state))
         return X, Y
 
@@ -81,6 +77,6 @@ class MRFMethod:
         return self
 
     def ranked(self, state: State, history: Sequence[Step], objective: str) -> Iterator[Step]:
-        labels, _ = self.model_.scores(self.vocabulary_.step_input(state, history, objective), self.w_)
+        labels, _ = self.model_.scores(self.vocabulary.step_input(state, history, objective), self.w_)
         for label in labels:
             yield step_of(label, state)
