@@ -15,8 +15,8 @@ import os
 import sys
 from collections.abc import Sequence
 
-from . import allocator, stopping
 from .commands import TOOLS
+from .runtime import memory, stopping
 from .stages import STAGES
 from .stages.command import add_parser, execute, prepare
 from .stages.paths import inputs
@@ -82,7 +82,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run one command; Ctrl-C or SIGTERM ends it with one line, its run KILLED and no output replaced."""
     args = build_parser().parse_args(argv)
     stopping.install()
-    allocator.keep_freed_memory()  # a large fit otherwise spends more time faulting pages in than computing
+    memory.keep_freed_memory()  # a large fit otherwise spends more time faulting pages in than computing
     # workers stopped mid-job leave semaphores the resource tracker (a child process) warns about at exit
     os.environ.setdefault("PYTHONWARNINGS", "ignore:resource_tracker:UserWarning")
     try:
@@ -90,7 +90,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _guarded(args, lambda: _stage(args))
         return _guarded(args, lambda: TOOLS[args.command].run(args))
     except KeyboardInterrupt as err:
-        from .io import WRITTEN
+        from .runtime.atomic import WRITTEN
 
         how = "SIGTERM" if isinstance(err, stopping.Stopped) else "Ctrl-C"
         run = "; its MLflow run is marked KILLED" if args.command in STAGES and not args.no_mlflow else ""

@@ -78,8 +78,8 @@ def _bench_options(p: argparse.ArgumentParser) -> None:
 
 
 def _bench(args: argparse.Namespace) -> int:
-    from .io import write_json_atomic
     from .logs.benchmark import load_benchmark
+    from .runtime.atomic import write_json_atomic
     from .stages.command import load_params
     from .timing import format_bench, run_bench
 
@@ -120,7 +120,7 @@ def _scaling_options(p: argparse.ArgumentParser) -> None:
 
 
 def _scaling(args: argparse.Namespace) -> int:
-    from .io import write_json_atomic
+    from .runtime.atomic import write_json_atomic
     from .scaling import Plan, format_scaling, parse_rooms, plot_scaling, run_scaling
     from .stages.command import default_jobs, load_params
 

@@ -360,6 +360,6 @@ def parse_rooms(values: Sequence[str]) -> tuple[int, ...]:
 
 if __name__ == "__main__":  # the timed fit's own process: FEATURES C TOL MAX_ITER N_SLACKS OUTPUT.json
     _features, _C, _tol, _max_iter, _n_slacks, _out = sys.argv[1:]
-    from .io import write_json_atomic
+    from .runtime.atomic import write_json_atomic
 
     write_json_atomic(_out, fit_and_infer(_features, float(_C), float(_tol), int(_max_iter), int(_n_slacks)))

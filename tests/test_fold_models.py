@@ -124,7 +124,7 @@ def test_a_dask_cluster_trains_the_same_bytes_as_local_processes(world, local, r
     local processes, on three paper-shaped rooms and on two drawn ones (the `dev` extra installs Dask)."""
     import distributed
 
-    from taskseq.evaluate.dispatch import SCHEDULER_ENV
+    from taskseq.runtime.jobs import SCHEDULER_ENV
 
     records, contexts, meta, scenarios = request.getfixturevalue(world)
     out, jobs, fitted = request.getfixturevalue(local)

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from taskseq.evaluate.dispatch import Shared, run_jobs
+from taskseq.runtime.jobs import Shared, run_jobs
 
 CALLS: list[int] = []
 

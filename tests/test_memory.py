@@ -1,4 +1,4 @@
-"""The allocator policy (`taskseq.allocator`): a freed large array stays in the process's heap, child
+"""The memory policy (`taskseq.runtime.memory`): a freed large array stays in the process's heap, child
 processes take the policy from the environment, a user's own setting wins, and every `taskseq` command
 applies it. Each case runs in a fresh interpreter: glibc reads the environment once, at a process's start."""
 
@@ -11,9 +11,10 @@ import sys
 
 import pytest
 
-from taskseq import allocator, cli
+from taskseq import cli
+from taskseq.runtime import memory
 
-pytestmark = pytest.mark.skipif(allocator._glibc() is None or not hasattr(allocator._glibc(), "mallinfo2"),
+pytestmark = pytest.mark.skipif(memory._glibc() is None or not hasattr(memory._glibc(), "mallinfo2"),
                                 reason="the policy is glibc's malloc; the probe reads mallinfo2 (glibc 2.33 or later)")
 
 ARRAY = 64 * 2**20  # bytes: past glibc's largest threshold for serving a block by a mapping of its own
@@ -22,9 +23,9 @@ ARRAY = 64 * 2**20  # bytes: past glibc's largest threshold for serving a block 
 PROBE = r"""
 import ctypes, json, os, sys
 import numpy as np
-from taskseq import allocator
+from taskseq.runtime import memory
 
-applied = allocator.keep_freed_memory() if sys.argv[1] == "apply" else None
+applied = memory.keep_freed_memory() if sys.argv[1] == "apply" else None
 
 class Mallinfo2(ctypes.Structure):
     _fields_ = [(name, ctypes.c_size_t) for name in (
@@ -36,12 +37,12 @@ array = np.ones(int(sys.argv[2]) // 8)
 mapped = libc.mallinfo2().hblkhd
 del array
 print(json.dumps({"applied": applied, "mapped_while_held": mapped, "free_in_heap": libc.mallinfo2().fordblks,
-                  "environment": {name: os.environ.get(name) for name in allocator.ENVIRONMENT}}))
+                  "environment": {name: os.environ.get(name) for name in memory.ENVIRONMENT}}))
 """
 
 
 def probe(how: str, environment: dict[str, str]) -> dict:
-    env = {k: v for k, v in os.environ.items() if k not in allocator.ENVIRONMENT} | environment
+    env = {k: v for k, v in os.environ.items() if k not in memory.ENVIRONMENT} | environment
     out = subprocess.run([sys.executable, "-c", PROBE, how, str(ARRAY)], env=env, capture_output=True, text=True,
                          check=True)
     return json.loads(out.stdout)
@@ -58,11 +59,11 @@ def test_the_policy_keeps_a_freed_large_array_in_the_heap():
     assert seen["applied"] is True
     assert seen["mapped_while_held"] < ARRAY
     assert seen["free_in_heap"] >= ARRAY
-    assert seen["environment"] == allocator.ENVIRONMENT  # what the processes it starts read
+    assert seen["environment"] == memory.ENVIRONMENT  # what the processes it starts read
 
 
 def test_a_child_process_takes_the_policy_from_the_environment():
-    seen = probe("none", allocator.ENVIRONMENT)
+    seen = probe("none", memory.ENVIRONMENT)
     assert seen["mapped_while_held"] < ARRAY
     assert seen["free_in_heap"] >= ARRAY
 
@@ -77,6 +78,6 @@ def test_a_users_own_setting_is_kept():
 
 def test_every_command_applies_the_policy(monkeypatch, tmp_path):
     calls = []
-    monkeypatch.setattr(allocator, "keep_freed_memory", lambda: calls.append(True))
+    monkeypatch.setattr(memory, "keep_freed_memory", lambda: calls.append(True))
     assert cli.main(["--no-mlflow", "generate", "--world-seed", "0", "--output", str(tmp_path / "raw")]) == 0
     assert calls == [True]

@@ -62,7 +62,7 @@ def test_a_stopped_stage_marks_its_run_killed_and_writes_nothing(data, tmp_path,
 @pytest.fixture
 def handlers():
     """The stopping handlers installed for the test, the previous ones back afterwards."""
-    from taskseq import stopping
+    from taskseq.runtime import stopping
 
     before = signal.getsignal(signal.SIGTERM), signal.getsignal(signal.SIGINT)
     stopping.install()

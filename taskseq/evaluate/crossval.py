@@ -11,8 +11,8 @@ from ..features.context import StepContext
 from ..features.dataset import StepMeta
 from ..logs.benchmark import Benchmark
 from ..plan.planner import Program
+from ..runtime.jobs import Shared, run_jobs
 from ..sim.scenarios import Scenario
-from .dispatch import Shared, run_jobs
 from .failures import classify
 from .folds import grouped_folds
 from .methods import Method, MRFMethod, MulticlassMethod, SymbolicMethod

@@ -17,13 +17,13 @@ from typing import Any
 
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
-from ..io import atomic_directory, write_json_atomic
 from ..learn.ssvm import learning_curve
 from ..learn.store import ModelStore
+from ..runtime.atomic import atomic_directory, write_json_atomic
+from ..runtime.jobs import Shared, run_jobs
 from ..settings import Recipes
 from ..sim.scenarios import Scenario
 from .crossval import scenario_folds, training_index
-from .dispatch import Shared, run_jobs
 from .methods import MRFMethod
 from .recipes import recipe_training_sets
 

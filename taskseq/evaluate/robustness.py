@@ -18,11 +18,11 @@ from ..features.context import StepContext
 from ..features.dataset import StepMeta
 from ..features.perception import flip_masks, noisy_perception
 from ..plan.planner import Memo, learned_policy, run_loop
+from ..runtime.jobs import Shared, run_jobs
 from ..settings import Feedback, Folds, Noise
 from ..sim.primitives import Action
 from ..sim.scenarios import Scenario
 from .crossval import SequenceOutcome, judge, scenario_folds, training_index
-from .dispatch import Shared, run_jobs
 from .methods import MRFMethod
 
 

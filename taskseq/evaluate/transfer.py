@@ -13,8 +13,8 @@ from collections.abc import Callable
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
 from ..logs.benchmark import Benchmark
+from ..runtime.jobs import Shared, run_jobs
 from .crossval import FoldResult, run_fold
-from .dispatch import Shared, run_jobs
 from .methods import Method
 
 World = tuple[list[StepContext], list[StepMeta], Benchmark]

@@ -24,8 +24,8 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 from scipy import sparse
 
-from ..io import atomic_directory
 from ..logs.records import parse_record, state_from_dict
+from ..runtime.atomic import atomic_directory
 from ..sim.primitives import Action
 from ..sim.tasks import TASKS
 from .context import (

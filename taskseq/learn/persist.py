@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from ..io import atomic_file
+from ..runtime.atomic import atomic_file
 from .mrf import MRFModel
 
 FORMAT = "taskseq.mrf/1"

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..io import atomic_directory
+from ..runtime.atomic import atomic_directory
 from ..settings import Generate
 from ..sim.procedural import DrawReport
 from ..sim.scenarios import Scenario, world_scenarios

@@ -22,7 +22,7 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from ..io import atomic_directory
+from ..runtime.atomic import atomic_directory
 from ..sim.objects import ATTRIBUTE_NAMES, BINARY_ATTRIBUTES
 from .records import FORMAT
 from .validate import LogError, LoggedRecord, check_record, log_files, read_records

@@ -1,6 +1,6 @@
 """Figures of the reports as PNG files: the confusion matrix and line plots with error bars.
 
-Written through `taskseq.io`, like every output, so a stage stopped part way
+Written through `taskseq.runtime.atomic`, like every output, so a stage stopped part way
 leaves each figure whole (old or new) and says which it replaced.
 """
 
@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io import atomic_file
+from ..runtime.atomic import atomic_file
 from ..sim.primitives import ALL_PRIMITIVES
 
 

@@ -78,7 +78,7 @@ def environment_from_layout(layout: Any, where: str = "layout") -> dict[str, Any
 
 def write_environment(layout_path: Path, output: Path) -> int:
     """Read a YAML (or JSON) layout, write the environment file; returns its number of objects."""
-    from ..io import write_text_atomic
+    from ..runtime.atomic import write_text_atomic
 
     try:
         layout = yaml.safe_load(Path(layout_path).read_text(encoding="utf-8"))

@@ -11,7 +11,6 @@ from pathlib import Path
 from typing import Any
 
 from ..evaluate.registry import method_labels
-from ..io import write_json_atomic, write_text_atomic
 from ..report import paper
 from ..report.breakdown import breakdown_markdown, group_outcomes
 from ..report.csvs import RATE_DECIMALS, SEQUENCE_COLUMNS, csv_text, read_csv_rows
@@ -30,6 +29,7 @@ from ..report.seeds import (
     world_dirs,
 )
 from ..report.tables import to_latex, to_markdown
+from ..runtime.atomic import write_json_atomic, write_text_atomic
 from ..settings import Params, World
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .paths import AggregatePaths

@@ -17,12 +17,12 @@ from ..evaluate.methods import method_params, table1_methods
 from ..evaluate.metrics import confusion, headline_metrics, summarize
 from ..evaluate.registry import method_labels
 from ..features.dataset import read_features
-from ..io import write_json_atomic, write_text_atomic
 from ..logs.benchmark import load_benchmark
 from ..plan.symbolic.files import file_stem
 from ..report.csvs import SEQUENCE_COLUMNS, STEP_COLUMNS, csv_text, sequence_rows, step_rows
 from ..report.figures import confusion_png
 from ..report.tables import table_rows, to_csv, to_latex, to_markdown
+from ..runtime.atomic import write_json_atomic, write_text_atomic
 from ..settings import Crossval, Learner, Params
 from ..track.mlflow_runs import NO_RUN, Tracker
 from ..track.recordings import record_program, spread

@@ -15,10 +15,10 @@ from ..evaluate.methods import method_params, mrf_methods
 from ..evaluate.registry import method_labels
 from ..evaluate.robustness import FeedbackCondition, evaluate_conditions, feedback_rows, feedback_steps
 from ..features.dataset import read_features
-from ..io import write_text_atomic
 from ..logs.benchmark import load_benchmark
 from ..report.csvs import OUTCOME_COLUMNS, RATE_DECIMALS, csv_text, outcome_row
 from ..report.figures import line_plot_png
+from ..runtime.atomic import write_text_atomic
 from ..settings import Feedback, Params, Replay
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .paths import EvaluationPaths

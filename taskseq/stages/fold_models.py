@@ -14,8 +14,8 @@ from typing import Any
 from ..evaluate.fold_models import train_fold_models, training_jobs
 from ..evaluate.methods import mrf_methods
 from ..features.dataset import read_features
-from ..io import write_json_atomic
 from ..logs.benchmark import load_benchmark
+from ..runtime.atomic import write_json_atomic
 from ..settings import Folds, Learner, Params
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .paths import FoldModelsPaths

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from ..io import write_json_atomic
 from ..logs.generate import generate
+from ..runtime.atomic import write_json_atomic
 from ..settings import Generate, Params
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .paths import GeneratePaths

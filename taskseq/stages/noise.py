@@ -15,11 +15,11 @@ from ..evaluate.methods import method_params, mrf_methods
 from ..evaluate.registry import method_labels
 from ..evaluate.robustness import NoiseCondition, evaluate_conditions, noise_curve, noise_runs
 from ..features.dataset import read_features
-from ..io import write_text_atomic
 from ..logs.benchmark import load_benchmark
 from ..report import paper
 from ..report.csvs import OUTCOME_COLUMNS, RATE_DECIMALS, csv_text, outcome_row
 from ..report.figures import line_plot_png
+from ..runtime.atomic import write_text_atomic
 from ..settings import Noise, Params, Replay
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .paths import EvaluationPaths

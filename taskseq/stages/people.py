@@ -14,9 +14,9 @@ from typing import Any
 
 from ..evaluate.teaching import fit, pooled, success_on
 from ..features.dataset import build_steps, read_features
-from ..io import write_json_atomic, write_text_atomic
 from ..logs.people import people_records
 from ..logs.records import parse_record, state_from_dict
+from ..runtime.atomic import write_json_atomic, write_text_atomic
 from ..settings import Learner, Params, People
 from ..sim.scenarios import doable_tasks
 from ..track.mlflow_runs import NO_RUN, Tracker

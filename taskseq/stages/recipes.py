@@ -16,9 +16,9 @@ from ..evaluate.methods import method_params, mrf_methods
 from ..evaluate.recipes import PROGRAM_COLUMNS, RECIPES, evaluate_recipes, program_rows, recipe_report
 from ..evaluate.registry import method_labels
 from ..features.dataset import read_features
-from ..io import write_json_atomic, write_text_atomic
 from ..logs.benchmark import load_benchmark
 from ..report.csvs import csv_text
+from ..runtime.atomic import write_json_atomic, write_text_atomic
 from ..settings import Learner, Params, Recipes
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .paths import EvaluationPaths

@@ -6,9 +6,9 @@ With `plots_template`, also the page `dvc plots show` fills, with its JavaScript
 from __future__ import annotations
 
 from ..evaluate.registry import method_labels
-from ..io import write_text_atomic
 from ..report.plots_page import offline_template
 from ..report.summary import build_summary
+from ..runtime.atomic import write_text_atomic
 from ..settings import Params
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .paths import ReportPaths

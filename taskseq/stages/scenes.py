@@ -21,10 +21,10 @@ from ..evaluate.metrics import summarize
 from ..evaluate.registry import method_labels
 from ..evaluate.transfer import transfer
 from ..features.dataset import read_features
-from ..io import write_json_atomic, write_text_atomic
 from ..logs.benchmark import load_benchmark
 from ..report.csvs import csv_text
 from ..report.seeds import curve_over_seeds, json_over_seeds, world_dirs
+from ..runtime.atomic import write_json_atomic, write_text_atomic
 from ..settings import Crossval, Folds, Generate, Learner, Params, Replay, World
 from ..track.mlflow_runs import NO_RUN, Tracker
 from . import aggregate, crossval, features, feedback, fold_models, generate, ingest, noise

@@ -17,10 +17,10 @@ from typing import Any
 from ..evaluate.methods import mrf_methods
 from ..evaluate.selection import CRITERION, DevData, choose_C, cross_validate_settings, rank_methods
 from ..features.dataset import build_steps, write_features
-from ..io import write_json_atomic
 from ..logs.benchmark import Benchmark
 from ..logs.generate import generate
 from ..logs.ingest import load_logs, write_tables
+from ..runtime.atomic import write_json_atomic
 from ..settings import Folds, Generate, Learner, Params, Procedural, Select, World
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .paths import SelectPaths

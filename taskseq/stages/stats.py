@@ -13,7 +13,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..evaluate.registry import BASELINES, PAPER_METHODS, PAPER_MODEL, method_labels
-from ..io import write_text_atomic
 from ..report.csvs import read_csv_rows
 from ..report.seeds import world_dirs
 from ..report.stats import best_baseline, confidence_intervals, paired_comparisons, world_outcomes
@@ -25,6 +24,7 @@ from ..report.stats_tables import (
     intervals_markdown,
     test_text,
 )
+from ..runtime.atomic import write_text_atomic
 from ..settings import Params, Stats, World
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .paths import StatsPaths

@@ -20,10 +20,10 @@ import numpy as np
 
 from ..evaluate.teaching import fit, pooled, success_on, teaching_order, written_and_read_back
 from ..features.dataset import build_steps
-from ..io import write_text_atomic
 from ..logs.benchmark import load_benchmark
 from ..report.csvs import csv_text
 from ..report.figures import line_plot_png
+from ..runtime.atomic import write_text_atomic
 from ..serve.environments import world_environment
 from ..serve.writer import person_record
 from ..settings import Learner, Params, Teach, World

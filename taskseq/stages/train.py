@@ -20,11 +20,11 @@ from ..evaluate.metrics import step_accuracy
 from ..evaluate.registry import method_labels
 from ..evaluate.selection import read_selected_method
 from ..features.dataset import build_steps, read_features
-from ..io import write_json_atomic, write_text_atomic
 from ..learn.ssvm import learning_curve
 from ..logs.benchmark import Benchmark, load_benchmark
 from ..logs.people import people_records
 from ..report.csvs import csv_text
+from ..runtime.atomic import write_json_atomic, write_text_atomic
 from ..settings import Params, Train
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .paths import TrainPaths

@@ -35,7 +35,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from ..stopping import held
+from ..runtime.stopping import held
 from .writer import EXPERIMENT, Connection
 
 __all__ = ["EXPERIMENT", "NO_RUN", "StageRun", "Tracker", "TrackingFailed", "stage_run", "tracked", "tracking_uri"]

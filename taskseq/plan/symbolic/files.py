@@ -6,7 +6,7 @@ import re
 import shutil
 from pathlib import Path
 
-from ...io import atomic_directory
+from ...runtime.atomic import atomic_directory
 from .problem import DOMAIN_PATH, build_problem
 from .roles import demonstrated_roles
 from .sat import solve
