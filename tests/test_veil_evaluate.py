@@ -194,3 +194,49 @@ def test_bad_settings_are_refused_with_their_name(release_dir: Path, tmp_path: P
     assert main(["veil", "evaluate", "--release", str(release_dir), "--output", str(out), "--params",
                  str(params)]) == 2
     assert "fold" in capsys.readouterr().err and not out.exists()
+
+
+@pytest.fixture(scope="module")
+def other_dir(release_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A second folder of the same format: two kitchens the release does not have, with their own people."""
+    root = tmp_path_factory.mktemp("veil_other") / "release"
+    shutil.copytree(release_dir, root)
+    kitchens = root / "Environments" / "kitchen"
+    for f in kitchens.glob("*.xml"):
+        f.unlink()
+    points = []
+    for number, order in ((5, ORDERS[2][::-1]), (6, ORDERS[3][::-1])):
+        objects = "".join(f"<object><name>{n}</name><position>({2 * i}, 41, 6)</position>"
+                          f"<rotation>(0, 0, 0)</rotation></object>\n" for i, n in enumerate(order))
+        (kitchens / f"kitchen{number}.xml").write_text(f"<environment>\n{objects}</environment>\n")
+        points += [_point(number, "Tea Beaker", TEA), _point(number, "Tidy Honey", TIDY)]
+    (root / "data.xml").write_text("<root>\n" + "".join(points) + "</root>\n")
+    return root
+
+
+def test_a_trained_model_is_evaluated_on_another_folder_with_the_same_metrics_and_plans_there(
+        release_dir: Path, other_dir: Path, tmp_path: Path, capsys) -> None:
+    params = tmp_path / "params.yaml"
+    params.write_text("veil:\n  folds: 2\n  C_grid: [1.0, 10.0]\n  max_steps: 10\n  resamples: 100\n")
+    model = tmp_path / "model.npz"
+    assert main(["--no-mlflow", "veil", "train", "--release", str(release_dir), "--output", str(model),
+                 "--params", str(params)]) == 0
+    out = tmp_path / "other"
+    assert main(["--no-mlflow", "veil", "evaluate", "--model", str(model), "--release", str(other_dir),
+                 "--output", str(out), "--params", str(params), "--quiet"]) == 0
+    report = json.loads((out / "report.json").read_text())
+    (name,) = report["next_step"]
+    assert name in experiment.MRF_ROWS and report["model"]["name"] == name
+    assert set(report["next_step"][name]) == {"verb", "args", "both"}
+    assert {f"{name}/plain", f"{name}/feasible", "people"} <= set(report["closed_loop"])
+    assert report["folds"][0]["held_out"] == [5, 6]
+    assert report["closed_loop"][f"{name}/feasible"]["goal_share"]["mean"] == 1.0
+    capsys.readouterr()
+    env = other_dir / "Environments" / "kitchen" / "kitchen6.xml"
+    assert main(["veil", "plan", "--model", str(model), "--environment", str(env), "--objective", "Tidy Honey"]) == 0
+    printed = capsys.readouterr().out
+    assert "keep_on(Honey_1, Tub)" in printed and "goal reached 100%" in printed
+    assert main(["veil", "plan", "--model", str(model), "--environment", str(env), "--objective", "Bake"]) == 2
+    assert "Bake" in capsys.readouterr().err
+    assert main(["veil", "plan", "--model", str(tmp_path / "none.npz"), "--environment", str(env),
+                 "--objective", "Tidy Honey"]) == 2

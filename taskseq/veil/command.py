@@ -52,9 +52,13 @@ def _import(args: argparse.Namespace) -> int:
     return _tracked(args, "veil-import", {"release": str(args.release)}, body)
 
 def _evaluate_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--release", type=Path, required=True, help="the release folder (as for import); only read")
+    p.add_argument("--release", type=Path, required=True,
+                   help="the release folder (as for import), or any folder of its format; only read")
     p.add_argument("--output", type=Path, required=True,
                    help="folder to write report.json and tables.md into (replaced whole when the run ends)")
+    p.add_argument("--model", type=Path, default=None,
+                   help="a trained model (`taskseq veil train`): evaluate it on every sequence of the folder, with "
+                        "the goals it was trained toward, instead of cross-validating every method")
     p.add_argument("--params", type=Path, default=Path("params.yaml"),
                    help="settings file whose `veil` section sets folds, C_grid, max_steps, methods, policies "
                         "(default params.yaml; the built-in defaults where it has no such section)")
@@ -66,7 +70,7 @@ def _evaluate(args: argparse.Namespace) -> int:
 
     from tqdm import tqdm
 
-    from .experiment import read_settings, run_experiment, tables, write_reports
+    from .experiment import evaluate_model, read_settings, run_experiment, tables, write_reports
 
     settings = read_settings(args.params)
     start = time.perf_counter()
@@ -76,7 +80,13 @@ def _evaluate(args: argparse.Namespace) -> int:
                     file=sys.stderr)
 
     def body(run) -> int:
-        report = run_experiment(args.release, settings, progress=bar)
+        if args.model is not None:
+            from .persist import load_mrf
+
+            method, goals, _ = load_mrf(args.model)
+            report = evaluate_model(method, goals, args.release, settings, progress=bar)
+        else:
+            report = run_experiment(args.release, settings, progress=bar)
         write_reports(report, args.output)
         record(run, report)
         run.artifact(args.output / "tables.md")
@@ -84,7 +94,8 @@ def _evaluate(args: argparse.Namespace) -> int:
         print(f"written to {args.output} in {time.perf_counter() - start:.0f} s")
         return 0
 
-    return _tracked(args, "veil-evaluate", {**asdict(settings), "release": str(args.release)}, body)
+    return _tracked(args, "veil-evaluate", {**asdict(settings), "release": str(args.release),
+                                            "model": str(args.model) if args.model else None}, body)
 
 
 def record(run, report: dict) -> None:
@@ -109,6 +120,72 @@ def _tracked(args: argparse.Namespace, stage: str, params: dict, body: Callable[
         return body(NO_RUN)
     return tracked(stage, params, [args.release], None, body)
 
+def _train_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--release", type=Path, required=True, help="the release folder to train on (every sequence)")
+    p.add_argument("--output", type=Path, required=True, help="model file to write (.npz; replaced when done)")
+    p.add_argument("--params", type=Path, default=Path("params.yaml"),
+                   help="settings file whose `veil` section gives the MRF rows and C grid to choose from (an inner "
+                        "held-out environment number of the release decides; default params.yaml)")
+
+
+def _train(args: argparse.Namespace) -> int:
+    from .experiment import read_settings, train_model
+    from .persist import save_mrf
+
+    settings = read_settings(args.params)
+
+    def body(run) -> int:
+        start = time.perf_counter()
+        method, goals, trained_on = train_model(args.release, settings)
+        save_mrf(args.output, method, goals, trained_on)
+        run.params({"chosen_method": method.name, "chosen_C": method.C})
+        run.metrics({"seconds": time.perf_counter() - start})
+        print(f"{method.name} (C = {method.C:g}) trained on {len(trained_on)} environments, "
+              f"written to {args.output}")
+        return 0
+
+    return _tracked(args, "veil-train", {"release": str(args.release), "C_grid": list(settings.C_grid)}, body)
+
+
+def _plan_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--model", type=Path, required=True, help="a trained model (`taskseq veil train`)")
+    p.add_argument("--environment", type=Path, required=True,
+                   help="an environment file in the release's format (Environments/kitchen/kitchenN.xml, ...)")
+    p.add_argument("--objective", required=True, help="the objective, as the model knows it (e.g. 'Boiling Water')")
+    p.add_argument("--release", type=Path, default=None,
+                   help="the folder whose Objects.xml, domainKnowledge.pddl and ControllerInstructions.xml describe "
+                        "the domain (default: the folder holding the environment's Environments/ folder)")
+    p.add_argument("--policy", choices=("plain", "feasible"), default="feasible",
+                   help="plain: the best-scored step; feasible: the best-scored step the domain lets run (default)")
+    p.add_argument("--max-steps", type=int, default=40, help="steps at most (default 40)")
+
+
+def _plan(args: argparse.Namespace) -> int:
+    from .evaluate import Executor, lift, rollout
+    from .metrics import goal_share
+    from .persist import load_mrf
+    from .plan import domain_of, environment_state
+
+    if args.max_steps < 1:
+        raise ValueError(f"--max-steps must be at least 1, got {args.max_steps}")
+    method, goals, _ = load_mrf(args.model)
+    if args.objective not in method.vocabulary.objectives:
+        raise ValueError(f"objective {args.objective!r} is not one the model knows: "
+                         f"{', '.join(method.vocabulary.objectives)}")
+    domain = domain_of(args.environment, args.release)
+    state = environment_state(args.environment, domain)
+    steps, final, refused, stopped = rollout(method, Executor(domain), state, args.objective, args.policy,
+                                             args.max_steps)
+    for i, s in enumerate(steps, start=1):
+        print(f"{i:3d}  {s}")
+    goal = goals.get(args.objective, frozenset())
+    reached = goal_share(lift(final), goal) if goal else None
+    print(("status: done" if stopped else f"status: stopped after {args.max_steps} steps")
+          + (f"; {refused} refused" if refused else "")
+          + (f"; goal reached {100 * reached:.0f}% ({len(goal)} facts)" if reached is not None else ""))
+    return 0 if stopped and reached in (None, 1.0) else 1
+
+
 SUBCOMMANDS: dict[str, SubCommand] = {
     "import": SubCommand(
         "check a VEIL-500 release, replay its sequences (skipping steps the domain refuses, counted by reason) and "
@@ -118,10 +195,16 @@ SUBCOMMANDS: dict[str, SubCommand] = {
         "every method (baselines and MRF rows) over folds of held-out environments: next-step accuracy with the "
         "people's history and closed-loop runs (goal reached, edit distance to people); writes report.json and "
         "tables.md", _evaluate_options, _evaluate),
+    "train": SubCommand(
+        "train the MRF on every sequence of a release (its row and C chosen on an inner held-out environment "
+        "number) and write a model file", _train_options, _train),
+    "plan": SubCommand(
+        "plan a sequence for an objective in an environment file with a trained model, step by step in the domain",
+        _plan_options, _plan),
 }
 
-HELP = "VEIL-500 (Tell Me Dave): import people's sequences from a release folder, evaluate methods on them "\
-       "(docs/veil.md)"
+HELP = ("VEIL-500 (Tell Me Dave): import people's sequences from a release folder, evaluate methods on them, "
+        "train a model and plan with it (docs/veil.md)")
 
 
 def options(p: argparse.ArgumentParser) -> None:

@@ -29,6 +29,7 @@ from .features import DONE, line_of
 from .grounding import ActionError, ActionIndex, Step, UnknownObject
 from .methods import VeilMethod, training_steps
 from .metrics import goal_share, nearest_edit_distance
+from .plan import DomainFiles
 from .release import Release, environment_file
 from .replay import Replay
 from .state import State, StepRefused, step
@@ -125,7 +126,7 @@ class Run:
 class Executor:
     """Runs steps in the release's domain: a step's line grounded as the importer grounds people's."""
 
-    def __init__(self, release: Release) -> None:
+    def __init__(self, release: Release | DomainFiles) -> None:
         self.index = ActionIndex(release.domain)
         self.arities = {k: tuple(len(p) for p in v) for k, v in release.instructions.items()}
 

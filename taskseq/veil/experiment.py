@@ -157,29 +157,29 @@ def run_experiment(release_root: Path | str, settings: Settings,
             for policy in settings.policies:
                 runs = closed_loop(method, executor, test, goals, policy, settings.max_steps, progress)
                 key = f"{name}/{policy}"
-                fr.closed_loop[key] = {"goal_share": _mean(runs, "goal_share"),
-                                       "edit_distance": _mean(runs, "edit_distance"),
-                                       "exact": _mean(runs, "exact"), "stopped": _mean(runs, "stopped"),
-                                       "refused_per_run": _mean(runs, "refused")}
+                fr.closed_loop[key] = _figures(runs)
                 per_sequence.setdefault(key, []).extend(runs)
             fr.seconds[name] = time.perf_counter() - start
         own = people_runs(test, goals)
         people.extend(own)
-        fr.closed_loop["people"] = {"goal_share": _mean(own, "goal_share"),
-                                    "edit_distance": _mean(own, "edit_distance"), "exact": _mean(own, "exact"),
-                                    "stopped": 1.0, "refused_per_run": 0.0}
+        fr.closed_loop["people"] = _figures(own)
         results.append(fr)
     return summarize(results, per_sequence, people, settings)
 
 
 def summarize(results: Sequence[FoldResult], per_sequence: dict[str, list[Run]], people: Sequence[Run],
-              settings: Settings) -> dict:
-    def over_folds(get: Callable[[FoldResult], float]) -> dict[str, float]:
+              settings: Settings, methods: Sequence[str] | None = None) -> dict:
+    methods = tuple(methods or settings.methods)
+
+    def over_folds(get: Callable[[FoldResult], float]) -> dict[str, float | None | list]:
+        """Mean and sd over the folds that have the figure (none: no person to compare with, no goal)."""
         values = np.array([get(fr) for fr in results], dtype=float)
-        return {"mean": float(np.nanmean(values)), "sd": float(np.nanstd(values)), "folds": values.tolist()}
+        known = values[~np.isnan(values)]
+        return {"mean": float(known.mean()) if known.size else None, "sd": float(known.std()) if known.size else None,
+                "folds": [None if np.isnan(v) else float(v) for v in values]}
 
     next_step = {name: {part: over_folds(lambda fr, n=name, p=part: fr.next_step[n][p])
-                        for part in ("verb", "args", "both")} for name in settings.methods}
+                        for part in ("verb", "args", "both")} for name in methods}
     loop_keys = list(per_sequence) + ["people"]
     closed = {key: {figure: over_folds(lambda fr, k=key, f=figure: fr.closed_loop[k][f])
                     for figure in ("goal_share", "edit_distance", "exact", "stopped", "refused_per_run")}
@@ -194,7 +194,7 @@ def summarize(results: Sequence[FoldResult], per_sequence: dict[str, list[Run]],
     baseline_keys = [k for k in per_sequence if k.split("/")[0] in BASELINES]
     tests = {}
     if mrf_keys and baseline_keys:
-        best = max(mrf_keys, key=lambda k: closed[k]["goal_share"]["mean"])
+        best = max(mrf_keys, key=lambda k: closed[k]["goal_share"]["mean"] or 0.0)
         by_seq = {k: {r.seq_id: r.goal_share for r in per_sequence[k] if r.goal_share is not None}
                   for k in per_sequence}
         for other in baseline_keys:
@@ -208,7 +208,7 @@ def summarize(results: Sequence[FoldResult], per_sequence: dict[str, list[Run]],
     folds = [{k: v for k, v in asdict(fr).items() if k != "seconds"} for fr in results]
     return {"settings": asdict(settings), "folds": folds, "next_step": next_step, "closed_loop": closed,
             "goal_share_intervals": intervals, "paired_tests": tests,
-            "seconds": {name: [fr.seconds[name] for fr in results] for name in settings.methods}}
+            "seconds": {name: [fr.seconds[name] for fr in results] for name in methods}}
 
 
 def write_reports(report: dict, output: Path | str) -> None:
@@ -221,12 +221,20 @@ def write_reports(report: dict, output: Path | str) -> None:
 
 
 def _pm(figure: dict, scale: float = 100.0) -> str:
+    if figure["mean"] is None:
+        return "-"
     return f"{scale * figure['mean']:.1f} ± {scale * figure['sd']:.1f}"
+
+
+def _three(value: float | None) -> str:
+    return "-" if value is None else f"{value:.3f}"
 
 
 def tables(report: dict) -> str:
     s = report["settings"]
-    lines = [f"# People's demonstrations (VEIL-500): {s['folds']} folds of held-out environments", "",
+    title = (f"a trained model ({report['model']['name']}, C = {report['model']['C']:g}) on every sequence of a folder"
+             if "model" in report else f"{s['folds']} folds of held-out environments")
+    lines = [f"# People's demonstrations (VEIL-500): {title}", "",
              "Next step with the people's history, % (mean ± sd over folds):", "",
              "| method | verb | arguments | both |", "|---|---:|---:|---:|"]
     for name, parts in report["next_step"].items():
@@ -241,11 +249,70 @@ def tables(report: dict) -> str:
         iv = report["goal_share_intervals"].get(key)
         interval = f"[{100 * iv['low']:.1f}, {100 * iv['high']:.1f}]" if iv else "-"
         lines.append(f"| {LABELS[name]} | {policy or '-'} | {_pm(figs['goal_share'])} | "
-                     f"{interval} | {figs['edit_distance']['mean']:.3f} | "
-                     f"{100 * figs['exact']['mean']:.1f} | {100 * figs['stopped']['mean']:.0f} |")
+                     f"{interval} | {_three(figs['edit_distance']['mean'])} | "
+                     f"{_pm(figs['exact']).split(' ±')[0]} | {_pm(figs['stopped']).split(' ±')[0]} |")
     if report["paired_tests"]:
         lines += ["", "Paired sign-flip tests on goal reached, per held-out sequence:", "",
                   "| best MRF row | against | difference (points) | p |", "|---|---|---:|---:|"]
         for other, t in report["paired_tests"].items():
             lines.append(f"| {t['best_mrf']} | {other} | {100 * t['difference']:+.1f} | {t['p']:.4f} |")
     return "\n".join(lines) + "\n"
+
+
+# one model for use: trained on a whole release, evaluated on any folder of the same format ------------------------
+def choose_model(release: Release, replays: Sequence[Replay], settings: Settings) -> tuple[str, float]:
+    """The MRF row and C of `settings` with the best next-step accuracy on an inner held-out environment number
+    of `replays`: the choice a model for use is trained with, made on its training data alone."""
+    rows = [m for m in settings.methods if m in MRF_ROWS] or list(MRF_ROWS)
+    objectives = sorted({r.point.objective for r in replays})
+    numbers = {env_number(r.point.env_id) for r in replays}
+    if len(numbers) < 2:
+        return rows[0], settings.C_grid[0]
+    fit_on, check_on = split(replays, environment_folds(replays, min(settings.folds, len(numbers)))[0])
+    scored = [(both_accuracy(make_method(name, release, objectives, settings, C).fit(fit_on), check_on), -i, name, C)
+              for i, (name, C) in enumerate((n, c) for n in rows for c in settings.C_grid)]
+    _, _, name, C = max(scored)  # ties: the earlier row, then the smaller C
+    return name, C
+
+
+def train_model(release_root: Path | str, settings: Settings) -> tuple[MRFMethod, dict, list[str]]:
+    """The chosen MRF row fitted on every sequence of a release, the goals of its objectives and its environments."""
+    release = read_release(release_root)
+    replays = replay_release(release)
+    name, C = choose_model(release, replays, settings)
+    method = make_method(name, release, sorted({r.point.objective for r in replays}), settings, C)
+    assert isinstance(method, MRFMethod)
+    return method.fit(replays), derive_goals(replays), sorted({r.point.env_id for r in replays})
+
+
+def evaluate_model(method: MRFMethod, goals: dict, release_root: Path | str, settings: Settings,
+                   progress: Callable[[Iterable], Iterable] = iter) -> dict:
+    """A trained model on every sequence of a folder: the experiment's figures, the folder as one fold."""
+    release = read_release(release_root)
+    replays = replay_release(release)
+    known = set(method.vocabulary.objectives)
+    if unknown := sorted({r.point.objective for r in replays} - known):
+        raise ValueError(f"{release_root}: objectives the model was not trained for: {unknown} (it knows "
+                         f"{sorted(known)})")
+    executor = Executor(release)
+    fr = FoldResult(0, sorted({env_number(r.point.env_id) for r in replays}))
+    rows = next_steps(method, replays)
+    fr.next_step[method.name] = {part: float(np.mean([getattr(r, part) for r in rows]))
+                                 for part in ("verb", "args", "both")}
+    per_sequence: dict[str, list[Run]] = {}
+    for policy in settings.policies:
+        runs = closed_loop(method, executor, replays, goals, policy, settings.max_steps, progress)
+        per_sequence[f"{method.name}/{policy}"] = runs
+        fr.closed_loop[f"{method.name}/{policy}"] = _figures(runs)
+    own = people_runs(replays, goals)
+    fr.closed_loop["people"] = _figures(own)
+    fr.seconds[method.name] = 0.0
+    report = summarize([fr], per_sequence, own, settings, methods=(method.name,))
+    report["model"] = {"name": method.name, "C": method.C, "evaluated_on": str(release_root)}
+    return report
+
+
+def _figures(runs: Sequence[Run]) -> dict[str, float]:
+    return {"goal_share": _mean(runs, "goal_share"), "edit_distance": _mean(runs, "edit_distance"),
+            "exact": _mean(runs, "exact"), "stopped": _mean(runs, "stopped"),
+            "refused_per_run": _mean(runs, "refused")}

@@ -1,0 +1,67 @@
+"""A trained people's-demonstrations model as a file: weights, what its rows hold, and the goals it learned.
+
+The file is a NumPy .npz of arrays and JSON text only, loadable with
+`allow_pickle=False`, as the paper world's model files are (`taskseq.learn.persist`):
+a model from someone else cannot run code when it is loaded, and the same
+weights give the same bytes. Beside the weights it keeps the vocabulary (the
+columns of an object's row and the objectives it knows), the goal of each
+objective derived from its training sequences (`evaluate.derive_goals`), so a
+folder of other environments is scored against the goals the model was
+trained toward, and the environments it was trained on.
+"""
+
+from __future__ import annotations
+
+import json
+import zipfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..runtime.atomic import atomic_file
+from .features import Vocabulary
+from .methods import MRFMethod
+
+FORMAT = "taskseq.veil-mrf/1"
+Goals = dict[str, frozenset[tuple[str, ...]]]
+
+
+def save_mrf(path: Path | str, method: MRFMethod, goals: Goals, trained_on: list[str]) -> None:
+    v = method.vocabulary
+    meta = {"format": FORMAT, "name": method.name, "features": method.features, "C": method.C, "tol": method.tol,
+            "vocabulary": {"affordances": list(v.affordances), "states": list(v.states),
+                           "categories": list(v.categories), "objectives": list(v.objectives)},
+            "goals": {o: sorted(list(f) for f in facts) for o, facts in sorted(goals.items())},
+            "trained_on": sorted(trained_on)}
+    arrays = {"w": np.asarray(method.w_, dtype=np.float64), "meta": np.array(json.dumps(meta, sort_keys=True))}
+    with atomic_file(path) as tmp, zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_STORED) as z:
+        for name, array in arrays.items():
+            with z.open(zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0)), "w") as fh:
+                np.lib.format.write_array(fh, array, allow_pickle=False)
+
+
+def load_mrf(path: Path | str) -> tuple[MRFMethod, Goals, dict[str, Any]]:
+    """The fitted method, its goals and the file's metadata; a clear error for anything else."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such model file (run `dvc repro veil/dvc.yaml` or `taskseq veil train`)")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            meta = json.loads(str(z["meta"]))
+            w = np.array(z["w"])
+    except KeyError as err:
+        raise ValueError(f"{path}: not a taskseq VEIL model file (missing {err.args[0]})") from None
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as err:
+        raise ValueError(f"{path}: not a readable taskseq VEIL model file ({err})") from None
+    if meta.get("format") != FORMAT:
+        raise ValueError(f"{path}: format {meta.get('format')!r}, expected {FORMAT!r}")
+    v = meta["vocabulary"]
+    vocabulary = Vocabulary(tuple(v["affordances"]), tuple(v["states"]), tuple(v["categories"]),
+                            tuple(v["objectives"]))
+    method = MRFMethod(meta["name"], vocabulary, meta["features"], C=meta["C"], tol=meta["tol"])
+    if w.shape != (method.model_.size_joint_feature,):
+        raise ValueError(f"{path}: {w.shape[0]} weights, but its vocabulary makes {method.model_.size_joint_feature}")
+    method.w_ = w
+    goals = {o: frozenset(tuple(f) for f in facts) for o, facts in meta["goals"].items()}
+    return method, goals, meta
