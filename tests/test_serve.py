@@ -376,6 +376,36 @@ def test_assist_ranks_with_the_policy_the_model_file_records_and_proposes_only_s
     assert proposals["greedy"] == proposals["feasible"] and len(proposals["lookahead"]) == 3
 
 
+def proposal_rows(page: str) -> list[tuple[str, float, str]]:
+    """(step, score, why it is here) of each row of the assist table, as a person reads them."""
+    rows = re.findall(r'<td><code>([^<]*)</code>.*?</td>\s*<td>(-?[0-9.]+)</td><td class="why">([^<]*)</td>', page,
+                      re.S)
+    return [(step, float(score), html.unescape(why)) for step, score, why in rows]
+
+
+def test_assist_says_why_each_proposal_is_where_it_is(data, tmp_path):
+    """Under the lookahead a step can stand above a better-scored one: the upper row says it moved up and why,
+    the lower one what its imagined plan would break; every row speaks in names, never ids or None."""
+    path = tmp_path / "lookahead.npz"
+    weights = np.random.default_rng(0).normal(size=MRFModel("full").size_joint_feature)
+    StepScorer.from_weights("full", weights).save(path, policy="lookahead")
+    client = create_app(data, path).test_client()
+    start(client, Task("pour_to", ("obj27", "obj14")), mode="assist")
+    client.post("/step", data={"n": "0", "choice": "0"})  # accept the first proposal: here the lookahead reorders
+    rows = proposal_rows(client.get("/assist").get_data(as_text=True))
+    assert len(rows) == 3
+    swapped = [(i, j) for i in range(3) for j in range(i + 1, 3) if rows[i][1] < rows[j][1]]
+    assert swapped, "this room and these weights were chosen for a proposal above a better-scored one"
+    names = world_environment(0, "env01").state.specs
+    for i, j in swapped:
+        lower = Action.parse(rows[j][0])
+        named_lower = f"{lower.primitive}({', '.join(names[a].name for a in lower.args)})"
+        assert f"moved up above {named_lower}" in rows[i][2] and "the lookahead found" in rows[i][2]
+        assert rows[j][2].startswith("demoted: its plan would ") and "it breaks the safety rule \u201c" in rows[j][2]
+    for _, _, why in rows:
+        assert why and not re.search(r"\bobj\d+\b", why) and "None" not in why
+
+
 def test_assist_names_a_policy_this_version_does_not_plan_with(data, tmp_path):
     path = tmp_path / "odd.npz"
     StepScorer.from_weights("full", np.zeros(MRFModel("full").size_joint_feature)).save(path, policy="cautious")

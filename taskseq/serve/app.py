@@ -18,6 +18,7 @@ from flask import Flask, Response, g, redirect, render_template, request
 
 from ..features.context import step_context
 from ..learn.estimator import StepScorer
+from ..learn.persist import policy_of
 from ..plan.planner import Abstain, Policy
 from ..sim.catalog import ENVIRONMENTS, OBJECTS_BY_ID
 from ..sim.primitives import ALL_PRIMITIVES, ARITY, Action, PreconditionError
@@ -26,6 +27,7 @@ from ..sim.state import WorldState
 from ..sim.tasks import TASK_ARITY, Task, goal_reached
 from ..tools import LIQUID_TASKS, parse_task, recorded_policy
 from .environments import SAFE_NAME, file_environment, named_files, read_named, world_environment
+from .explain import explain
 from .rules import UnsafeStep, named, preconditions, step_text
 from .scene import support_tree, top_view
 from .sessions import ASSIST, DEMONSTRATE, MODES, Activity, Session, SessionStore
@@ -49,6 +51,7 @@ class Refused(Exception):
 class Candidate:
     action: Action
     score: float
+    why: str = ""  # why it stands where it stands (`explain.explain`)
 
 
 class Served:
@@ -64,6 +67,8 @@ class Served:
         self.writer = RecordWriter(self.people)
         # the model as its recorded policy, loaded once
         self._policy_for: Callable[[Task, WorldState], Policy] | None = None
+        self._planner: StepScorer | None = None
+        self._policy_name = ""
         self._planner_lock = threading.Lock()  # one scoring at a time: the model caches per batch
 
     def candidates(self, activity: Activity) -> tuple[list[Candidate], str | None]:
@@ -72,23 +77,33 @@ class Served:
         They are ranked by the policy the model file records (`greedy`: the best scores; `feasible`: the best
         scores among the steps that can run; `lookahead`: those, checked for the safety of what follows), as
         `taskseq plan` would run the model, and only steps the page would take are proposed
-        (`tools.runnable_first`)."""
+        (`tools.runnable_first`); each says why it stands where it stands (`explain.explain`). A step's proposals
+        are kept with the activity: the planner is deterministic, and the page and the step posted from it then
+        agree on what proposal number k is."""
+        known = activity.offers.get(tuple(activity.actions))
+        if known is not None:  # a page shown again, or the step posted from it: ranked once
+            return known
         with self._planner_lock:
             if self._policy_for is None:
                 try:
-                    self._policy_for = recorded_policy(StepScorer.load(self.model), self.model, self.top_k)
+                    planner = StepScorer.load(self.model)
+                    self._policy_for = recorded_policy(planner, self.model, self.top_k)
                 except (FileNotFoundError, ValueError) as err:
                     raise Refused(f"the planner cannot be loaded: {err}", 503) from None
+                self._planner, self._policy_name = planner, policy_of(planner.meta_)
             ctx = step_context(activity.state, activity.task, activity.actions)
             try:
                 ranked = self._policy_for(activity.task, activity.states[0])(ctx, activity.state)
             except Abstain as why:
-                return [], str(why)
-        out = []
-        for y, score in ranked:
-            action = ctx.action(y)
-            out.append(Candidate(action, float(score)))
-        return out, None
+                found: tuple[list[Candidate], str | None] = ([], str(why))
+            else:
+                assert self._planner is not None
+                reasons = explain(self._planner, self._policy_name, activity.task, activity.states[0], ctx,
+                                  activity.state, ranked)
+                found = ([Candidate(ctx.action(y), float(score), why)
+                          for (y, score), why in zip(ranked, reasons, strict=True)], None)
+        activity.offers[tuple(activity.actions)] = found
+        return found
 
 
 def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:

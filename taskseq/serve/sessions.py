@@ -36,6 +36,7 @@ class Activity:
     actions: list[Action] = field(default_factory=list)
     states: list[WorldState] = field(default_factory=list)
     corrected: list[int] = field(default_factory=list)  # assist: steps where the person overrode the planner
+    offers: dict = field(default_factory=dict)  # assist: the planner's proposals after each history, made once
 
     def __post_init__(self) -> None:
         if not self.states:

@@ -1,0 +1,185 @@
+"""Why each of the planner's proposals stands where it stands, in words a person reads beside the assist table.
+
+A proposal's place comes from three things, each read here from the code
+that decides it rather than described again: the model's score
+(`StepScorer.ranked`), the lookahead of the shipped policy
+(`plan.planner.lookahead`: of the best runnable steps it takes the first
+whose imagined next steps break no safety rule), and the product's filter
+(`tools.runnable_first`: no step the simulator refuses, no unsafe step, no
+`done` before the goal). The page shows the order the policy made; this
+module replays the same checks to say why, so a step listed above a
+better-scored one always carries the reason: the better one cannot run
+here, or its imagined plan breaks a rule. Everything is said with the
+objects' names, never their ids, and never Python's `None`.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+from ..features.context import StepContext, step_context
+from ..learn.estimator import StepScorer
+from ..plan.planner import DONE, LOOKAHEAD_DEPTH, Ranked, _Runnable
+from ..sim.primitives import Action, PreconditionError, execute
+from ..sim.safety import violations
+from ..sim.state import WorldState
+from ..sim.tasks import Task, goal_reached
+from .rules import named, step_text, unsafe_reason
+
+Y = tuple[int, int, int]
+SHOWN_REASONS = 3  # steps that cannot run named per row; the rest are counted
+
+
+@dataclass(frozen=True)
+class Imagined:
+    """The plan the lookahead imagines after a step: each imagined step with the world before it (the step
+    itself first), and whether one of them breaks a safety rule (then the last one does)."""
+
+    steps: list[tuple[WorldState, Action]]
+    harmful: bool
+
+    def text(self) -> str:
+        """`move_close(glass), grasp(milk_carton), then follow_traj_pour(...), which breaks ...` in names."""
+        words = [_step(state, action) for state, action in self.steps]
+        if not self.harmful:
+            return ", ".join(words)
+        state, action = self.steps[-1]
+        lead = f"take {', '.join(words[:-1])}, then " if len(words) > 1 else ""
+        return f"{lead}{words[-1]}, where {unsafe_reason(state, action)}"
+
+
+def imagine(planner: StepScorer, task: Task, state: WorldState, history: list[Action], action: Action,
+            depth: int = LOOKAHEAD_DEPTH) -> Imagined:
+    """The steps `plan.planner.lookahead` imagines after taking `action`, step for step as its `harms` walks them:
+    from the state the step leads to, each next step the planner's best runnable one, until `done`, a step that
+    breaks a safety rule, or `depth` steps."""
+    steps: list[tuple[WorldState, Action]] = []
+    if action.primitive == DONE:  # stopping imagines nothing and counts as safe
+        return Imagined([(state, action)], False)
+    for _ in range(depth):
+        steps.append((state, action))
+        if violations(state, action):
+            return Imagined(steps, True)
+        state = execute(state, action)
+        history = [*history[-1:], action]
+        step = _Runnable(planner, step_context(state, task, history), state)
+        action = step.ctx.action(step.first(1)[0][0])
+        if action.primitive == DONE:
+            steps.append((state, action))
+            return Imagined(steps, False)
+    steps.append((state, action))
+    return Imagined(steps, bool(violations(state, action)))
+
+
+def _why_not_runnable(task: Task, initial: WorldState, state: WorldState, action: Action) -> str | None:
+    """Why the page would not take `action` here (in names), or None when it would."""
+    if action.primitive == DONE:
+        if goal_reached(task, initial, state):
+            return None
+        return f"done: the goal of {_task_text(state, task)} does not hold yet"
+    try:
+        execute(state, action)
+    except PreconditionError as err:
+        return f"{step_text(state, action)}: {_named(state, err.reason)} (check: {err.check})"
+    reason = unsafe_reason(state, action)
+    return None if reason is None else f"{step_text(state, action)}: {reason}"
+
+
+def _step(state: WorldState, action: Action) -> str:
+    return "done" if action.primitive == DONE else step_text(state, action)
+
+
+def _named(state: WorldState, text: str) -> str:
+    """`rules.named`, without the name said twice where the simulator gives an id and its name
+    (`dining_table (dining_table) cannot be moved`)."""
+    return re.sub(r"(\b[\w.-]+) \(\1\)", r"\1", named(state, text))
+
+
+def _task_text(state: WorldState, task: Task) -> str:
+    return f"{task.name}({', '.join(state.specs[a].name for a in task.args)})"
+
+
+def explain(planner: StepScorer, policy: str, task: Task, initial: WorldState, ctx: StepContext, state: WorldState,
+            offered: Ranked) -> list[str]:
+    """For each proposal of `offered` (the policy's order, after `tools.runnable_first`), why it is where it is:
+    its place in the model's scores, every better-scored step it stands above or in place of and why that step
+    is not above it, and what the lookahead found for the steps it imagined (`policy` is the model file's)."""
+    if not offered:
+        return []
+    shown = [y for y, _ in offered]
+    place = {y: i for i, y in enumerate(shown)}
+    scored: list[tuple[Y, float]] = []  # the model's ranking down to the last proposal
+    left = set(shown)
+    for y, score in planner.ranked(ctx):
+        scored.append((y, score))
+        left.discard(y)
+        if not left:
+            break
+    history = ctx.history()
+    plans: dict[Y, Imagined] = {}
+
+    def plan(y: Y) -> Imagined:
+        if y not in plans:
+            plans[y] = imagine(planner, task, state, history, ctx.action(y))
+        return plans[y]
+
+    def words(y: Y) -> str:
+        return _step(state, ctx.action(y))
+
+    looks_ahead = policy == "lookahead"
+    out: list[str] = []
+    demoted: set[Y] = set()
+    explained: set[Y] = set()
+    rank = {y: k for k, (y, _) in enumerate(scored)}
+    score_of = dict(scored)
+    for i, y in enumerate(shown):
+        above = [z for z, _ in scored[: rank[y]] if place.get(z, len(shown)) > i]  # better scores not listed above
+        below = [z for z in above if z in place]
+        hidden = [z for z in above if z not in place and z not in explained]  # each said once, on the first row
+        explained.update(hidden)
+        parts: list[str] = []
+        if y in demoted:
+            found = plan(y) if looks_ahead else None
+            if found is not None and found.harmful:
+                parts.append(f"demoted: its plan would {found.text()}")
+            else:
+                parts.append("placed below better-scored steps by the policy")
+        elif not above:
+            parts.append("the best score of all the steps" if rank[y] == 0 else "the next score down")
+        elif not below and not hidden:
+            parts.append("the next score down of the steps that can be proposed")
+        if below:
+            demoted.update(below)
+            listed = "; ".join(f"{words(z)} ({score_of[z]:.2f})" for z in below)
+            cause = ("the lookahead found its plan breaks a safety rule" if len(below) == 1
+                     else "the lookahead found their plans break a safety rule")
+            parts.append(f"moved up above {listed}: {cause if looks_ahead else 'the policy put it first'}")
+        if hidden:
+            reasons, runnable = [], []
+            for z in hidden:
+                reason = _why_not_runnable(task, initial, state, ctx.action(z))
+                (reasons if reason is not None else runnable).append(reason or z)
+            if reasons:
+                more = len(reasons) - SHOWN_REASONS
+                said = "; ".join(reasons[:SHOWN_REASONS]) + (f"; and {more} more that cannot run" if more > 0 else "")
+                count = "a step scored above it" if len(reasons) == 1 else f"the {len(reasons)} steps scored above it"
+                parts.append(f"moved up: {count} cannot run here ({said})")
+            for z in runnable:  # runs, but not proposed: the lookahead passed it over and the list was full
+                found = plan(z) if looks_ahead else None
+                if found is not None and found.harmful:
+                    parts.append(f"moved up: {words(z)} ({score_of[z]:.2f}) scores higher, but its plan would "
+                                 f"{found.text()}")
+                else:
+                    parts.append(f"moved up: {words(z)} ({score_of[z]:.2f}) scores higher but is not proposed")
+        if looks_ahead and i == 0 and ctx.action(y).primitive == DONE:
+            parts.append("the goal holds, and stopping is always safe")
+        elif looks_ahead and i == 0:
+            found = plan(y)
+            if found.harmful:
+                parts.append(f"the lookahead found no safe plan among the best steps that can run; this one "
+                             f"would {found.text()}")
+            elif len(found.steps) > 1:
+                parts.append(f"looking ahead ({found.text()}) it breaks no safety rule")
+        out.append("; ".join(parts))
+    return out

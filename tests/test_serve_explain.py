@@ -1,0 +1,86 @@
+"""The assist table says why each proposal stands where it stands: its score, and what the lookahead found.
+
+A scorer scripted by the last steps (as in tests/test_lookahead.py) makes the
+lookahead's choice known in advance: in env02 the glass a pour(milk) needs
+stands on a shelf, and the script scores grasping the milk carton right away
+(then pouring over the shelf) above fetching the glass first. The shipped
+policy proposes the glass first; the table must say why.
+"""
+
+from __future__ import annotations
+
+import re
+
+from taskseq.features.context import candidate_index, step_context
+from taskseq.plan.planner import DONE, lookahead
+from taskseq.serve.explain import explain
+from taskseq.sim.catalog import ENVIRONMENTS_BY_ID, build_environment
+from taskseq.sim.primitives import Action, execute
+from taskseq.sim.safety import RULES
+from taskseq.sim.tasks import Task
+from taskseq.tools import runnable_first
+
+GLASS, CARTON = "obj15", "obj21"
+TASK = Task.parse("pour(obj28)")  # the milk, in the carton
+RUSH = ["move_close(obj15)", "grasp(obj21)", "hold_above(obj21,obj15)", "follow_traj_pour(obj21,obj15)"]
+FETCH = ["move_close(obj15)", "grasp(obj15)", "place_above(obj15,obj03)", "release(obj15)", "grasp(obj21)",
+         "move_close(obj15)", "hold_above(obj21,obj15)", "follow_traj_pour(obj21,obj15)"]
+
+
+class ScriptedScorer:
+    """Ranks `script["last steps"]` first, then `done`, then every other candidate in index order."""
+
+    def __init__(self, script: dict[str, list[str]]) -> None:
+        self.script = script
+
+    def ranked(self, ctx):
+        history = " ".join(map(str, ctx.history()))
+        wanted = [ctx.encode(Action.parse(a)) for a in self.script.get(history, [])]
+        done = ctx.encode(Action(DONE))
+        rest = [tuple(y) for y in zip(*(a.tolist() for a in candidate_index(ctx.n)), strict=True)
+                if tuple(y) not in wanted and tuple(y) != done]
+        return iter([(y, float(-i)) for i, y in enumerate([*wanted, done, *rest])])
+
+    def top_k(self, ctx, k):
+        return list(self.ranked(ctx))[:k]
+
+
+def script() -> dict[str, list[str]]:
+    out: dict[str, list[str]] = {}
+    for plan in (FETCH, RUSH):
+        for k in range(len(plan)):
+            out[" ".join(plan[max(0, k - 2):k])] = [plan[k]]
+    out[RUSH[0]] = [RUSH[1], FETCH[1]]  # at the glass: the carton scores first, the glass second
+    return out
+
+
+def proposals_at_the_glass():
+    room = build_environment(ENVIRONMENTS_BY_ID["env02"])
+    scorer = ScriptedScorer(script())
+    first = Action.parse(RUSH[0])
+    state = execute(room, first)
+    ctx = step_context(state, TASK, [first])
+    ranked = runnable_first(lookahead(scorer, TASK, 3), scorer, TASK, room, 3)(ctx, state)
+    return room, state, ctx, ranked, explain(scorer, "lookahead", TASK, room, ctx, state, ranked)
+
+
+def test_a_step_above_a_better_scored_one_says_the_lookahead_found_that_plan_unsafe():
+    room, state, ctx, ranked, why = proposals_at_the_glass()
+    names = {o: s.name for o, s in room.specs.items()}
+    glass, carton, shelf = names[GLASS], names[CARTON], names[room.support[GLASS][0]]
+    actions = [str(ctx.action(y)) for y, _ in ranked]
+    assert actions[:2] == [f"grasp({GLASS})", f"grasp({CARTON})"] and ranked[0][1] < ranked[1][1]
+    assert why[0].startswith(f"moved up above grasp({carton}) (0.00): the lookahead found its plan breaks")
+    assert f"looking ahead (grasp({glass}), " in why[0] and "it breaks no safety rule" in why[0]
+    assert why[1] == (f"demoted: its plan would take grasp({carton}), hold_above({carton}, {glass}), then "
+                      f"follow_traj_pour({carton}, {glass}), where it breaks the safety rule \u201c"
+                      f"{RULES['over_shelf']}\u201d: {glass} is on {shelf}; bring it to a table first")
+
+
+def test_reasons_use_names_never_ids_or_none_and_count_what_cannot_run():
+    room, state, ctx, ranked, why = proposals_at_the_glass()
+    assert len(why) == len(ranked) == 3
+    # done scores above the third, and is not due yet; the two better-scored steps are listed above it
+    assert why[2] == "moved up: a step scored above it cannot run here (done: the goal of pour(milk) does not hold yet)"
+    for text in why:
+        assert text and not re.search(r"\bobj\d+\b", text) and "None" not in text
