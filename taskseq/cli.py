@@ -15,11 +15,11 @@ import os
 import sys
 from collections.abc import Sequence
 
-from .commands import TOOLS
 from .runtime import memory, stopping
 from .stages import STAGES
 from .stages.command import add_parser, execute, prepare
 from .stages.paths import inputs
+from .tool_commands import TOOLS
 
 
 def build_parser() -> argparse.ArgumentParser:

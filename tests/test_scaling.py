@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
+from taskseq.bench.scaling import EVALUATE, PREPARE, Plan, growth
 from taskseq.cli import main
-from taskseq.scaling import EVALUATE, PREPARE, Plan, growth
 
 
 def test_scaling_on_two_tiny_worlds(tmp_path: Path, capsys):

@@ -1,10 +1,12 @@
-"""The commands that are not pipeline stages: replay logs, plan one task, serve the web pages, lay out an
-environment, time the learner.
+"""The sub-commands of `taskseq` that are not pipeline stages, as one table: each one's help, options and runner.
 
-Each is an entry of `TOOLS`: its help, a function adding its options to its
-parser and a function running it from the parsed options (returning the exit
-code). `taskseq.cli` builds the subcommands from this table and from the
-stages' (`taskseq.stages`).
+`replay`, `plan`, `serve`, `layout`, `bench`, `scaling` and `veil` are each
+an entry of `TOOLS`: its help, a function adding its options to its parser
+and a function running it from the parsed options (returning the exit code).
+A runner only reads its options and prints; the work is the product's
+(`taskseq.product`, `taskseq.serve`), the benchmarks' (`taskseq.bench`) or
+VEIL's (`taskseq.veil`), imported when the command runs. `taskseq.cli` builds
+the subcommands from this table and from the stages' (`taskseq.stages`).
 """
 
 from __future__ import annotations
@@ -78,10 +80,10 @@ def _bench_options(p: argparse.ArgumentParser) -> None:
 
 
 def _bench(args: argparse.Namespace) -> int:
+    from .bench.speed import format_bench, run_bench
     from .logs.benchmark import load_benchmark
     from .runtime.atomic import write_json_atomic
     from .stages.command import load_params
-    from .timing import format_bench, run_bench
 
     learner = load_params(args).train
     result = run_bench(load_benchmark(args.processed).records, **learner.ssvm, repeats=args.repeats)
@@ -92,7 +94,7 @@ def _bench(args: argparse.Namespace) -> int:
 
 
 def _scaling_options(p: argparse.ArgumentParser) -> None:
-    from .scaling import EVALUATE, PREPARE
+    from .bench.scaling import EVALUATE, PREPARE
 
     p.add_argument("--rooms", nargs="+", required=True, metavar="N",
                    help="world sizes in rooms (13 is the paper's size), e.g. --rooms 13 39 130")
@@ -120,8 +122,8 @@ def _scaling_options(p: argparse.ArgumentParser) -> None:
 
 
 def _scaling(args: argparse.Namespace) -> int:
+    from .bench.scaling import Plan, format_scaling, parse_rooms, plot_scaling, run_scaling
     from .runtime.atomic import write_json_atomic
-    from .scaling import Plan, format_scaling, parse_rooms, plot_scaling, run_scaling
     from .stages.command import default_jobs, load_params
 
     learner = load_params(args).train

@@ -6,7 +6,7 @@ each stage a `taskseq` process of its own whose wall time, CPU time and peak
 resident memory are measured (`getrusage(RUSAGE_CHILDREN)` of a small
 launcher: the largest process of the stage's tree, its loky workers included
 once reaped). After `features`, the full model is fitted alone in a process of
-its own (`python -m taskseq.scaling`), to time training to the set gap, count
+its own (`python -m taskseq.bench.scaling`), to time training to the set gap, count
 its iterations, read that process's peak resident memory
 (`getrusage(RUSAGE_SELF).ru_maxrss`) after reading the features and after the
 fit, and time inference on the world's own steps.
@@ -149,10 +149,10 @@ def _rss_mib() -> float:
 def fit_and_infer(features: str, C: float, tol: float, max_iter: int, n_slacks: int) -> dict[str, Any]:
     """Read the features, fit the full model, time inference on the world's steps (run in a process of its own,
     so that its peak memory is the fit's)."""
-    from .features.context import candidate_index
-    from .features.dataset import read_features
-    from .learn.estimator import StepScorer
-    from .timing import fit_summary
+    from ..features.context import candidate_index
+    from ..features.dataset import read_features
+    from ..learn.estimator import StepScorer
+    from .speed import fit_summary
 
     contexts, _ = read_features(features)
     loaded = _rss_mib()
@@ -183,10 +183,11 @@ def fit_and_infer(features: str, C: float, tol: float, max_iter: int, n_slacks: 
 
 
 def time_fit(world: Path, plan: Plan) -> dict[str, Any]:
-    """`fit_and_infer` on a world's features in a process of its own (`python -m taskseq.scaling`)."""
+    """`fit_and_infer` on a world's features in a process of its own (`python -m taskseq.bench.scaling`)."""
     out = world / "fit.json"
     argv = [str(world / "features"), repr(plan.C), repr(plan.tol), str(plan.max_iter), str(plan.n_slacks), str(out)]
-    process = measured("the timed fit", [sys.executable, "-m", "taskseq.scaling", *argv], world / "logs" / "fit.log")
+    process = measured("the timed fit", [sys.executable, "-m", "taskseq.bench.scaling", *argv],
+                       world / "logs" / "fit.log")
     result = json.loads(out.read_text(encoding="utf-8"))
     result["process_seconds"] = process.seconds
     result["ms_per_step"] = 1000 * result["seconds"] / result["steps"]
@@ -334,7 +335,7 @@ def format_scaling(result: dict[str, Any]) -> str:
 
 def plot_scaling(result: dict[str, Any], path: Path | str) -> None:
     """Two panels against steps: each stage's wall time (log-log, with a linear guide) and training time per step."""
-    from .report.figures import scaling_png
+    from ..report.figures import scaling_png
 
     sizes = sorted(result["sizes"], key=lambda s: s["steps"])
     steps = [s["steps"] for s in sizes]
@@ -360,6 +361,6 @@ def parse_rooms(values: Sequence[str]) -> tuple[int, ...]:
 
 if __name__ == "__main__":  # the timed fit's own process: FEATURES C TOL MAX_ITER N_SLACKS OUTPUT.json
     _features, _C, _tol, _max_iter, _n_slacks, _out = sys.argv[1:]
-    from .runtime.atomic import write_json_atomic
+    from ..runtime.atomic import write_json_atomic
 
     write_json_atomic(_out, fit_and_infer(_features, float(_C), float(_tol), int(_max_iter), int(_n_slacks)))

@@ -17,13 +17,13 @@ from typing import Any
 
 import numpy as np
 
-from .features.context import step_context
-from .features.dataset import build_steps, write_features
-from .learn.estimator import StepScorer
-from .sim.catalog import OBJECTS
-from .sim.objects import ObjectSpec
-from .sim.state import ON, WorldState
-from .sim.tasks import Task
+from ..features.context import step_context
+from ..features.dataset import build_steps, write_features
+from ..learn.estimator import StepScorer
+from ..sim.catalog import OBJECTS
+from ..sim.objects import ObjectSpec
+from ..sim.state import ON, WorldState
+from ..sim.tasks import Task
 
 SIZES = (10, 15, 25, 50, 100)
 
