@@ -91,6 +91,9 @@ def results_page(files: list[Path]) -> str:
                  "(`reports/scenes/drawn/failures.md`).\n\n" + "\n".join(
                      _table(name) for name in ("scenes/paper/table1.md", "scenes/drawn/table1.md",
                                                "scenes/transfer.md", "scenes/drawn/failures.md")))
+    parts.append("## People's demonstrations (VEIL-500)\n\nThe methods on sequences people demonstrated, with whole "
+                 "environments held out (`reports/veil/tables.md`; [People's demonstrations](../veil.md)).\n\n"
+                 + veil_results())
     for seed in _worlds():
         world = f"worlds/{seed}"
         section = [f"## World seed {seed}", f"Table I of this world alone (`reports/{world}/table1.md`)."]
@@ -350,6 +353,17 @@ def package_layout() -> str:
     return "\n".join(parts)
 
 
+def veil_results() -> str:
+    """The people's-demonstrations tables (`reports/veil/tables.md` without its title), or how to make them."""
+    path = REPORTS / "veil" / "tables.md"
+    if not path.is_file():
+        return ("`reports/veil/tables.md` has not been written yet: put the release at `data/veil500` and run "
+                "`dvc repro veil/dvc.yaml`.\n")
+    text = path.read_text()
+    return (text.split("\n", 1)[1].lstrip("\n") if text.startswith("# ") else text) + \
+        "\nWritten by `dvc repro veil/dvc.yaml` (stage `evaluate`: `taskseq veil evaluate`).\n"
+
+
 GENERATED = {
     "bench-training": bench_training,
     "bench-latency": bench_latency,
@@ -359,6 +373,7 @@ GENERATED = {
     "mutation-scores": mutation_scores,
     "selection-ranking": selection_ranking,
     "package-layout": package_layout,
+    "veil-results": veil_results,
 }
 
 

@@ -127,9 +127,11 @@ def test_a_learned_mrf_reaches_the_goal_in_kitchens_it_never_saw_and_feasible_ne
 
 
 def test_held_out_environments_never_reach_any_fit_of_their_fold(replays, release_dir: Path, monkeypatch) -> None:
-    """A spy on every method's fit (C's inner fits included) and on every ranking, folds marked by their goals."""
+    """A spy on every method's fit (C's inner fits included) and every ranking. Each job of a fold starts by
+    deriving its goals from the fold's training sequences: that call says which numbers the job holds out."""
     events: list[tuple[str, object]] = []
     real_make, real_goals = experiment.make_method, experiment.derive_goals
+    numbers = {evaluate.env_number(r.point.env_id) for r in replays[1]}
 
     class Spy:
         def __init__(self, inner):
@@ -145,23 +147,23 @@ def test_held_out_environments_never_reach_any_fit_of_their_fold(replays, releas
             return self.inner.ranked(state, history, objective)
 
     def goals(train):
-        events.append(("fold", None))
+        events.append(("job", numbers - {evaluate.env_number(r.point.env_id) for r in train}))
         return real_goals(train)
 
     monkeypatch.setattr(experiment, "make_method", lambda *a, **k: Spy(real_make(*a, **k)))
     monkeypatch.setattr(experiment, "derive_goals", goals)
     report = run_experiment(release_dir, Settings(folds=2, C_grid=(1.0, 10.0), max_steps=8, resamples=100))
     folds = [set(f["held_out"]) for f in report["folds"]]
-    k, fitted, checked = -1, set(), 0
+    held_out, jobs, checked = None, [], 0
     for kind, value in events:
-        if kind == "fold":
-            k, fitted = k + 1, set()
+        if kind == "job":
+            held_out = value
+            jobs.append(value)
         elif kind == "fit":
-            assert not value & folds[k], f"fold {k} trained on held-out environments {value & folds[k]}"
-            fitted |= value
-        elif value in folds[k]:
+            assert not value & held_out, f"a job holding out {held_out} trained on {value & held_out}"
+        elif value in held_out:
             checked += 1
-    assert k == 1 and checked > 0
+    assert {frozenset(j) for j in jobs} == {frozenset(f) for f in folds} and checked > 0
 
 
 def test_the_command_writes_reports_and_gives_the_same_bytes_twice(release_dir: Path, tmp_path: Path) -> None:
@@ -180,6 +182,14 @@ def test_the_command_writes_reports_and_gives_the_same_bytes_twice(release_dir: 
     assert "| ours - full + categories |" in (outputs[0] / "tables.md").read_text()
     for f in ("report.json", "tables.md"):
         assert (outputs[0] / f).read_bytes() == (outputs[1] / f).read_bytes()
+    # the command runs its jobs in parallel (one worker per core); one job at a time gives the same report
+    settings = experiment.read_settings(params)
+    serial = tmp_path / "serial"
+    experiment.write_reports(run_experiment(release_dir, settings, n_jobs=1), serial)
+    parallel = tmp_path / "parallel"
+    experiment.write_reports(run_experiment(release_dir, settings, n_jobs=2), parallel)
+    for f in ("report.json", "tables.md"):
+        assert (serial / f).read_bytes() == (parallel / f).read_bytes() == (outputs[0] / f).read_bytes()
 
 
 def test_bad_settings_are_refused_with_their_name(release_dir: Path, tmp_path: Path, capsys) -> None:

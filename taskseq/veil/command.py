@@ -86,7 +86,9 @@ def _evaluate(args: argparse.Namespace) -> int:
             method, goals, _ = load_mrf(args.model)
             report = evaluate_model(method, goals, args.release, settings, progress=bar)
         else:
-            report = run_experiment(args.release, settings, progress=bar)
+            from ..stages.command import default_jobs
+
+            report = run_experiment(args.release, settings, n_jobs=default_jobs())
         write_reports(report, args.output)
         record(run, report)
         run.artifact(args.output / "tables.md")

@@ -21,6 +21,7 @@ import numpy as np
 import yaml
 
 from ..runtime.atomic import atomic_directory
+from ..runtime.jobs import Shared, run_jobs
 from .baselines import Chance, MostFrequent, MulticlassSVM, NearestDemonstration
 from .evaluate import (
     Executor,
@@ -130,40 +131,52 @@ def _mean(runs: Sequence[Run], attr: str) -> float:
     return float(np.mean(values)) if values else float("nan")
 
 
-def run_experiment(release_root: Path | str, settings: Settings,
-                   progress: Callable[[Iterable], Iterable] = iter) -> dict:
-    """Every method on every fold; returns the report (per fold, per method, with tests and intervals)."""
+def fold_job(k: int, held_out: frozenset[int], name: str, data: tuple[Release, list[Replay]],
+             settings: Settings) -> tuple[int, str, float | None, dict[str, float], dict[str, list[Run]], float]:
+    """One method on one fold: (fold, method, C or None, next-step figures, runs per policy, seconds)."""
+    start = time.perf_counter()
+    release, replays = data
+    objectives = sorted({r.point.objective for r in replays})
+    train, test = split(replays, held_out)
+    goals = derive_goals(train)
+    C = choose_C(name, release, objectives, train, settings) if name in MRF_ROWS else None
+    method = make_method(name, release, objectives, settings, C).fit(train)
+    rows = next_steps(method, test)
+    figures = {part: float(np.mean([getattr(r, part) for r in rows])) for part in ("verb", "args", "both")}
+    executor = Executor(release)
+    runs = {policy: closed_loop(method, executor, test, goals, policy, settings.max_steps)
+            for policy in settings.policies}
+    return k, name, C, figures, runs, time.perf_counter() - start
+
+
+def run_experiment(release_root: Path | str, settings: Settings, n_jobs: int = 1) -> dict:
+    """Every method on every fold, `n_jobs` at a time (the MRF rows first: they cost the most); returns the
+    report (per fold, per method, with tests and intervals). The jobs are pure functions of their arguments,
+    so the report is the same bytes whatever `n_jobs`."""
     release = read_release(release_root)
     replays = replay_release(release)
-    objectives = sorted({r.point.objective for r in replays})
-    executor = Executor(release)
     folds = environment_folds(replays, settings.folds)
-    results: list[FoldResult] = []
+    data = Shared((release, replays))
+    jobs = [(fold_job, (k, held_out, name, data, settings)) for k, held_out in enumerate(folds)
+            for name in settings.methods]
+    done = run_jobs(jobs, n_jobs, cost=[10.0 if args[2] in MRF_ROWS else 1.0 for _, args in jobs])
+    results = [FoldResult(k, sorted(held_out)) for k, held_out in enumerate(folds)]
     per_sequence: dict[str, list[Run]] = {}
+    for k, name, C, figures, runs, seconds in done:
+        fr = results[k]
+        if C is not None:
+            fr.C[name] = C
+        fr.next_step[name] = figures
+        fr.seconds[name] = seconds
+        for policy, policy_runs in runs.items():
+            fr.closed_loop[f"{name}/{policy}"] = _figures(policy_runs)
+            per_sequence.setdefault(f"{name}/{policy}", []).extend(policy_runs)
     people: list[Run] = []
     for k, held_out in enumerate(folds):
         train, test = split(replays, held_out)
-        goals = derive_goals(train)
-        fr = FoldResult(k, sorted(held_out))
-        for name in settings.methods:
-            start = time.perf_counter()
-            C = choose_C(name, release, objectives, train, settings) if name in MRF_ROWS else None
-            method = make_method(name, release, objectives, settings, C).fit(train)
-            if C is not None:
-                fr.C[name] = C
-            rows = next_steps(method, test)
-            fr.next_step[name] = {part: float(np.mean([getattr(r, part) for r in rows]))
-                                  for part in ("verb", "args", "both")}
-            for policy in settings.policies:
-                runs = closed_loop(method, executor, test, goals, policy, settings.max_steps, progress)
-                key = f"{name}/{policy}"
-                fr.closed_loop[key] = _figures(runs)
-                per_sequence.setdefault(key, []).extend(runs)
-            fr.seconds[name] = time.perf_counter() - start
-        own = people_runs(test, goals)
+        own = people_runs(test, derive_goals(train))
         people.extend(own)
-        fr.closed_loop["people"] = _figures(own)
-        results.append(fr)
+        results[k].closed_loop["people"] = _figures(own)
     return summarize(results, per_sequence, people, settings)
 
 

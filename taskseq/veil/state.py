@@ -63,6 +63,14 @@ class World:
     def __iter__(self) -> Iterator[str]:
         return iter(self.objects)
 
+    def __reduce__(self) -> tuple:
+        # a read-only mapping cannot be pickled; a world crosses to worker processes as a plain dict
+        return _world, (self.env_id, dict(self.objects), self.names)
+
+
+def _world(env_id: str, objects: dict[str, ObjectInfo], names: NameIndex) -> World:
+    return World(env_id, MappingProxyType(objects), names)
+
 
 @dataclass(frozen=True)
 class State:
