@@ -28,10 +28,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from taskseq.evaluate.crossval import cross_validate  # noqa: E402
 from taskseq.evaluate.methods import MRFMethod  # noqa: E402
 from taskseq.evaluate.metrics import summarize  # noqa: E402
-from taskseq.evaluate.selection import read_selection  # noqa: E402
+from taskseq.experiments.crossval import cross_validate  # noqa: E402
+from taskseq.experiments.selection import read_selection  # noqa: E402
 from taskseq.features.dataset import read_features  # noqa: E402
 from taskseq.logs.benchmark import load_benchmark  # noqa: E402
 from taskseq.plan.planner import Program, lookahead, run_loop  # noqa: E402

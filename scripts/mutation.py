@@ -57,7 +57,7 @@ class Group:
 
 GROUPS = {
     "evaluate": Group(("taskseq/evaluate/failures.py", "taskseq/evaluate/metrics.py",
-                       "taskseq/evaluate/selection.py"),
+                       "taskseq/experiments/selection.py"),
                       ("tests/test_metrics_behaviour.py", "tests/test_failures.py", "tests/test_evaluate.py",
                        "tests/test_selection_behaviour.py")),
     "seeds": Group(("taskseq/report/seeds.py", "taskseq/stages/aggregate.py"),
@@ -65,7 +65,7 @@ GROUPS = {
     "primitives": Group(("taskseq/sim/primitives.py", "taskseq/sim/tasks.py"),
                         ("tests/test_preconditions_behaviour.py", "tests/test_primitives.py",
                          "tests/test_tasks_behaviour.py")),
-    "planner": Group(("taskseq/plan/planner.py", "taskseq/evaluate/robustness.py", "taskseq/features/perception.py"),
+    "planner": Group(("taskseq/plan/planner.py", "taskseq/experiments/robustness.py", "taskseq/features/perception.py"),
                      ("tests/test_feedback_behaviour.py", "tests/test_robustness_behaviour.py",
                       "tests/test_feasible.py", "tests/test_noise_training.py", "tests/test_lookahead.py")),
     "features": Group(("taskseq/features/context.py", "taskseq/features/cues.py", "taskseq/learn/mrf.py"),
@@ -73,7 +73,7 @@ GROUPS = {
                        "tests/test_relations.py")),
     "learner": Group(("taskseq/learn/ssvm.py", "taskseq/learn/working_set.py", "taskseq/learn/estimator.py"),
                      ("tests/test_learner_behaviour.py", "tests/test_ssvm.py")),
-    "recipes": Group(("taskseq/evaluate/recipes.py",), ("tests/test_recipes_behaviour.py",)),
+    "recipes": Group(("taskseq/experiments/recipes.py",), ("tests/test_recipes_behaviour.py",)),
     "world": Group(("taskseq/sim/safety.py", "taskseq/sim/procedural.py", "taskseq/sim/demonstrator.py"),
                    ("tests/test_safety.py", "tests/test_demonstrator.py", "tests/test_procedural.py",
                     "tests/test_primitives.py")),

@@ -5,10 +5,10 @@ import re
 import numpy as np
 import pytest
 
-from taskseq.evaluate.crossval import FoldResult, SequenceOutcome, run_fold, scenario_folds
 from taskseq.evaluate.folds import grouped_folds
 from taskseq.evaluate.methods import ChanceMethod, MulticlassMethod
 from taskseq.evaluate.metrics import step_accuracy, summarize
+from taskseq.experiments.crossval import FoldResult, SequenceOutcome, run_fold, scenario_folds
 from taskseq.features.context import StepContext
 from taskseq.logs.benchmark import Benchmark
 from taskseq.report.tables import table_rows, to_csv, to_latex, to_markdown
@@ -140,8 +140,8 @@ def test_the_symbolic_planners_of_a_fold_share_a_job_and_results_keep_the_method
     baselines of a fold run in one job, every other method alone, and the results come back method by method."""
     from functools import partial
 
-    from taskseq.evaluate import crossval
     from taskseq.evaluate.methods import SymbolicMethod
+    from taskseq.experiments import crossval
 
     calls = []
 

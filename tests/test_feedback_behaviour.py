@@ -11,8 +11,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from taskseq.evaluate.crossval import judge
-from taskseq.evaluate.robustness import (
+from taskseq.experiments.crossval import judge
+from taskseq.experiments.robustness import (
     FeedbackCondition,
     NoiseCondition,
     _replay,
@@ -304,7 +304,7 @@ def test_noise_draws_depend_on_the_scenario_not_on_the_fold_layout(two_scenarios
 
 def test_each_program_gets_its_policy_for_its_task_seen_as_its_condition_says(two_scenarios, monkeypatch):
     """A lookahead needs the program's task and its perception (under noise it imagines with the same errors)."""
-    from taskseq.evaluate import robustness
+    from taskseq.experiments import robustness
 
     calls = []
 

@@ -5,11 +5,11 @@ from pathlib import Path
 
 import pytest
 
-from taskseq.evaluate.crossval import cross_validate
-from taskseq.evaluate.fold_models import train_fold_models, training_jobs
 from taskseq.evaluate.methods import MRFMethod, mrf_methods
-from taskseq.evaluate.recipes import evaluate_recipes
-from taskseq.evaluate.robustness import NoiseCondition, evaluate_conditions
+from taskseq.experiments.crossval import cross_validate
+from taskseq.experiments.fold_models import train_fold_models, training_jobs
+from taskseq.experiments.recipes import evaluate_recipes
+from taskseq.experiments.robustness import NoiseCondition, evaluate_conditions
 from taskseq.features.dataset import build_steps
 from taskseq.learn.estimator import StepScorer
 from taskseq.logs.benchmark import Benchmark

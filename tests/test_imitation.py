@@ -9,8 +9,8 @@ import pytest
 
 import taskseq.imitation.dagger as dagger_module
 import taskseq.imitation.starts as starts_module
-from taskseq.evaluate.crossval import run_fold, scenario_folds
 from taskseq.evaluate.methods import MRFMethod
+from taskseq.experiments.crossval import run_fold, scenario_folds
 from taskseq.features.context import NO_PRIM, candidate_index, step_context
 from taskseq.features.dataset import build_steps
 from taskseq.imitation.dagger import fit_imitation, rollout_contexts

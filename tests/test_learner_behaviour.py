@@ -324,6 +324,7 @@ SETTINGS = {"C": 0.5, "tol": 1e-6, "max_iter": 300, "n_slacks": 0}
 
 
 def test_settings_default_to_the_pipelines_and_round_trip():
+    # the learner writes its defaults as numbers (it imports nothing of `taskseq.settings`): they stay the same
     default = StepScorer()
     assert default.get_params() == {"features": "full", **Learner().ssvm}
     assert default.get_params(deep=False) == default.get_params()

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import pytest
 
-from taskseq.evaluate.crossval import FoldResult, SequenceOutcome
 from taskseq.evaluate.failures import FAILURES, KINDS, classify, failure_counts
 from taskseq.evaluate.metrics import confusion, headline_metrics, step_accuracy, summarize
-from taskseq.evaluate.selection import CRITERION, best_candidate
+from taskseq.experiments.crossval import FoldResult, SequenceOutcome
+from taskseq.experiments.selection import CRITERION, best_candidate
 from taskseq.features.context import StepContext
 from taskseq.plan.planner import DONE, INFEASIBLE, STEP_CAP
 from taskseq.sim.primitives import ALL_PRIMITIVES, Action

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from taskseq.evaluate.recipes import RECIPES, evaluate_recipes
+from taskseq.experiments.recipes import RECIPES, evaluate_recipes
 from taskseq.learn.estimator import StepScorer
 from taskseq.learn.mrf import MRFModel
 from taskseq.sim.catalog import ENVIRONMENTS_BY_ID, build_environment

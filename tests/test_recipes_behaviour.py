@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from threadpoolctl import threadpool_info
 
-from taskseq.evaluate.recipes import (  # the builders too: RECIPES is built when the module loads
+from taskseq.experiments.recipes import (  # the builders too: RECIPES is built when the module loads
     PROGRAM_COLUMNS,
     RECIPES,
     RecipeOutcome,
@@ -115,7 +115,7 @@ def test_a_planner_that_follows_the_demonstrator_completes_every_recipe(recipe):
 
 def test_each_program_builds_the_methods_policy_for_its_own_task(monkeypatch):
     """A policy that imagines steps (the lookahead) needs the program's task: each program passes its own."""
-    import taskseq.evaluate.recipes as recipes_module
+    import taskseq.experiments.recipes as recipes_module
 
     built, real = [], recipes_module.learned_policy
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from taskseq.evaluate.methods import MRFMethod
-from taskseq.evaluate.robustness import observer
+from taskseq.experiments.robustness import observer
 from taskseq.features.context import step_context
 from taskseq.features.perception import BINARY_COLUMNS, flip_masks, noisy_perception
 from taskseq.logs.benchmark import Benchmark

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from taskseq.evaluate.crossval import SequenceOutcome
-from taskseq.evaluate.robustness import (
+from taskseq.experiments.crossval import SequenceOutcome
+from taskseq.experiments.robustness import (
     FeedbackCondition,
     NoiseCondition,
     feedback_steps,

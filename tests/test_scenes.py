@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 import pytest
 
 from taskseq.cli import main
-from taskseq.evaluate.transfer import transfer
+from taskseq.experiments.transfer import transfer
 from taskseq.features.dataset import build_steps
 from taskseq.logs.benchmark import Benchmark
 from taskseq.logs.generate import generate
@@ -116,7 +116,7 @@ def test_the_scenes_stage_writes_every_table_over_seeds(benchmark_logs, tmp_path
 
 def test_rooms_held_out_never_reach_training(tmp_path):
     """A spy in every fold of a drawn world's cross-validation grouped by room: no step of a tested room trains."""
-    from taskseq.evaluate.crossval import cross_validate
+    from taskseq.experiments.crossval import cross_validate
 
     contexts, meta, bench = _world(tmp_path / "drawn", Generate(seed=1, family="procedural",
                                                                  procedural=Procedural(environments=4)))

@@ -10,10 +10,10 @@ import math
 
 import pytest
 
-from taskseq.evaluate import selection
-from taskseq.evaluate.crossval import FoldResult, SequenceOutcome
 from taskseq.evaluate.methods import MRFMethod, mrf_methods
-from taskseq.evaluate.selection import (
+from taskseq.experiments import selection
+from taskseq.experiments.crossval import FoldResult, SequenceOutcome
+from taskseq.experiments.selection import (
     DevData,
     Selection,
     choose_C,
@@ -187,7 +187,7 @@ def test_a_ranking_reads_each_methods_figures_at_its_chosen_c_and_ties_within_ro
 
 
 def test_the_method_ranked_first_is_read_back_or_the_file_says_what_is_missing(tmp_path):
-    from taskseq.evaluate.selection import read_selected_method
+    from taskseq.experiments.selection import read_selected_method
 
     path = tmp_path / "selection.json"
     path.write_text(json.dumps({"C": 3, "method": "choice_lookahead"}))

@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 from taskseq.cli import main
-from taskseq.evaluate import selection
-from taskseq.evaluate.selection import best_candidate
+from taskseq.experiments import selection
+from taskseq.experiments.selection import best_candidate
 from taskseq.learn.estimator import StepScorer
 from taskseq.logs.benchmark import load_benchmark
 from taskseq.logs.ingest import load_logs

@@ -25,13 +25,11 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from ..features.context import StepContext, candidate_index
-from ..settings import Learner
 from .mrf import FEATURE_SETS, MRFModel
 from .persist import load_model, save_model
 from .ssvm import CuttingPlaneSSVM
 
 Y = tuple[int, int, int]
-_DEFAULT = Learner()
 
 
 class StepScorer:
@@ -43,7 +41,9 @@ class StepScorer:
         "full", "edge", "clique", "relations" or "choice" (`mrf.FEATURE_SETS`).
     C : float
         Weight of the slack; like the three below, a setting of the learner
-        (`ssvm.CuttingPlaneSSVM`) whose default is the pipeline's (`settings.Learner`).
+        (`ssvm.CuttingPlaneSSVM`). The defaults are the pipeline's (`taskseq.settings.Learner`),
+        written here as numbers so that the learner imports nothing of the pipeline; a test keeps the
+        two equal.
     tol : float
         Relative primal-dual gap to stop at.
     max_iter : int
@@ -65,8 +65,8 @@ class StepScorer:
         Steps of the last fit.
     """
 
-    def __init__(self, features: str = "full", C: float = _DEFAULT.C, tol: float = _DEFAULT.tol,
-                 max_iter: int = _DEFAULT.max_iter, n_slacks: int = _DEFAULT.n_slacks) -> None:
+    def __init__(self, features: str = "full", C: float = 3.0, tol: float = 1e-3, max_iter: int = 2000,
+                 n_slacks: int = 0) -> None:
         self.features = features
         self.C = C
         self.tol = tol

@@ -74,7 +74,7 @@ def load_params(args: argparse.Namespace) -> Params:
         raise FileNotFoundError(f"{args.params}: no such settings file")
     params = Params.load(args.params or Path("params.yaml"), args.overrides)
     if getattr(args, "selection", None) is not None:
-        from ..evaluate.selection import read_selection
+        from ..experiments.selection import read_selection
 
         selection = read_selection(args.selection)
         params = params.with_C(selection.C, selection.tuned)

@@ -12,10 +12,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..evaluate.crossval import cross_validate
 from ..evaluate.methods import method_params, table1_methods
 from ..evaluate.metrics import confusion, headline_metrics, summarize
 from ..evaluate.registry import method_labels
+from ..experiments.crossval import cross_validate
 from ..features.dataset import read_features
 from ..logs.benchmark import load_benchmark
 from ..plan.symbolic.files import file_stem

@@ -13,7 +13,7 @@ from typing import Any
 
 from ..evaluate.methods import method_params, mrf_methods
 from ..evaluate.registry import method_labels
-from ..evaluate.robustness import FeedbackCondition, evaluate_conditions, feedback_rows, feedback_steps
+from ..experiments.robustness import FeedbackCondition, evaluate_conditions, feedback_rows, feedback_steps
 from ..features.dataset import read_features
 from ..logs.benchmark import load_benchmark
 from ..report.csvs import OUTCOME_COLUMNS, RATE_DECIMALS, csv_text, outcome_row

@@ -11,8 +11,8 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
-from ..evaluate.fold_models import train_fold_models, training_jobs
 from ..evaluate.methods import mrf_methods
+from ..experiments.fold_models import train_fold_models, training_jobs
 from ..features.dataset import read_features
 from ..logs.benchmark import load_benchmark
 from ..runtime.atomic import write_json_atomic

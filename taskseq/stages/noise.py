@@ -13,7 +13,7 @@ from typing import Any
 
 from ..evaluate.methods import method_params, mrf_methods
 from ..evaluate.registry import method_labels
-from ..evaluate.robustness import NoiseCondition, evaluate_conditions, noise_curve, noise_runs
+from ..experiments.robustness import NoiseCondition, evaluate_conditions, noise_curve, noise_runs
 from ..features.dataset import read_features
 from ..logs.benchmark import load_benchmark
 from ..report import paper

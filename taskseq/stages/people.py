@@ -3,7 +3,7 @@
 Before: the full model trained on the first reported world's steps (what
 `train` fits). After: the same with people's demonstrations added. Both are
 judged in each environment people demonstrated, on the tasks they did not
-demonstrate there (`evaluate.teaching`). No demonstrations, no training: the
+demonstrate there (`experiments.teaching`). No demonstrations, no training: the
 report says so.
 """
 
@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from ..evaluate.teaching import fit, pooled, success_on
+from ..experiments.teaching import fit, pooled, success_on
 from ..features.dataset import build_steps, read_features
 from ..logs.people import people_records
 from ..logs.records import parse_record, state_from_dict

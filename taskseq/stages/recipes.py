@@ -13,8 +13,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..evaluate.methods import method_params, mrf_methods
-from ..evaluate.recipes import PROGRAM_COLUMNS, RECIPES, evaluate_recipes, program_rows, recipe_report
 from ..evaluate.registry import method_labels
+from ..experiments.recipes import PROGRAM_COLUMNS, RECIPES, evaluate_recipes, program_rows, recipe_report
 from ..features.dataset import read_features
 from ..logs.benchmark import load_benchmark
 from ..report.csvs import csv_text

@@ -19,7 +19,7 @@ from typing import Any
 from ..evaluate.methods import mrf_methods
 from ..evaluate.metrics import summarize
 from ..evaluate.registry import method_labels
-from ..evaluate.transfer import transfer
+from ..experiments.transfer import transfer
 from ..features.dataset import read_features
 from ..logs.benchmark import load_benchmark
 from ..report.csvs import csv_text

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from ..evaluate.methods import mrf_methods
-from ..evaluate.selection import CRITERION, DevData, choose_C, cross_validate_settings, rank_methods
+from ..experiments.selection import CRITERION, DevData, choose_C, cross_validate_settings, rank_methods
 from ..features.dataset import build_steps, write_features
 from ..logs.benchmark import Benchmark
 from ..logs.generate import generate

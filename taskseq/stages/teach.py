@@ -12,20 +12,22 @@ demonstrator can do, except the first max(k) it demonstrates.
 from __future__ import annotations
 
 import statistics
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ..evaluate.teaching import fit, pooled, success_on, teaching_order, written_and_read_back
+from ..experiments.teaching import fit, pooled, success_on, teaching_order
 from ..features.dataset import build_steps
 from ..logs.benchmark import load_benchmark
+from ..logs.ingest import load_logs
 from ..report.csvs import csv_text
 from ..report.figures import line_plot_png
 from ..runtime.atomic import write_text_atomic
 from ..serve.environments import world_environment
-from ..serve.writer import person_record
+from ..serve.writer import RecordWriter, person_record
 from ..settings import Learner, Params, Teach, World
 from ..sim.scenarios import doable_tasks
 from ..sim.tasks import TASKS
@@ -33,6 +35,17 @@ from ..track.mlflow_runs import NO_RUN, Tracker
 from .paths import TeachPaths
 
 SCRIPTED = "scripted"  # the participant id of the scripted person's records
+
+
+def written_and_read_back(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The records as the server writes them (`RecordWriter`) and `taskseq ingest` reads them back."""
+    if not records:
+        return []
+    with tempfile.TemporaryDirectory(prefix="taskseq-teach-") as tmp:
+        writer = RecordWriter(Path(tmp))
+        for record in records:
+            writer.append(record)
+        return [item.record for item in load_logs(tmp)[1]]
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,7 @@ from typing import Any
 from ..evaluate.methods import mrf_methods
 from ..evaluate.metrics import step_accuracy
 from ..evaluate.registry import method_labels
-from ..evaluate.selection import read_selected_method
+from ..experiments.selection import read_selected_method
 from ..features.dataset import build_steps, read_features
 from ..learn.ssvm import learning_curve
 from ..logs.benchmark import Benchmark, load_benchmark

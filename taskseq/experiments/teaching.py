@@ -6,7 +6,9 @@ demonstrations, in the environments people demonstrated, on the tasks they
 did not demonstrate. `taskseq teach` measures the same with a scripted
 person: the demonstrator drives the server's record writer in environments
 held out of the benchmark's training data, k tasks each, and the planner is
-judged on a fixed set of the other tasks of those environments.
+judged on a fixed set of the other tasks of those environments. The records
+a person makes go through the web app's record writer before training; the
+stages do that (`stages/teach.py`), so nothing here imports the web app.
 
 A task counts as held out only if the scripted demonstrator can do it there
 (so success is possible), and success is `Program.success`: stopped by
@@ -15,19 +17,14 @@ choice, goal reached, no safety rule broken.
 
 from __future__ import annotations
 
-import tempfile
 from collections.abc import Iterable
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from ..features.context import StepContext
 from ..learn.estimator import StepScorer
-from ..logs.ingest import load_logs
 from ..plan.planner import plan
-from ..serve.writer import RecordWriter
 from ..settings import Learner
 from ..sim.primitives import Action
 from ..sim.state import WorldState
@@ -60,17 +57,6 @@ def success_on(planner: StepScorer, env_id: str, state: WorldState, tasks: Itera
         n, k = by_kind.get(task.name, (0, 0))
         by_kind[task.name] = (n + 1, k + int(ok))
     return Outcome(env_id, sum(n for n, _ in by_kind.values()), sum(k for _, k in by_kind.values()), by_kind)
-
-
-def written_and_read_back(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """The records as the server writes them (`RecordWriter`) and `taskseq ingest` reads them back."""
-    if not records:
-        return []
-    with tempfile.TemporaryDirectory(prefix="taskseq-teach-") as tmp:
-        writer = RecordWriter(Path(tmp))
-        for record in records:
-            writer.append(record)
-        return [item.record for item in load_logs(tmp)[1]]
 
 
 def pooled(outcomes: list[Outcome], kind: str | None = None) -> float:

@@ -15,6 +15,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from ..evaluate.methods import MRFMethod
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
 from ..learn.ssvm import learning_curve
@@ -24,7 +25,6 @@ from ..runtime.jobs import Shared, run_jobs
 from ..settings import Recipes
 from ..sim.scenarios import Scenario
 from .crossval import scenario_folds, training_index
-from .methods import MRFMethod
 from .recipes import recipe_training_sets
 
 MakeMRF = Callable[[], MRFMethod]

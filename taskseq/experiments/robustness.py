@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from ..evaluate.methods import MRFMethod
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
 from ..features.perception import flip_masks, noisy_perception
@@ -23,7 +24,6 @@ from ..settings import Feedback, Folds, Noise
 from ..sim.primitives import Action
 from ..sim.scenarios import Scenario
 from .crossval import SequenceOutcome, judge, scenario_folds, training_index
-from .methods import MRFMethod
 
 
 def observer(demonstrations: tuple[tuple[Action, ...], ...], n_feedback: int):

@@ -10,12 +10,12 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from ..evaluate.methods import Method
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
 from ..logs.benchmark import Benchmark
 from ..runtime.jobs import Shared, run_jobs
 from .crossval import FoldResult, run_fold
-from .methods import Method
 
 World = tuple[list[StepContext], list[StepMeta], Benchmark]
 

@@ -15,6 +15,7 @@ from typing import Any
 
 from threadpoolctl import threadpool_limits
 
+from ..evaluate.methods import MRFMethod
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
 from ..plan.planner import learned_policy, run_loop
@@ -25,7 +26,6 @@ from ..sim.primitives import PreconditionError
 from ..sim.scenarios import Scenario
 from ..sim.state import WorldState
 from ..sim.tasks import Task
-from .methods import MRFMethod
 from .robustness import observer
 
 NextTask = Callable[[WorldState, WorldState], Task]  # (initial, current) -> the next program's task
