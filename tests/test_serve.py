@@ -294,7 +294,9 @@ def test_names_from_an_environment_file_are_shown_as_text_and_no_file_leaves_the
     page = client.get("/task")
     text = page.get_data(as_text=True)
     assert "&lt;script&gt;alert(1)&lt;/script&gt;" in text and "<script>" not in text
-    assert "script-src" not in page.headers["Content-Security-Policy"]  # default-src 'none': no script runs
+    assert re.findall(r"<script[^>]*>", text) == ['<script src="/leave.js">']  # the server's own, nothing inline
+    policy = page.headers["Content-Security-Policy"]
+    assert "script-src 'self';" in policy and "unsafe-inline" not in policy.split("script-src")[1].split(";")[0]
     client.post("/task", data={"task": "pour", "arg1": "obj27", "arg2": "", "mode": "demonstrate",
                                "participant": "p1"})
     actions = demonstrated()
@@ -490,3 +492,41 @@ def test_a_stopped_server_keeps_every_saved_record_whole(data, zero_model, signu
     assert proc.returncode == 0 and "stopped; every demonstration it saved is whole" in err
     lines = (data / "people" / "w0-env01.jsonl").read_text().splitlines()
     assert [json.loads(line)["demo_id"] for line in lines] == result.saved
+
+
+def test_starting_another_task_with_unsaved_steps_asks_first_and_changes_nothing_until_confirmed(client, data):
+    """Without any script: the new task is checked, then a page lists the steps that would be lost; going back
+    keeps them, confirming drops them and starts the new task. A finished or empty task asks nothing."""
+    start(client)
+    for k, action in enumerate(demonstrated()[:2]):
+        client.post("/step", data=step_form(k, action))
+    other = {"task": "throw_away", "arg1": "obj43", "arg2": "", "mode": "demonstrate", "participant": ""}
+    asked = client.post("/task", data=other)
+    page = asked.get_data(as_text=True)
+    text = html.unescape(re.sub(r"<[^>]+>", "", page))  # as a person reads it
+    assert asked.status_code == 409 and "pour(water) is not finished: its 2 steps so far are not saved" in text
+    assert "move_close(water_bottle)" in text and "go on to throw_away(crumpled_paper)" in text
+    assert 'href="/demonstrate"' in page
+    page = client.get("/demonstrate").get_data(as_text=True)
+    assert page.count("<li>move_close(obj20)") + page.count("<li>grasp(obj20)") == 2  # both steps kept
+    assert 'data-unsaved="2"' in page
+    bad = client.post("/task", data={**other, "arg1": "obj99"})  # a bad task is refused before anything is asked
+    assert bad.status_code == 400 and "unknown object 'obj99'" in message(bad)
+    assert client.post("/task", data={**other, "discard": "yes"}).headers["Location"] == "/demonstrate"
+    page = client.get("/demonstrate").get_data(as_text=True)
+    assert "throw_away(obj43)" in page and "None yet." in page and "data-unsaved" not in page
+    assert client.post("/task", data=other).status_code == 303  # nothing unsaved: nothing to ask
+    assert not (data / "people").exists()
+
+
+def test_choosing_another_environment_with_unsaved_steps_asks_first(client):
+    start(client)
+    client.post("/step", data=step_form(0, demonstrated()[0]))
+    env02 = {"source": "world", "seed": "0", "env_id": "env02"}
+    asked = client.post("/environment", data=env02)
+    assert asked.status_code == 409 and "its 1 step so far is not saved" in html.unescape(asked.get_data(as_text=True))
+    assert "env01" in client.get("/task").get_data(as_text=True).split("</header>")[0]  # still in env01
+    assert client.post("/environment", data={"source": "pending", "discard": "yes"}).headers["Location"] == "/task"
+    assert "env02" in client.get("/task").get_data(as_text=True).split("</header>")[0]
+    refused = client.post("/environment", data={"source": "pending", "discard": "yes"})  # used once
+    assert refused.status_code == 400 and "no environment is waiting" in message(refused)

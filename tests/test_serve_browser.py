@@ -13,6 +13,7 @@ import threading
 from pathlib import Path
 
 import pytest
+from playwright.sync_api import Error as PlaywrightError
 from playwright.sync_api import sync_playwright
 from werkzeug.serving import make_server
 
@@ -86,11 +87,20 @@ def choose(page, url: str, task: Task, mode: str, participant: str = "") -> None
 
 
 def click_step(page, action: Action) -> None:
-    page.select_option("#step-form select[name=primitive]", action.primitive)
-    args = list(action.args) + [""] * (2 - len(action.args))
-    page.select_option("#step-form select[name=a1]", args[0])
-    page.select_option("#step-form select[name=a2]", args[1])
-    submit(page, "#step-form button")
+    """Take a step with its primitive's own form: choose each object it offers, then click its button (the held
+    object is not chosen: the form names it)."""
+    form = f"#step-{action.primitive}"
+    for field, obj in zip(("a1", "a2"), action.args, strict=False):
+        if page.locator(f"{form} select[name={field}]").count():
+            page.select_option(f"{form} select[name={field}]", obj)
+        else:
+            assert page.locator(f"{form} input[name={field}]").get_attribute("value") == obj
+    submit(page, f"{form} button")
+
+
+def offered(page, primitive: str, field: str) -> list[str]:
+    """The names a primitive's form offers for an argument, as the person sees them."""
+    return page.locator(f"#step-{primitive} select[name={field}] option").all_inner_texts()
 
 
 def demonstrated(task: Task) -> list[Action]:
@@ -123,16 +133,18 @@ def test_a_person_demonstrates_a_task_in_the_browser_and_the_record_ingests(serv
 
 
 def test_a_step_that_breaks_a_safety_rule_is_refused_naming_the_rule(server, browser, tmp_path):
-    """The water grasped out of its bottle: the page says which rule, in words, with the objects' names."""
+    """The magazine grasped with the chopstick and the paper on it: the page says which rule, in words, with the
+    objects' names. (The water is never offered to grasp: tests/test_serve.py posts that one.)"""
     url, data = server
     page = browser.new_page(viewport={"width": 1200, "height": 900})
     choose(page, url, Task("pour_to", ("obj27", "obj14")), "demonstrate")
-    assert RULES["liquid_grasped"] in page.inner_text("#rules")  # stated before anyone breaks it
+    assert RULES["grasp_with_load"] in page.inner_text("#rules")  # stated before anyone breaks it
     click_step(page, Action("move_close", ("obj20",)))
-    click_step(page, Action("grasp", ("obj27",)))
+    click_step(page, Action("grasp", ("obj40",)))
     said = page.inner_text("#message")
-    assert said == ("grasp(water) is refused: it breaks the safety rule \u201ca liquid is handled only through its "
-                    "container\u201d: water is a liquid; grasp water_bottle, which holds it; nothing was done")
+    assert said == ("grasp(magazine) is refused: it breaks the safety rule \u201can object with something on top is "
+                    "cleared before it is grasped\u201d: chopstick and crumpled_paper rest on magazine; take them off "
+                    "first; nothing was done")
     page.screenshot(path=str(tmp_path / "unsafe.png"), full_page=True)
     assert page.locator("#steps li").count() == 1 and not (data / "people").exists()
 
@@ -202,3 +214,78 @@ def test_markup_in_an_uploaded_environment_file_is_shown_as_text_and_never_run(s
     submit(page, "#upload-form button")
     assert page.inner_text("#message") == "kitchen.json:1: objects[3]: 'size' is a required property"
     assert not data.exists()
+
+
+def test_each_primitive_offers_only_the_objects_its_checks_allow(server, browser, tmp_path):
+    """No floor to drive to, no liquid to grasp, the held object named rather than chosen, only containers to pour
+    into, and a target never the held bottle's own water."""
+    url, _ = server
+    page = browser.new_page(viewport={"width": 1200, "height": 900})
+    choose(page, url, Task("pour", ("obj27",)), "demonstrate")
+    assert "floor" not in offered(page, "move_close", "a1") and "water_bottle" in offered(page, "move_close", "a1")
+    grasp = offered(page, "grasp", "a1")
+    assert "water_bottle" in grasp and not {"water", "tea", "juice", "coffee", "floor", "kitchen_table"} & set(grasp)
+    assert grasp == sorted(grasp)
+    assert "nothing is in the gripper" in page.inner_text("tr:has(#step-release), tr:has-text('release')")
+    page.screenshot(path="/tmp/serve_step_forms_empty.png", full_page=True)
+    click_step(page, Action("move_close", ("obj20",)))
+    click_step(page, Action("grasp", ("obj20",)))
+    assert page.locator("#step-grasp").count() == 0
+    assert "the gripper holds water_bottle" in page.inner_text("#step-form")
+    assert page.locator("#step-release b").inner_text() == "water_bottle"
+    pour = offered(page, "follow_traj_pour", "a2")
+    assert "cup" in pour and "mug" in pour and not {"water_bottle", "water", "magazine", "floor"} & set(pour)
+    above = offered(page, "hold_above", "a2")
+    assert "cup" in above and "trash_can" in above and not {"water_bottle", "water", "tea"} & set(above)
+    assert "floor" in offered(page, "place_above", "a2")  # pick_and_place(x, floor) sets things down there
+    page.screenshot(path="/tmp/serve_step_forms_held.png", full_page=True)
+    click_step(page, Action("hold_above", ("obj20", "obj14")))
+    click_step(page, Action("follow_traj_pour", ("obj20", "obj14")))
+    click_step(page, Action("done"))
+    assert "people/w0-env01.jsonl" in page.inner_text("#saved")
+
+
+def test_leaving_a_task_with_unsaved_steps_asks_first(server, browser, tmp_path):
+    """The browser's own question before the page is left (a real beforeunload, the page's script), none while
+    the person steps; starting another task asks on a page of the server's, and going back keeps the steps."""
+    url, data = server
+    page = browser.new_page(viewport={"width": 1200, "height": 900})
+    dialogs: list[str] = []
+    page.on("dialog", lambda d: (dialogs.append(d.type), d.dismiss()))
+    choose(page, url, Task("pour", ("obj27",)), "demonstrate")
+    page.click("#status")  # a person's gesture on the page: browsers ask only then
+    page.goto(url + "/task")  # no step yet: nothing to lose, nothing asked
+    assert dialogs == [] and page.url.endswith("/task")
+    page.goto(url + "/demonstrate")
+    click_step(page, Action("move_close", ("obj20",)))  # a form of the page: leaves without a question
+    assert dialogs == [] and page.locator("#steps li").count() == 1
+    assert page.get_attribute("body", "data-unsaved") == "1"
+    page.click("#status")
+    with pytest.raises(PlaywrightError, match="ERR_ABORTED"):  # a dismissed question keeps the person on the page
+        page.goto(url + "/task")
+    assert dialogs == ["beforeunload"] and page.url.endswith("/demonstrate")
+    page.close()
+
+    page = browser.new_page(viewport={"width": 1200, "height": 900})
+    page.on("dialog", lambda d: (dialogs.append(d.type), d.accept()))
+    choose(page, url, Task("pour", ("obj27",)), "demonstrate")
+    click_step(page, Action("move_close", ("obj20",)))
+    page.click("#status")
+    page.click("header a[href='/task']")  # accepted: the task page, which says what is under way
+    page.wait_for_url("**/task")
+    assert dialogs[-1] == "beforeunload" and "pour(obj27), 1 step" in page.inner_text("#under-way")
+    page.select_option("#task-form select[name=task]", "throw_away")
+    page.select_option("#task-form select[name=arg1]", "obj43")
+    submit(page, "#task-form button[value=demonstrate]")
+    assert "pour(water) is not finished: its 1 step so far is not saved" in page.inner_text("#confirm")
+    page.screenshot(path="/tmp/serve_confirm.png", full_page=True)
+    submit(page, "#back")
+    assert page.locator("#steps li").count() == 1 and "pour(obj27)" in page.inner_text("#status")
+    page.click("header a[href='/task']")
+    page.wait_for_url("**/task")
+    page.select_option("#task-form select[name=task]", "throw_away")
+    page.select_option("#task-form select[name=arg1]", "obj43")
+    submit(page, "#task-form button[value=demonstrate]")
+    submit(page, "#discard-form button")
+    assert "throw_away(obj43)" in page.inner_text("#status") and page.locator("#steps li").count() == 0
+    assert not (data / "people").exists()

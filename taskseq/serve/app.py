@@ -28,15 +28,39 @@ from ..sim.tasks import TASK_ARITY, Task, goal_reached
 from ..tools import LIQUID_TASKS, parse_task, recorded_policy
 from .environments import SAFE_NAME, file_environment, named_files, read_named, world_environment
 from .explain import explain
-from .rules import UnsafeStep, named, preconditions, step_text
+from .rules import UnsafeStep, argument_choices, named, preconditions, step_text
 from .scene import support_tree, top_view
 from .sessions import ASSIST, DEMONSTRATE, MODES, Activity, Session, SessionStore
 from .writer import RecordWriter, WriterClosed, person_record
 
 COOKIE = "taskseq_session"
 MAX_UPLOAD = 2 * 1024 * 1024  # bytes of an uploaded environment file
-# no script runs in these pages, whatever an environment file holds; forms post only here
-POLICY = "default-src 'none'; style-src 'unsafe-inline'; img-src 'self'; form-action 'self'; frame-ancestors 'none'"
+# the only script is the server's own /leave.js, never one inline, whatever an environment file holds; forms post
+# only here
+POLICY = ("default-src 'none'; script-src 'self'; style-src 'unsafe-inline'; img-src 'self'; form-action 'self'; "
+          "frame-ancestors 'none'")
+# Asks before a page with unsaved steps is left (closed, reloaded, another address): the browser's own
+# `beforeunload` question. The page's own forms (a step, undo, done, the links' pages keep the steps) submit
+# freely; starting another task or environment asks on the server, so that works without the script too.
+LEAVE_SCRIPT = """\
+"use strict";
+(function () {
+  var unsaved = Number(document.body.getAttribute("data-unsaved") || "0");
+  if (!unsaved) { return; }
+  var submitting = false;
+  document.addEventListener("submit", function () { submitting = true; });
+  window.addEventListener("beforeunload", function (event) {
+    if (submitting) { return; }
+    event.preventDefault();
+    event.returnValue = "";
+  });
+})();
+"""
+
+
+def task_text(state: WorldState, task: Task) -> str:
+    """The task as the page names it: `pour(milk)`, with the objects' names."""
+    return f"{task.name}({', '.join(state.specs[a].name for a in task.args)})"
 
 
 class Refused(Exception):
@@ -128,7 +152,9 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
     def page(template: str, s: Session, status: int = 200, **kw: Any) -> tuple[str, int]:
         kw.setdefault("error", None)
         env = s.env
-        common: dict[str, Any] = {"env": env, "activity": s.activity}
+        # the steps a person would lose by leaving this page (the run page's only: elsewhere they are not in view)
+        unsaved = len(s.activity.actions) if s.activity is not None and template == "run.html" else 0
+        common: dict[str, Any] = {"env": env, "activity": s.activity, "unsaved": unsaved}
         if env is not None:
             state = s.activity.state if s.activity is not None else env.state
             common.update(view=top_view(state), tree=support_tree(state), state=state,
@@ -149,7 +175,23 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
         candidates, none_runs = served.candidates(activity) if activity.mode == ASSIST else ([], None)
         return page("run.html", s, status, error=error, candidates=candidates, none_runs=none_runs,
                     primitives=ALL_PRIMITIVES, arity=ARITY, goal=activity.goal_reached, preconditions=preconditions(),
-                    safety=RULES)
+                    safety=RULES, choices=argument_choices(activity.state))
+
+    def confirm_page(s: Session, action: str, fields: dict[str, str], leaving_for: str):
+        """Asks before the steps of the task under way are dropped: posting `fields` again with `discard` drops
+        them; the other button goes back to the task. Nothing changes until the person answers."""
+        activity = s.activity
+        assert activity is not None
+        return page("confirm.html", s, 409, action=action, fields=fields, leaving_for=leaving_for,
+                    task_text=task_text(activity.state, activity.task),
+                    steps=[step_text(activity.states[k], a) for k, a in enumerate(activity.actions)])
+
+    def unsaved(s: Session) -> bool:
+        return s.activity is not None and bool(s.activity.actions) and request.form.get("discard") != "yes"
+
+    @app.get("/leave.js")
+    def leave_script():
+        return Response(LEAVE_SCRIPT, mimetype="text/javascript")
 
     @app.errorhandler(413)
     def too_large(_err):
@@ -170,7 +212,11 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
             form = request.form
             try:
                 source = form.get("source", "")
-                if source == "world":
+                if source == "pending":  # confirmed on the page that asked before dropping unsaved steps
+                    if s.pending_env is None:
+                        raise Refused("no environment is waiting to be used; choose one")
+                    env = s.pending_env
+                elif source == "world":
                     seed_text = form.get("seed", "").strip()
                     if not seed_text.isdigit():
                         raise Refused(f"world seed must be a whole number, got {seed_text!r}")
@@ -192,7 +238,10 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
                 return choose_page(s, err.status, str(err))
             except (ValueError, KeyError) as err:  # a file's error names the file and its field
                 return choose_page(s, 400, str(err).strip("'\""))
-            s.env, s.activity = env, None
+            if unsaved(s):
+                s.pending_env = env
+                return confirm_page(s, "/environment", {"source": "pending"}, f"the environment {env.label}")
+            s.env, s.activity, s.pending_env = env, None, None
             return redirect("/task", 303)
 
     @app.get("/task")
@@ -227,6 +276,9 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
                     raise Refused(f"the goal of {task} already holds here; choose another task")
             except (Refused, ValueError) as err:
                 return task_page(s, getattr(err, "status", 400), str(err), dict(form))
+            if unsaved(s):
+                fields = {k: form.get(k, "") for k in ("task", "arg1", "arg2", "participant", "mode")}
+                return confirm_page(s, "/task", fields, task_text(s.env.state, task))
             s.activity = Activity(s.env, task, mode, participant or None)
             return redirect(f"/{mode}", 303)
 

@@ -16,6 +16,7 @@ import ast
 import functools
 import inspect
 import re
+from dataclasses import dataclass
 
 from ..sim import primitives
 from ..sim.primitives import ALL_PRIMITIVES, Action
@@ -96,3 +97,53 @@ def unsafe_reason(state: WorldState, action: Action) -> str | None:
     if not broken:
         return None
     return "; and ".join(f"it breaks the safety rule \u201c{RULES[r]}\u201d: {_why(state, action, r)}" for r in broken)
+
+
+@dataclass(frozen=True)
+class Choices:
+    """What the step form offers for one primitive: the held object where the primitive works on it (or why it
+    cannot be chosen now), and the objects offered for each other argument."""
+
+    held: str | None  # a1, fixed: the primitive works on what the gripper holds
+    lists: tuple[tuple[str, ...], ...]  # the objects offered per remaining argument, by id
+    unavailable: str | None = None  # why the primitive cannot be chosen now, in words
+
+
+def argument_choices(state: WorldState) -> dict[str, Choices]:
+    """Per primitive, the objects worth offering, from the simulator's checks (`sim.primitives`) and safety rules.
+
+    A checks that holds whatever the person does next narrows a list: `held` (release, place_above, hold_above and
+    the trajectories work on the held object, so a1 is it), `movable` (grasp), `not held` (move_close),
+    `separate objects` (a target never rests on or in the held object), `container` (pour into one), and the
+    rule that a liquid is handled only through its container (never grasped, placed on or held over). The floor
+    is no place to drive to. Checks that depend on where the robot stands (within reach, room below) are left
+    to the simulator, whose refusal says why. Names sort the lists, as the person reads them."""
+    specs = state.specs
+
+    def ordered(ids) -> tuple[str, ...]:
+        return tuple(sorted(ids, key=lambda o: (specs[o].name, o)))
+
+    liquid = {o for o in specs if specs[o].has("liquid")}
+    floor = {o for o in specs if specs[o].category == "floor"}
+    held = state.held
+    out = {
+        "move_close": Choices(None, (ordered(o for o in specs if o != held and o not in floor),)),
+        "grasp": Choices(None, (ordered(o for o in specs if specs[o].has("movable") and o not in liquid),),
+                         None if held is None else f"the gripper holds {specs[held].name}; release it first"),
+        "done": Choices(None, ()),
+    }
+    if held is None:
+        for p in ("release", "place_above", "hold_above", "follow_traj_circle", "follow_traj_pour"):
+            out[p] = Choices(None, (), "nothing is in the gripper")
+        return out
+    carried = {held, *state.descendants(held)}
+    targets = ordered(o for o in specs if o not in carried and o not in liquid)
+    out.update({
+        "release": Choices(held, ()),
+        "place_above": Choices(held, (targets,)),
+        "hold_above": Choices(held, (targets,)),
+        "follow_traj_circle": Choices(held, ()),
+        "follow_traj_pour": Choices(held, (ordered(o for o in specs if o not in carried
+                                                   and specs[o].has("container")),)),
+    })
+    return out

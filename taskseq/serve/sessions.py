@@ -79,6 +79,7 @@ class Session:
     env: Environment | None = None
     activity: Activity | None = None
     finished: dict | None = None  # what the last finished demonstration was written as
+    pending_env: Environment | None = None  # chosen while steps were unsaved: used once the person confirms
 
 
 class SessionStore:
