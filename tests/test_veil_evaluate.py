@@ -174,8 +174,11 @@ def test_the_command_writes_reports_and_gives_the_same_bytes_twice(release_dir: 
     for name in ("a", "b"):
         out = tmp_path / name
         assert main(["veil", "evaluate", "--release", str(release_dir), "--output", str(out), "--params",
-                     str(params), "--quiet"]) == 0
+                     str(params), "--quiet", "--recordings-dir", str(tmp_path / f"rec_{name}")]) == 0
         outputs.append(out)
+    recordings = sorted((tmp_path / "rec_a").glob("*.rrd"))
+    assert [r.name.split("_")[0] for r in recordings] == ["fold0", "fold0", "fold1", "fold1"]  # `recordings: 2`
+    assert all(r.read_bytes()[:3] == b"RRF" for r in recordings)
     first = json.loads((outputs[0] / "report.json").read_text())
     assert set(first["next_step"]) == {"chance", "most_frequent", "nearest_demonstration", "mrf_categories"}
     assert "mrf_categories/feasible" in first["closed_loop"] and "people" in first["closed_loop"]

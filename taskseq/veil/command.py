@@ -62,6 +62,8 @@ def _evaluate_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--params", type=Path, default=Path("params.yaml"),
                    help="settings file whose `veil` section sets folds, C_grid, max_steps, methods, policies "
                         "(default params.yaml; the built-in defaults where it has no such section)")
+    p.add_argument("--recordings-dir", type=Path, default=None,
+                   help="write Rerun recordings of a few closed-loop runs per fold here (`recordings` in the settings)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -88,7 +90,7 @@ def _evaluate(args: argparse.Namespace) -> int:
         else:
             from ..stages.command import default_jobs
 
-            report = run_experiment(args.release, settings, n_jobs=default_jobs())
+            report = run_experiment(args.release, settings, n_jobs=default_jobs(), recordings_dir=args.recordings_dir)
         write_reports(report, args.output)
         record(run, report)
         run.artifact(args.output / "tables.md")

@@ -165,6 +165,14 @@ def rollout(method: VeilMethod, executor: Executor, start: State, objective: str
     return taken, state, refused, False
 
 
+def states_of(executor: Executor, start: State, steps: Sequence[Step]) -> list[State]:
+    """The states a run visited: before each step and after the last (a refused step changes nothing)."""
+    states = [start]
+    for s in steps:
+        states.append(executor.after(states[-1], s) or states[-1])
+    return states
+
+
 def people_of(replays: Iterable[Replay]) -> dict[tuple[str, str], list[tuple[str, tuple[Step, ...]]]]:
     """(environment, objective) -> [(sequence id, its kept steps)]."""
     out: dict[tuple[str, str], list[tuple[str, tuple[Step, ...]]]] = {}

@@ -33,10 +33,12 @@ from .evaluate import (
     next_steps,
     people_runs,
     split,
+    states_of,
 )
 from .features import Vocabulary
 from .methods import MRFMethod, VeilMethod
 from .metrics import bootstrap_by_group, paired_sign_flip
+from .recordings import record_run
 from .release import Release, read_release
 from .replay import Replay, replay_release
 
@@ -61,6 +63,7 @@ class Settings:
     policies: tuple[str, ...] = ("plain", "feasible")
     resamples: int = 2000
     seed: int = 0
+    recordings: int = 2  # Rerun recordings per fold of the first MRF row's runs (feasible policy), when asked for
 
     def __post_init__(self) -> None:
         unknown = set(self.methods) - set(BASELINES) - set(MRF_ROWS)
@@ -132,8 +135,10 @@ def _mean(runs: Sequence[Run], attr: str) -> float:
 
 
 def fold_job(k: int, held_out: frozenset[int], name: str, data: tuple[Release, list[Replay]],
-             settings: Settings) -> tuple[int, str, float | None, dict[str, float], dict[str, list[Run]], float]:
-    """One method on one fold: (fold, method, C or None, next-step figures, runs per policy, seconds)."""
+             settings: Settings, recordings_dir: Path | None = None
+             ) -> tuple[int, str, float | None, dict[str, float], dict[str, list[Run]], float]:
+    """One method on one fold: (fold, method, C or None, next-step figures, runs per policy, seconds). The first
+    MRF row of `settings.methods` also records its first `settings.recordings` runs into `recordings_dir`."""
     start = time.perf_counter()
     release, replays = data
     objectives = sorted({r.point.objective for r in replays})
@@ -146,10 +151,20 @@ def fold_job(k: int, held_out: frozenset[int], name: str, data: tuple[Release, l
     executor = Executor(release)
     runs = {policy: closed_loop(method, executor, test, goals, policy, settings.max_steps)
             for policy in settings.policies}
+    recorded = next((m for m in settings.methods if m in MRF_ROWS), None)
+    if recordings_dir is not None and name == recorded and settings.recordings:
+        policy = settings.policies[-1]
+        people = {r.point.seq_id: r for r in test}
+        for run in runs[policy][: settings.recordings]:
+            replay = people[run.seq_id]
+            record_run(Path(recordings_dir) / f"fold{k}_{run.seq_id}.rrd", f"veil-{name}-{run.seq_id}",
+                       states_of(executor, replay.initial, run.steps), run.steps, run.objective, replay.kept,
+                       f"{name}, {policy}: goal reached {100 * (run.goal_share or 0):.0f}%")
     return k, name, C, figures, runs, time.perf_counter() - start
 
 
-def run_experiment(release_root: Path | str, settings: Settings, n_jobs: int = 1) -> dict:
+def run_experiment(release_root: Path | str, settings: Settings, n_jobs: int = 1,
+                   recordings_dir: Path | None = None) -> dict:
     """Every method on every fold, `n_jobs` at a time (the MRF rows first: they cost the most); returns the
     report (per fold, per method, with tests and intervals). The jobs are pure functions of their arguments,
     so the report is the same bytes whatever `n_jobs`."""
@@ -157,7 +172,7 @@ def run_experiment(release_root: Path | str, settings: Settings, n_jobs: int = 1
     replays = replay_release(release)
     folds = environment_folds(replays, settings.folds)
     data = Shared((release, replays))
-    jobs = [(fold_job, (k, held_out, name, data, settings)) for k, held_out in enumerate(folds)
+    jobs = [(fold_job, (k, held_out, name, data, settings, recordings_dir)) for k, held_out in enumerate(folds)
             for name in settings.methods]
     done = run_jobs(jobs, n_jobs, cost=[10.0 if args[2] in MRF_ROWS else 1.0 for _, args in jobs])
     results = [FoldResult(k, sorted(held_out)) for k, held_out in enumerate(folds)]
