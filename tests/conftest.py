@@ -6,6 +6,7 @@ from pathlib import Path
 
 import pytest
 
+import taskseq.methods  # noqa: F401  (the added methods register themselves, as in the stages that list them)
 from taskseq.logs.generate import generate
 from taskseq.logs.ingest import load_logs
 from taskseq.settings import Generate

@@ -40,7 +40,8 @@ def added(tmp_path, monkeypatch):
     (folder / name).write_text(code)
     monkeypatch.setattr(taskseq.methods, "__path__", [*taskseq.methods.__path__, str(folder)])
     monkeypatch.setattr(registry, "_ADDED", {})
-    monkeypatch.setattr(registry, "_loaded", False)
+    monkeypatch.setattr(registry, "_complete", False)
+    taskseq.methods.load()  # what importing the package does
     yield name.removesuffix(".py")
     sys.modules.pop(f"taskseq.methods.{name.removesuffix('.py')}", None)
 
@@ -102,6 +103,12 @@ def test_the_tutorials_method_reaches_table1_mlflow_the_store_and_the_tables_ove
     names = [r.split("|")[1].strip() for r in rows if r.startswith("|")]
     assert names.index("ours - full + chained starts") > names.index("ours - full")
     assert "full_chained" in json.loads((out / "crossval_means.json").read_text())
+
+
+def test_the_list_is_refused_until_the_methods_package_has_registered_them(monkeypatch):
+    monkeypatch.setattr(registry, "_complete", False)
+    with pytest.raises(RuntimeError, match="import taskseq.methods first"):
+        registry.method_labels()
 
 
 def test_a_name_is_registered_once(added):

@@ -1,19 +1,18 @@
 """Table I's methods by name: the built-in ones' labels, and the methods that modules register.
 
-Light on purpose: the stages that only write tables (aggregate, report) read
-the labels from here without importing the methods themselves, nor
-scikit-learn and Numba with them.
+It imports nothing of the methods: a module of `taskseq.methods` imports
+this one and registers its method here (`register`), never the other way
+round. Whoever needs every method (the stages that run or print them)
+imports the package `taskseq.methods`, which imports each of its modules and
+then marks the list whole (`completed`); asking for the list before that is
+an error, not a Table I silently short of its added rows.
 """
 
 from __future__ import annotations
 
-import importlib
-import pkgutil
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
-
-from .. import methods as added_package
 
 # The built-in methods, in the tables' order, as the tables print them.
 BUILT_IN_LABELS = {
@@ -55,7 +54,7 @@ class AddedMethod:
 
 
 _ADDED: dict[str, AddedMethod] = {}
-_loaded = False
+_complete = False  # every module of `taskseq.methods` has registered
 
 
 def register(name: str, label: str) -> Callable[[Callable[[MethodSettings], Any]], Callable[[MethodSettings], Any]]:
@@ -72,13 +71,20 @@ def register(name: str, label: str) -> Callable[[Callable[[MethodSettings], Any]
     return add
 
 
+def completed() -> None:
+    """Mark the list of added methods whole: `taskseq.methods` calls it once each of its modules has registered."""
+    global _complete
+    _complete = True
+
+
 def added_methods() -> dict[str, AddedMethod]:
-    """Every method the modules of `taskseq.methods` register, by name (imported once, in name order)."""
-    global _loaded
-    if not _loaded:
-        _loaded = True
-        for module in sorted(pkgutil.iter_modules(added_package.__path__), key=lambda m: m.name):
-            importlib.import_module(f"{added_package.__name__}.{module.name}")
+    """Every method the modules of `taskseq.methods` register, by name (in name order).
+
+    Raises `RuntimeError` until `taskseq.methods` has been imported.
+    """
+    if not _complete:
+        raise RuntimeError("the added methods are not registered yet: import taskseq.methods first (its modules "
+                           "register them)")
     return dict(sorted(_ADDED.items()))
 
 

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from .. import methods as _every_method  # noqa: F401  (the added methods register themselves: Table I whole)
 from ..evaluate.methods import method_params, table1_methods
 from ..evaluate.metrics import confusion, headline_metrics, summarize
 from ..evaluate.registry import method_labels

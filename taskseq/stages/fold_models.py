@@ -11,6 +11,7 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
+from .. import methods as _every_method  # noqa: F401  (the added methods register themselves: Table I whole)
 from ..evaluate.methods import mrf_methods
 from ..experiments.fold_models import train_fold_models, training_jobs
 from ..features.dataset import read_features

@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from .. import methods as _every_method  # noqa: F401  (the added methods register themselves: Table I whole)
 from ..evaluate.methods import method_params, mrf_methods
 from ..evaluate.registry import method_labels
 from ..experiments.robustness import NoiseCondition, evaluate_conditions, noise_curve, noise_runs

@@ -14,6 +14,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from .. import methods as _every_method  # noqa: F401  (the added methods register themselves: Table I whole)
 from ..evaluate.methods import mrf_methods
 from ..experiments.selection import CRITERION, DevData, choose_C, cross_validate_settings, rank_methods
 from ..features.dataset import build_steps, write_features

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from .. import methods as _every_method  # noqa: F401  (the added methods register themselves: Table I whole)
 from ..evaluate.methods import mrf_methods
 from ..evaluate.metrics import step_accuracy
 from ..evaluate.registry import method_labels
