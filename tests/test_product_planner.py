@@ -19,12 +19,12 @@ from taskseq.learn.estimator import StepScorer
 from taskseq.learn.mrf import MRFModel
 from taskseq.logs.records import spec_to_dict, state_to_dict
 from taskseq.plan.planner import DONE, POLICIES, Abstain, learned_policy
+from taskseq.product import recorded_policy, runnable_first
 from taskseq.sim.primitives import Action, execute, try_execute
 from taskseq.sim.procedural import Procedural
 from taskseq.sim.safety import violations
 from taskseq.sim.scenarios import drawn_scenarios
 from taskseq.sim.tasks import goal_reached
-from taskseq.tools import recorded_policy, runnable_first
 
 STEPS = 6  # steps followed per program
 

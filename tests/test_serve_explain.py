@@ -13,12 +13,12 @@ import re
 
 from taskseq.features.context import candidate_index, step_context
 from taskseq.plan.planner import DONE, lookahead
+from taskseq.product import runnable_first
 from taskseq.serve.explain import explain
 from taskseq.sim.catalog import ENVIRONMENTS_BY_ID, build_environment
 from taskseq.sim.primitives import Action, execute
 from taskseq.sim.safety import RULES
 from taskseq.sim.tasks import Task
-from taskseq.tools import runnable_first
 
 GLASS, CARTON = "obj15", "obj21"
 TASK = Task.parse("pour(obj28)")  # the milk, in the carton

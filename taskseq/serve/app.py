@@ -20,12 +20,12 @@ from ..features.context import step_context
 from ..learn.estimator import StepScorer
 from ..learn.persist import policy_of
 from ..plan.planner import Abstain, Policy
+from ..product import LIQUID_TASKS, parse_task, recorded_policy
 from ..sim.catalog import ENVIRONMENTS, OBJECTS_BY_ID
 from ..sim.primitives import ALL_PRIMITIVES, ARITY, Action, PreconditionError
 from ..sim.safety import RULES
 from ..sim.state import WorldState
 from ..sim.tasks import TASK_ARITY, Task, goal_reached
-from ..tools import LIQUID_TASKS, parse_task, recorded_policy
 from .environments import SAFE_NAME, file_environment, named_files, read_named, world_environment
 from .explain import explain
 from .rules import UnsafeStep, argument_choices, named, preconditions, step_text

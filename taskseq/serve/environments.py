@@ -17,9 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from ..logs.records import spec_from_dict, spec_to_dict, state_from_dict, state_to_dict
+from ..product import parse_environment
 from ..sim.catalog import ENVIRONMENTS, ENVIRONMENTS_BY_ID, build_environment
 from ..sim.state import WorldState
-from ..tools import parse_environment
 
 SAFE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")  # file names and participant ids: no dots, no slashes
 MAX_SEED = 2**31 - 1

@@ -1,4 +1,11 @@
-"""The commands that are not pipeline stages: replay logs, plan a program for one task."""
+"""The product: the shipped planner on one task in an environment, as `taskseq plan` and the web app use it.
+
+An environment file read and checked field by field, a task parsed and
+checked against it, the trained model's recorded policy with only the steps
+the simulator would take offered first (`runnable_first`), and the program
+it plans, printed or as JSON. The pipeline's experiments do not use this
+module: Table I's policies keep their own rules (`plan.planner`).
+"""
 
 from __future__ import annotations
 
@@ -14,29 +21,13 @@ from .features.context import StepContext
 from .learn.estimator import StepScorer
 from .learn.persist import describe, policy_of
 from .logs.records import load_schema, spec_from_dict, state_from_dict
-from .logs.validate import LogError, check_record, check_references, check_schema, log_files, read_records
+from .logs.validate import LogError, check_references, check_schema, read_records
 from .logs.validate import _field as field_name  # the log checks' way of writing a field's path
 from .plan.planner import DONE, POLICIES, Abstain, Policy, Program, Ranked, learned_policy, run_loop
 from .sim.primitives import Action, try_execute
 from .sim.safety import violations
 from .sim.state import WorldState
 from .sim.tasks import Task, goal_reached
-
-
-def replay(input_dir: Path) -> tuple[int, list[str]]:
-    """Re-execute every logged sequence: (records that replay exactly, problems found)."""
-    n_ok, problems = 0, []
-    for path in log_files(Path(input_dir)):
-        try:
-            for item in read_records(path):
-                try:
-                    check_record(item)
-                    n_ok += 1
-                except LogError as err:
-                    problems.append(str(err))
-        except LogError as err:  # unreadable line: the rest of that file cannot be trusted
-            problems.append(str(err))
-    return n_ok, problems
 
 
 def load_environment(path: Path, record: int) -> tuple[list[dict[str, Any]], dict[str, Any]]:
