@@ -324,11 +324,9 @@ def selection_ranking() -> str:
 SUBPACKAGES = {
     "sim": "the simulated world: objects and attributes, state, primitives, tasks, safety rules, the catalog, "
            "drawn rooms, the demonstrator",
-    "logs": "the demonstration log format: records and schema, validation and replay, generation, ingest to Parquet",
     "features": "what the model sees of a step, the choice cues, perception noise, the feature files",
     "learn": "the structural SVM, its working-set QP, the unrolled MRF, the estimator, model files",
     "plan": "the step-by-step planner; `symbolic/`: PDDL problems, the SAT planner, the symbolic policy",
-    "evaluate": "methods, folds, cross-validation, failures, selection of C, noise and feedback, recipes, transfer",
     "report": "Table I, figures over world seeds, statistics, long CSV files, figures, summary.md",
     "track": "MLflow runs of the stages and their writer process, Rerun recordings",
 }

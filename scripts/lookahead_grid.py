@@ -28,12 +28,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from taskseq.demonstrations.benchmark import load_benchmark  # noqa: E402
 from taskseq.evaluate.methods import MRFMethod  # noqa: E402
 from taskseq.evaluate.metrics import summarize  # noqa: E402
 from taskseq.experiments.crossval import cross_validate  # noqa: E402
 from taskseq.experiments.selection import read_selection  # noqa: E402
 from taskseq.features.dataset import read_features  # noqa: E402
-from taskseq.logs.benchmark import load_benchmark  # noqa: E402
 from taskseq.plan.planner import Program, lookahead, run_loop  # noqa: E402
 from taskseq.settings import Params  # noqa: E402
 from taskseq.sim.scenarios import Scenario  # noqa: E402

@@ -28,11 +28,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from taskseq.demonstrations.benchmark import load_benchmark  # noqa: E402
 from taskseq.evaluate.methods import MRFMethod  # noqa: E402
 from taskseq.experiments.robustness import NoiseCondition, evaluate_conditions, noise_curve, noise_runs  # noqa: E402
 from taskseq.experiments.selection import read_selection  # noqa: E402
 from taskseq.features.dataset import read_features  # noqa: E402
-from taskseq.logs.benchmark import load_benchmark  # noqa: E402
 from taskseq.settings import Params  # noqa: E402
 
 

@@ -39,7 +39,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _user_errors() -> tuple[type[BaseException], ...]:
-    from .logs.validate import LogError
+    from .demonstrations.validate import LogError
 
     return LogError, FileNotFoundError
 

@@ -17,12 +17,12 @@ from typing import Any
 
 from jsonschema import Draft202012Validator
 
+from .demonstrations.records import load_schema, spec_from_dict, state_from_dict
+from .demonstrations.validate import LogError, check_references, check_schema, read_records
+from .demonstrations.validate import _field as field_name  # the log checks' way of writing a field's path
 from .features.context import StepContext
 from .learn.estimator import StepScorer
 from .learn.persist import describe, policy_of
-from .logs.records import load_schema, spec_from_dict, state_from_dict
-from .logs.validate import LogError, check_references, check_schema, read_records
-from .logs.validate import _field as field_name  # the log checks' way of writing a field's path
 from .plan.planner import DONE, POLICIES, Abstain, Policy, Program, Ranked, learned_policy, run_loop
 from .sim.primitives import Action, try_execute
 from .sim.safety import violations

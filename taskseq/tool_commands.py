@@ -33,7 +33,7 @@ def _replay_options(p: argparse.ArgumentParser) -> None:
 
 
 def _replay(args: argparse.Namespace) -> int:
-    from .logs.validate import LogError, check_record, log_files, read_records
+    from .demonstrations.validate import LogError, check_record, log_files, read_records
 
     n_ok, problems = 0, []  # records that replay exactly, problems found
     for path in log_files(args.input):
@@ -91,7 +91,7 @@ def _bench_options(p: argparse.ArgumentParser) -> None:
 
 def _bench(args: argparse.Namespace) -> int:
     from .bench.speed import format_bench, run_bench
-    from .logs.benchmark import load_benchmark
+    from .demonstrations.benchmark import load_benchmark
     from .runtime.atomic import write_json_atomic
     from .stages.command import load_params
 

@@ -7,8 +7,8 @@ from pathlib import Path
 import pytest
 
 import taskseq.methods  # noqa: F401  (the added methods register themselves, as in the stages that list them)
-from taskseq.logs.generate import generate
-from taskseq.logs.ingest import load_logs
+from taskseq.demonstrations.generate import generate
+from taskseq.demonstrations.ingest import load_logs
 from taskseq.settings import Generate
 from taskseq.sim.catalog import EnvironmentSpec, Placement, build_environment
 from taskseq.sim.state import WorldState

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from taskseq.cli import build_parser, main
-from taskseq.logs.ingest import load_logs, write_tables
+from taskseq.demonstrations.ingest import load_logs, write_tables
 
 SUBCOMMANDS = build_parser()._subparsers._group_actions[0].choices  # name -> parser, as the CLI builds them
 

@@ -3,9 +3,9 @@
 import filecmp
 
 from taskseq.cli import main
-from taskseq.logs.generate import generate
-from taskseq.logs.ingest import dataset_summary, load_logs, write_tables
-from taskseq.logs.records import parse_record, state_from_dict
+from taskseq.demonstrations.generate import generate
+from taskseq.demonstrations.ingest import dataset_summary, load_logs, write_tables
+from taskseq.demonstrations.records import parse_record, state_from_dict
 from taskseq.settings import Generate
 from taskseq.sim.objects import ATTRIBUTE_NAMES
 from taskseq.sim.primitives import PRIMITIVES, execute

@@ -5,12 +5,12 @@ import re
 import numpy as np
 import pytest
 
+from taskseq.demonstrations.benchmark import Benchmark
 from taskseq.evaluate.folds import grouped_folds
 from taskseq.evaluate.methods import ChanceMethod, MulticlassMethod
 from taskseq.evaluate.metrics import step_accuracy, summarize
 from taskseq.experiments.crossval import FoldResult, SequenceOutcome, run_fold, scenario_folds
 from taskseq.features.context import StepContext
-from taskseq.logs.benchmark import Benchmark
 from taskseq.report.tables import table_rows, to_csv, to_latex, to_markdown
 from taskseq.sim.primitives import ALL_PRIMITIVES
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from taskseq.demonstrations.records import parse_record, state_from_dict
 from taskseq.evaluate.methods import table1_methods
 from taskseq.features.context import candidate_index, step_context
 from taskseq.learn.estimator import StepScorer
-from taskseq.logs.records import parse_record, state_from_dict
 from taskseq.plan.planner import DONE, INFEASIBLE, feasible, greedy, learned_policy, run_loop
 from taskseq.settings import Crossval, Learner
 from taskseq.sim.primitives import try_execute

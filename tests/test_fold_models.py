@@ -5,6 +5,9 @@ from pathlib import Path
 
 import pytest
 
+from taskseq.demonstrations.benchmark import Benchmark
+from taskseq.demonstrations.generate import generate
+from taskseq.demonstrations.ingest import load_logs
 from taskseq.evaluate.methods import MRFMethod, mrf_methods
 from taskseq.experiments.crossval import cross_validate
 from taskseq.experiments.fold_models import train_fold_models, training_jobs
@@ -12,9 +15,6 @@ from taskseq.experiments.recipes import evaluate_recipes
 from taskseq.experiments.robustness import NoiseCondition, evaluate_conditions
 from taskseq.features.dataset import build_steps
 from taskseq.learn.estimator import StepScorer
-from taskseq.logs.benchmark import Benchmark
-from taskseq.logs.generate import generate
-from taskseq.logs.ingest import load_logs
 from taskseq.settings import Folds, Generate, Learner, Procedural
 from taskseq.sim.procedural import NEW_KINDS
 

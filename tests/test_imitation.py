@@ -9,6 +9,7 @@ import pytest
 
 import taskseq.imitation.dagger as dagger_module
 import taskseq.imitation.starts as starts_module
+from taskseq.demonstrations.benchmark import Benchmark
 from taskseq.evaluate.methods import MRFMethod
 from taskseq.experiments.crossval import run_fold, scenario_folds
 from taskseq.features.context import NO_PRIM, candidate_index, step_context
@@ -17,7 +18,6 @@ from taskseq.imitation.dagger import fit_imitation, rollout_contexts
 from taskseq.imitation.expert import DONE, next_actions
 from taskseq.imitation.starts import chained_contexts, chained_scenarios, demonstration_contexts
 from taskseq.learn.estimator import StepScorer
-from taskseq.logs.benchmark import Benchmark
 from taskseq.sim.primitives import Action, PreconditionError, execute, try_execute
 from taskseq.sim.tasks import goal_reached
 

@@ -6,8 +6,8 @@ import shutil
 import pytest
 
 from taskseq.cli import main
-from taskseq.logs.ingest import load_logs, read_tables, records_from_tables, write_tables
-from taskseq.logs.validate import LogError
+from taskseq.demonstrations.ingest import load_logs, read_tables, records_from_tables, write_tables
+from taskseq.demonstrations.validate import LogError
 
 
 def test_log_to_parquet_to_log_round_trip(benchmark_tables, tmp_path):
@@ -186,8 +186,8 @@ def _schema_nodes(node, where="schema"):
 def test_the_schema_keeps_to_keywords_whose_meaning_draft_7_shares():
     """The fast validator reads the schema as draft 7: a keyword that draft 2020-12 reads otherwise (`prefixItems`,
     a `$ref` with siblings, `items` as a list) would let it accept what the reference refuses."""
-    from taskseq.logs.records import load_schema
-    from taskseq.logs.validate import SAME_IN_DRAFT_7
+    from taskseq.demonstrations.records import load_schema
+    from taskseq.demonstrations.validate import SAME_IN_DRAFT_7
 
     for where, node in _schema_nodes(load_schema()):
         assert set(node) <= SAME_IN_DRAFT_7, (where, set(node) - SAME_IN_DRAFT_7)
@@ -233,7 +233,7 @@ def test_the_fast_validator_never_accepts_what_the_reference_refuses(one_log):
 
     from fastjsonschema import JsonSchemaValueException
 
-    from taskseq.logs.validate import _VALIDATOR, _accepts
+    from taskseq.demonstrations.validate import _VALIDATOR, _accepts
 
     fast = _accepts()
     _, _, records = one_log

@@ -265,8 +265,8 @@ def _content(ctx):
 def rollouts(benchmark_tables, benchmark_steps):
     """Scenarios of the benchmark and planners that walk into harm often: one fitted on a few steps and two with
     random weights."""
+    from taskseq.demonstrations.records import parse_record, state_from_dict
     from taskseq.learn.estimator import StepScorer
-    from taskseq.logs.records import parse_record, state_from_dict
 
     starts = []
     for item in benchmark_tables[1][:60:5]:

@@ -22,7 +22,7 @@ from pddl.logic.base import And, ForallCondition, Not
 from pddl.logic.effects import Forall, When
 from pddl.logic.predicates import Predicate
 
-from taskseq.logs.benchmark import Benchmark
+from taskseq.demonstrations.benchmark import Benchmark
 from taskseq.plan.symbolic.problem import DOMAIN_PATH, GroundAction, Problem, build_problem, ground_actions
 from taskseq.plan.symbolic.roles import demonstrated_roles
 from taskseq.sim.primitives import PreconditionError, execute

@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
+from taskseq.demonstrations.ingest import write_tables
+from taskseq.demonstrations.people import people_records
 from taskseq.features.dataset import build_steps, write_features
-from taskseq.logs.ingest import write_tables
-from taskseq.logs.people import people_records
 from taskseq.serve.environments import world_environment
 from taskseq.serve.writer import RecordWriter, person_record
 from taskseq.settings import Learner, People, Teach, Train, World

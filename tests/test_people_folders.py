@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from taskseq.cli import main
-from taskseq.logs.ingest import (
+from taskseq.demonstrations.ingest import (
     is_person_record,
     load_logs,
     load_people_logs,
@@ -22,9 +22,9 @@ from taskseq.logs.ingest import (
     read_tables,
     records_from_tables,
 )
-from taskseq.logs.people import people_records
-from taskseq.logs.records import demonstration_record, spec_to_dict, state_to_dict
-from taskseq.logs.validate import LogError
+from taskseq.demonstrations.people import people_records
+from taskseq.demonstrations.records import demonstration_record, spec_to_dict, state_to_dict
+from taskseq.demonstrations.validate import LogError
 from taskseq.serve.environments import file_environment, world_environment
 from taskseq.serve.writer import RecordWriter, person_record
 from taskseq.sim.demonstrator import demonstrate

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from taskseq.cli import main
+from taskseq.demonstrations.records import parse_record, state_from_dict
 from taskseq.features.dataset import build_steps
 from taskseq.learn.estimator import StepScorer
 from taskseq.learn.persist import load_model
-from taskseq.logs.records import parse_record, state_from_dict
 from taskseq.plan.planner import DONE, plan
 
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from taskseq.cli import main
-from taskseq.logs.generate import generate
+from taskseq.demonstrations.generate import generate
 from taskseq.settings import Generate, Params, Procedural
 from taskseq.sim.catalog import (
     ENVIRONMENTS_BY_ID,

@@ -90,10 +90,10 @@ def _fit_hashes(logs: Path, records: int) -> dict:
     """Features, score tables, objectives and weights of both feature sets, fitted on the first `records` demos."""
     from numpy._core._multiarray_umath import __cpu_dispatch__
 
+    from taskseq.demonstrations.ingest import load_logs
     from taskseq.features.dataset import build_steps
     from taskseq.learn.estimator import StepScorer
     from taskseq.learn.mrf import StepBatch
-    from taskseq.logs.ingest import load_logs
 
     _, tables = load_logs(logs)
     steps, _ = build_steps([item.record for item in tables[:records]])

@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 from taskseq.cli import main
+from taskseq.demonstrations.records import spec_to_dict, state_to_dict
 from taskseq.features.context import step_context
 from taskseq.learn.estimator import StepScorer
 from taskseq.learn.mrf import MRFModel
-from taskseq.logs.records import spec_to_dict, state_to_dict
 from taskseq.plan.planner import DONE, POLICIES, Abstain, learned_policy
 from taskseq.product import recorded_policy, runnable_first
 from taskseq.sim.primitives import Action, execute, try_execute

@@ -66,8 +66,8 @@ def test_step_contexts_carry_relations():
 
 def test_step_context_rows_agree_with_the_states_own_queries(benchmark_tables):
     """The per-step rows are built in one pass over the state; each must say what `WorldState` says."""
+    from taskseq.demonstrations.benchmark import Benchmark
     from taskseq.features.context import OBJECT_COLUMNS, scale_attribute
-    from taskseq.logs.benchmark import Benchmark
     from taskseq.sim.primitives import execute
 
     scenarios = Benchmark.from_records([i.record for i in benchmark_tables[1]]).scenarios

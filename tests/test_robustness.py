@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
+from taskseq.demonstrations.benchmark import Benchmark
 from taskseq.evaluate.methods import MRFMethod
 from taskseq.experiments.robustness import observer
 from taskseq.features.context import step_context
 from taskseq.features.perception import BINARY_COLUMNS, flip_masks, noisy_perception
-from taskseq.logs.benchmark import Benchmark
 from taskseq.plan.planner import plan
 from taskseq.sim.primitives import Action
 

@@ -10,11 +10,11 @@ from dataclasses import dataclass, field
 import pytest
 
 from taskseq.cli import main
+from taskseq.demonstrations.benchmark import Benchmark
+from taskseq.demonstrations.generate import generate
+from taskseq.demonstrations.ingest import load_logs
 from taskseq.experiments.transfer import transfer
 from taskseq.features.dataset import build_steps
-from taskseq.logs.benchmark import Benchmark
-from taskseq.logs.generate import generate
-from taskseq.logs.ingest import load_logs
 from taskseq.settings import Generate, Params, Procedural
 from taskseq.stages import scenes
 
@@ -140,7 +140,7 @@ def test_rooms_held_out_never_reach_training(tmp_path):
 
 def test_a_drawn_objects_logged_attributes_follow_from_its_size_and_flags(tmp_path):
     """A new object's flags are its kind's fixed ones and some of those drawn for it; objects of a kind differ."""
-    from taskseq.logs.records import expected_attributes
+    from taskseq.demonstrations.records import expected_attributes
     from taskseq.sim.objects import BINARY_ATTRIBUTES, attributes_of_box
     from taskseq.sim.procedural import NEW_KINDS
 

@@ -10,6 +10,7 @@ import math
 
 import pytest
 
+from taskseq.demonstrations.benchmark import Benchmark
 from taskseq.evaluate.methods import MRFMethod, mrf_methods
 from taskseq.experiments import selection
 from taskseq.experiments.crossval import FoldResult, SequenceOutcome
@@ -22,7 +23,6 @@ from taskseq.experiments.selection import (
     read_selection,
 )
 from taskseq.features.context import StepContext
-from taskseq.logs.benchmark import Benchmark
 from taskseq.settings import Folds, Learner, Params, Replay
 from taskseq.sim.primitives import ALL_PRIMITIVES
 from taskseq.stages import fold_models as fold_models_stage

@@ -238,7 +238,7 @@ def test_a_bad_task_is_refused_with_a_message(client, data, form, expected):
 
 def environment_file(edit=None) -> str:
     state = world_environment(0, "env01").state
-    from taskseq.logs.records import spec_to_dict, state_to_dict
+    from taskseq.demonstrations.records import spec_to_dict, state_to_dict
 
     env = {"objects": [spec_to_dict(s) for s in state.specs.values()], "state": state_to_dict(state)}
     if edit:

@@ -18,9 +18,9 @@ from playwright.sync_api import sync_playwright
 from werkzeug.serving import make_server
 
 from taskseq.cli import main
+from taskseq.demonstrations.records import demonstration_record
 from taskseq.features.dataset import build_steps
 from taskseq.learn.estimator import StepScorer
-from taskseq.logs.records import demonstration_record
 from taskseq.serve.app import create_app
 from taskseq.serve.environments import world_environment
 from taskseq.sim.demonstrator import demonstrate
@@ -190,7 +190,7 @@ def test_two_browsers_at_once_write_two_whole_records(server, browser):
 
 
 def test_markup_in_an_uploaded_environment_file_is_shown_as_text_and_never_run(server, browser, tmp_path):
-    from taskseq.logs.records import spec_to_dict, state_to_dict
+    from taskseq.demonstrations.records import spec_to_dict, state_to_dict
 
     url, data = server
     state = world_environment(0, "env01").state

@@ -9,8 +9,8 @@ import time
 
 import pytest
 
+from taskseq.demonstrations.ingest import write_tables
 from taskseq.features.dataset import write_features
-from taskseq.logs.ingest import write_tables
 
 
 @pytest.fixture(scope="module")

@@ -10,12 +10,12 @@ from pathlib import Path
 import pytest
 
 from taskseq.cli import main
+from taskseq.demonstrations.benchmark import load_benchmark
+from taskseq.demonstrations.ingest import load_logs
+from taskseq.demonstrations.records import spec_from_dict, state_from_dict
 from taskseq.experiments import selection
 from taskseq.experiments.selection import best_candidate
 from taskseq.learn.estimator import StepScorer
-from taskseq.logs.benchmark import load_benchmark
-from taskseq.logs.ingest import load_logs
-from taskseq.logs.records import spec_from_dict, state_from_dict
 from taskseq.plan.planner import feasible, run_loop
 from taskseq.sim.tasks import Task
 from taskseq.stages import select as select_stage

@@ -6,8 +6,8 @@ from dataclasses import replace
 import pytest
 from pddl import parse_domain, parse_problem
 
+from taskseq.demonstrations.benchmark import Benchmark
 from taskseq.evaluate.methods import SymbolicMethod
-from taskseq.logs.benchmark import Benchmark
 from taskseq.plan.planner import run_loop
 from taskseq.plan.symbolic.executor import SymbolicPolicy
 from taskseq.plan.symbolic.files import file_stem, write_pddl

@@ -10,8 +10,8 @@ import pytest
 from mlflow.tracking import MlflowClient
 
 from taskseq.cli import main
+from taskseq.demonstrations.ingest import write_tables
 from taskseq.features.dataset import write_features
-from taskseq.logs.ingest import write_tables
 from taskseq.track.mlflow_runs import EXPERIMENT
 
 

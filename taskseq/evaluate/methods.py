@@ -14,13 +14,13 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from ..demonstrations.benchmark import Benchmark
 from ..features.context import N_PRIM, OBJECT_COLUMNS, StepContext, candidate_index, step_context
 from ..features.dataset import StepMeta
 from ..features.perception import noisy_copies
 from ..imitation.dagger import fit_imitation
 from ..learn.estimator import StepScorer
 from ..learn.store import ModelStore, training_key
-from ..logs.benchmark import Benchmark
 from ..plan.planner import POLICIES, Program, learned_policy, run_loop
 from ..plan.symbolic.executor import SymbolicPolicy, first_action
 from ..plan.symbolic.roles import ROLE_OF_TASK, RoleRanker, demonstrated_roles

@@ -7,12 +7,12 @@ from dataclasses import dataclass, field, replace
 
 from threadpoolctl import threadpool_limits
 
+from ..demonstrations.benchmark import Benchmark
 from ..evaluate.failures import classify
 from ..evaluate.folds import grouped_folds
 from ..evaluate.methods import Method, MRFMethod, MulticlassMethod, SymbolicMethod
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
-from ..logs.benchmark import Benchmark
 from ..plan.planner import Program
 from ..runtime.jobs import Shared, run_jobs
 from ..sim.scenarios import Scenario

@@ -20,11 +20,11 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
+from ..demonstrations.benchmark import Benchmark
 from ..evaluate.methods import MRFMethod, mrf_methods
 from ..evaluate.metrics import summarize
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
-from ..logs.benchmark import Benchmark
 from ..settings import Folds, Learner
 from .crossval import cross_validate
 from .fold_models import train_fold_models, training_jobs

@@ -10,10 +10,10 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from ..demonstrations.benchmark import Benchmark
 from ..evaluate.methods import Method
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
-from ..logs.benchmark import Benchmark
 from ..runtime.jobs import Shared, run_jobs
 from .crossval import FoldResult, run_fold
 

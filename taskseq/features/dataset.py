@@ -24,7 +24,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 from scipy import sparse
 
-from ..logs.records import parse_record, state_from_dict
+from ..demonstrations.records import parse_record, state_from_dict
 from ..runtime.atomic import atomic_directory
 from ..sim.primitives import Action
 from ..sim.tasks import TASKS

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..logs.records import spec_from_dict, spec_to_dict, state_from_dict, state_to_dict
+from ..demonstrations.records import spec_from_dict, spec_to_dict, state_from_dict, state_to_dict
 from ..product import parse_environment
 from ..sim.catalog import ENVIRONMENTS, ENVIRONMENTS_BY_ID, build_environment
 from ..sim.state import WorldState

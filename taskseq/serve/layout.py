@@ -17,7 +17,7 @@ from typing import Any
 
 import yaml
 
-from ..logs.records import spec_to_dict, state_to_dict
+from ..demonstrations.records import spec_to_dict, state_to_dict
 from ..sim.catalog import OBJECTS_BY_ID, EnvironmentSpec, Placement, build_environment
 from ..sim.objects import ObjectSpec
 from .environments import SAFE_NAME

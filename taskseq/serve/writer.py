@@ -17,8 +17,8 @@ import threading
 from pathlib import Path
 from typing import Any
 
-from ..logs.records import demonstration_record, dumps, parse_record, state_from_dict
-from ..logs.validate import LogError, LoggedRecord, check_record
+from ..demonstrations.records import demonstration_record, dumps, parse_record, state_from_dict
+from ..demonstrations.validate import LogError, LoggedRecord, check_record
 from ..sim.primitives import Action, execute
 from ..sim.scenarios import Scenario
 from ..sim.tasks import Task

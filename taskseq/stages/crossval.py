@@ -13,12 +13,12 @@ from pathlib import Path
 from typing import Any
 
 from .. import methods as _every_method  # noqa: F401  (the added methods register themselves: Table I whole)
+from ..demonstrations.benchmark import load_benchmark
 from ..evaluate.methods import method_params, table1_methods
 from ..evaluate.metrics import confusion, headline_metrics, summarize
 from ..evaluate.registry import method_labels
 from ..experiments.crossval import cross_validate
 from ..features.dataset import read_features
-from ..logs.benchmark import load_benchmark
 from ..plan.symbolic.files import file_stem
 from ..report.csvs import SEQUENCE_COLUMNS, STEP_COLUMNS, csv_text, sequence_rows, step_rows
 from ..report.figures import confusion_png

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
+from ..demonstrations.ingest import read_tables, records_from_tables
 from ..features.context import candidate_index
 from ..features.dataset import build_steps, write_features
-from ..logs.ingest import read_tables, records_from_tables
 from ..settings import Params
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .paths import FeaturesPaths

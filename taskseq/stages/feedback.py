@@ -12,11 +12,11 @@ from dataclasses import dataclass
 from typing import Any
 
 from .. import methods as _every_method  # noqa: F401  (the added methods register themselves: Table I whole)
+from ..demonstrations.benchmark import load_benchmark
 from ..evaluate.methods import method_params, mrf_methods
 from ..evaluate.registry import method_labels
 from ..experiments.robustness import FeedbackCondition, evaluate_conditions, feedback_rows, feedback_steps
 from ..features.dataset import read_features
-from ..logs.benchmark import load_benchmark
 from ..report.csvs import OUTCOME_COLUMNS, RATE_DECIMALS, csv_text, outcome_row
 from ..report.figures import line_plot_png
 from ..runtime.atomic import write_text_atomic

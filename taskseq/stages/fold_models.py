@@ -12,10 +12,10 @@ from dataclasses import dataclass
 from typing import Any
 
 from .. import methods as _every_method  # noqa: F401  (the added methods register themselves: Table I whole)
+from ..demonstrations.benchmark import load_benchmark
 from ..evaluate.methods import mrf_methods
 from ..experiments.fold_models import train_fold_models, training_jobs
 from ..features.dataset import read_features
-from ..logs.benchmark import load_benchmark
 from ..runtime.atomic import write_json_atomic
 from ..settings import Folds, Learner, Params
 from ..track.mlflow_runs import NO_RUN, Tracker

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ..logs.generate import generate
+from ..demonstrations.generate import generate
 from ..runtime.atomic import write_json_atomic
 from ..settings import Generate, Params
 from ..track.mlflow_runs import NO_RUN, Tracker

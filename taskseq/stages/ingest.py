@@ -5,8 +5,8 @@ from __future__ import annotations
 import sys
 from typing import Any
 
-from ..logs.ingest import dataset_summary, load_logs, load_people_logs, people_folder, write_tables
-from ..logs.validate import LogError
+from ..demonstrations.ingest import dataset_summary, load_logs, load_people_logs, people_folder, write_tables
+from ..demonstrations.validate import LogError
 from ..runtime.atomic import write_json_atomic
 from ..settings import Params
 from ..track.mlflow_runs import NO_RUN, Tracker, flatten

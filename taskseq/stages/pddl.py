@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..logs.benchmark import load_benchmark
+from ..demonstrations.benchmark import load_benchmark
 from ..plan.symbolic.files import write_pddl
 from ..settings import Params, Pddl
 from ..track.mlflow_runs import NO_RUN, Tracker

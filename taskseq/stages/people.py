@@ -12,10 +12,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from ..demonstrations.people import people_records
+from ..demonstrations.records import parse_record, state_from_dict
 from ..experiments.teaching import fit, pooled, success_on
 from ..features.dataset import build_steps, read_features
-from ..logs.people import people_records
-from ..logs.records import parse_record, state_from_dict
 from ..runtime.atomic import write_json_atomic, write_text_atomic
 from ..settings import Learner, Params, People
 from ..sim.scenarios import doable_tasks

@@ -13,11 +13,11 @@ from dataclasses import dataclass
 from typing import Any
 
 from .. import methods as _every_method  # noqa: F401  (the added methods register themselves: Table I whole)
+from ..demonstrations.benchmark import load_benchmark
 from ..evaluate.methods import method_params, mrf_methods
 from ..evaluate.registry import method_labels
 from ..experiments.recipes import PROGRAM_COLUMNS, RECIPES, evaluate_recipes, program_rows, recipe_report
 from ..features.dataset import read_features
-from ..logs.benchmark import load_benchmark
 from ..report.csvs import csv_text
 from ..runtime.atomic import write_json_atomic, write_text_atomic
 from ..settings import Learner, Params, Recipes

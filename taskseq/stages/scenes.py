@@ -17,12 +17,12 @@ from pathlib import Path
 from typing import Any
 
 from .. import methods as _every_method  # noqa: F401  (the added methods register themselves: Table I whole)
+from ..demonstrations.benchmark import load_benchmark
 from ..evaluate.methods import mrf_methods
 from ..evaluate.metrics import summarize
 from ..evaluate.registry import method_labels
 from ..experiments.transfer import transfer
 from ..features.dataset import read_features
-from ..logs.benchmark import load_benchmark
 from ..report.csvs import csv_text
 from ..report.seeds import curve_over_seeds, json_over_seeds, world_dirs
 from ..runtime.atomic import write_json_atomic, write_text_atomic

@@ -15,12 +15,12 @@ from pathlib import Path
 from typing import Any
 
 from .. import methods as _every_method  # noqa: F401  (the added methods register themselves: Table I whole)
+from ..demonstrations.benchmark import Benchmark
+from ..demonstrations.generate import generate
+from ..demonstrations.ingest import load_logs, write_tables
 from ..evaluate.methods import mrf_methods
 from ..experiments.selection import CRITERION, DevData, choose_C, cross_validate_settings, rank_methods
 from ..features.dataset import build_steps, write_features
-from ..logs.benchmark import Benchmark
-from ..logs.generate import generate
-from ..logs.ingest import load_logs, write_tables
 from ..runtime.atomic import write_json_atomic
 from ..settings import Folds, Generate, Learner, Params, Procedural, Select, World
 from ..track.mlflow_runs import NO_RUN, Tracker

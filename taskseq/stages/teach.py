@@ -19,10 +19,10 @@ from typing import Any
 
 import numpy as np
 
+from ..demonstrations.benchmark import load_benchmark
+from ..demonstrations.ingest import load_logs
 from ..experiments.teaching import fit, pooled, success_on, teaching_order
 from ..features.dataset import build_steps
-from ..logs.benchmark import load_benchmark
-from ..logs.ingest import load_logs
 from ..report.csvs import csv_text
 from ..report.figures import line_plot_png
 from ..runtime.atomic import write_text_atomic

@@ -16,14 +16,14 @@ from pathlib import Path
 from typing import Any
 
 from .. import methods as _every_method  # noqa: F401  (the added methods register themselves: Table I whole)
+from ..demonstrations.benchmark import Benchmark, load_benchmark
+from ..demonstrations.people import people_records
 from ..evaluate.methods import mrf_methods
 from ..evaluate.metrics import step_accuracy
 from ..evaluate.registry import method_labels
 from ..experiments.selection import read_selected_method
 from ..features.dataset import build_steps, read_features
 from ..learn.ssvm import learning_curve
-from ..logs.benchmark import Benchmark, load_benchmark
-from ..logs.people import people_records
 from ..report.csvs import csv_text
 from ..runtime.atomic import write_json_atomic, write_text_atomic
 from ..settings import Params, Train
