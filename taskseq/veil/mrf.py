@@ -73,6 +73,36 @@ class Block:
 
 
 @dataclass(frozen=True)
+class Batch:
+    """Steps padded to the same number of objects, built once for a list of steps the learner scores again and
+    again (the training set, every iteration)."""
+
+    rows: np.ndarray  # (S, N, K)
+    history: np.ndarray  # (S, N, 4)
+    valid: np.ndarray  # (S, N) bool
+    task: np.ndarray  # (S,)
+    prev: np.ndarray  # (S, 2)
+    empty: np.ndarray  # (S,) 1 where the robot's hands are empty
+    pair_step: np.ndarray  # (M,) the related pairs of every step, concatenated
+    pair_index: np.ndarray  # (M, 2)
+    pair_rows: np.ndarray  # (M, R)
+
+    @classmethod
+    def of(cls, X: Sequence[StepInput], n_row: int, n_pair: int) -> Batch:
+        S, N = len(X), max(x.n for x in X)
+        rows, hist, valid = np.zeros((S, N, n_row)), np.zeros((S, N, 4)), np.zeros((S, N), dtype=bool)
+        for s, x in enumerate(X):
+            rows[s, : x.n], hist[s, : x.n], valid[s, : x.n] = x.rows, x.history, True
+        return cls(rows, hist, valid, np.array([x.task for x in X], dtype=int),
+                   np.array([x.prev for x in X], dtype=int).reshape(S, 2),
+                   np.array([0 if x.holding else 1 for x in X], dtype=int),
+                   np.concatenate([np.full(len(x.pair_index), s, dtype=int) for s, x in enumerate(X)]
+                                  + [np.zeros(0, dtype=int)]),
+                   np.concatenate([x.pair_index.reshape(-1, 2) for x in X] + [np.zeros((0, 2), int)]).astype(int),
+                   np.concatenate([x.pair_rows.reshape(-1, n_pair) for x in X] + [np.zeros((0, n_pair))]))
+
+
+@dataclass(frozen=True)
 class Pairs:
     """The pair term's scores where two objects are related: step, a1, a2 (M,) and scores (M, V)."""
 
@@ -82,14 +112,12 @@ class Pairs:
     scores: np.ndarray
 
     @classmethod
-    def of(cls, X: Sequence[StepInput], w: np.ndarray | None, n_verbs: int) -> Pairs:
-        steps = np.concatenate([np.full(len(x.pair_index), s, dtype=int) for s, x in enumerate(X)] + [np.zeros(0, int)])
-        index = np.concatenate([x.pair_index.reshape(-1, 2) for x in X] + [np.zeros((0, 2), int)]).astype(int)
-        if w is None or len(steps) == 0:
-            scores = np.zeros((len(steps), n_verbs))
+    def of(cls, b: Batch, w: np.ndarray | None, n_verbs: int) -> Pairs:
+        if w is None or len(b.pair_step) == 0:
+            scores = np.zeros((len(b.pair_step), n_verbs))
         else:
-            scores = matmul(np.concatenate([x.pair_rows.reshape(-1, w.shape[1]) for x in X]), w.T)
-        return cls(steps, index[:, 0], index[:, 1], scores)
+            scores = matmul(b.pair_rows, w.T)
+        return cls(b.pair_step, b.pair_index[:, 0], b.pair_index[:, 1], scores)
 
 
 class DomainMRF:
@@ -144,14 +172,9 @@ class DomainMRF:
         """Factor tables of a batch padded to its largest step: P (S, V), U1 and U2 (S, V, N), the pair
         scores of the related pairs only (most pairs have no relation: a dense (S, V, N, N) table of a
         training set would take gigabytes) and which objects are present (S, N)."""
-        S, N, V = len(X), max(x.n for x in X), self.n_verbs
-        rows, hist = np.zeros((S, N, self.n_row)), np.zeros((S, N, 4))
-        valid = np.zeros((S, N), dtype=bool)
-        for s, x in enumerate(X):
-            rows[s, : x.n], hist[s, : x.n], valid[s, : x.n] = x.rows, x.history, True
-        task = np.array([x.task for x in X], dtype=int)
-        prev = np.array([x.prev for x in X], dtype=int).reshape(S, 2)
-        empty = np.array([0 if x.holding else 1 for x in X], dtype=int)
+        b = self._batch(X)
+        S, N, V = b.valid.shape[0], b.valid.shape[1], self.n_verbs
+        rows, hist, valid, task, prev, empty = b.rows, b.history, b.valid, b.task, b.prev, b.empty
         P = np.zeros((S, V))
         if (wt := self._w(w, "pt")) is not None:
             P += wt[task]
@@ -170,8 +193,20 @@ class DomainMRF:
             if (wt := self._w(w, f"tpae{slot}")) is not None:
                 table += matmul(rows, wt[task].transpose(0, 2, 1))
             U.append(table.transpose(0, 2, 1))
-        pair = Pairs.of(X, self._w(w, "pair"), V)
+        pair = Pairs.of(b, self._w(w, "pair"), V)
         return P, U[0], U[1], pair, valid
+
+    def _batch(self, X: Sequence[StepInput]) -> Batch:
+        """The padded batch of `X`, kept while the learner asks for the same list."""
+        cached = getattr(self, "_cache", None)
+        if cached is None or cached[0] is not X:
+            cached = (X, Batch.of(X, self.n_row, self.n_pair))
+            self._cache = cached
+        return cached[1]
+
+    def release(self) -> None:
+        """Forget the last batch (after a fit it is the whole training set, which a fitted model need not keep)."""
+        self._cache = None
 
     def _best(self, X: Sequence[StepInput], w: np.ndarray, gold: np.ndarray | None) -> np.ndarray:
         """(S, 3): the best labelling of each step, of score plus Hamming loss to `gold` when given.
@@ -256,41 +291,47 @@ class DomainMRF:
         return np.asarray(self.batch_joint_feature_rows([x], [y]).todense()).ravel()
 
     def batch_joint_feature_rows(self, X: Sequence[StepInput], Y: Sequence[Label]) -> sp.csr_matrix:
-        """(n, size_joint_feature): one joint feature per row."""
-        indptr, indices, data = [0], [], []
-        V = self.n_verbs
-        for x, y in zip(X, Y, strict=True):
-            v, a1, a2 = (int(t) for t in y)
-            entries: dict[int, float] = {}
+        """(n, size_joint_feature): one joint feature per row, every block's entries gathered at once."""
+        b = self._batch(X)
+        labels = np.asarray(Y, dtype=int).reshape(len(X), 3)
+        S, K, V, R = len(X), self.n_row, self.n_verbs, self.n_pair
+        steps, v = np.arange(S), labels[:, 0]
+        g, e = b.task, b.empty
+        parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
 
-            def add(name: str, flat: int | np.ndarray, value: float | np.ndarray, _e: dict = entries) -> None:
-                if name not in self.offsets:
-                    return
-                base = self.offsets[name]
-                for i, val in zip(np.atleast_1d(flat), np.atleast_1d(value), strict=True):
-                    if val != 0.0:
-                        _e[base + int(i)] = _e.get(base + int(i), 0.0) + float(val)
+        def put(name: str, where: np.ndarray, cols: np.ndarray, values: np.ndarray) -> None:
+            """Entries of block `name`: rows `where` (M,), columns within the block (M, W), values (M, W)."""
+            if name in self.offsets and len(where):
+                parts.append((np.repeat(where, cols.shape[1]), (self.offsets[name] + cols).ravel(), values.ravel()))
 
-            g, (p1, p2) = x.task, x.prev
-            K = self.n_row
-            add("pt", g * V + v, 1.0)
-            add("ppt1", (g * (V + 1) + p1) * V + v, 1.0)
-            add("ppt2", (g * (V + 1) + p2) * V + v, 1.0)
-            for slot, a in ((1, a1), (2, a2)):
-                if a < 0:
-                    continue
-                row, cols = x.rows[a], np.arange(K)
-                add(f"aet{slot}", (g * 2 + (0 if x.holding else 1)) * K + cols, row)
-                add(f"pae{slot}", v * K + cols, row)
-                add(f"paae{slot}", v * 4 + np.arange(4), x.history[a])
-                add(f"tpae{slot}", (g * V + v) * K + cols, row)
-            if a1 >= 0 and a2 >= 0 and len(x.pair_index):
-                hit = np.flatnonzero((x.pair_index[:, 0] == a1) & (x.pair_index[:, 1] == a2))
-                for m in hit:
-                    add("pair", v * self.n_pair + np.arange(self.n_pair), x.pair_rows[m])
-            keys = sorted(entries)
-            indices.extend(keys)
-            data.extend(entries[k] for k in keys)
-            indptr.append(len(indices))
-        return sp.csr_matrix((np.array(data, dtype=float), np.array(indices, dtype=np.int64),
-                              np.array(indptr, dtype=np.int64)), shape=(len(X), self.size_joint_feature))
+        one = np.ones((S, 1))
+        put("pt", steps, (g * V + v)[:, None], one)
+        put("ppt1", steps, ((g * (V + 1) + b.prev[:, 0]) * V + v)[:, None], one)
+        put("ppt2", steps, ((g * (V + 1) + b.prev[:, 1]) * V + v)[:, None], one)
+        cols_k, cols_h = np.arange(K)[None, :], np.arange(4)[None, :]
+        for slot in (1, 2):
+            a = labels[:, slot]
+            on = np.flatnonzero(a >= 0)
+            row, hist = b.rows[on, a[on]], b.history[on, a[on]]
+            put(f"aet{slot}", on, (g[on] * 2 + e[on])[:, None] * K + cols_k, row)
+            put(f"pae{slot}", on, v[on, None] * K + cols_k, row)
+            put(f"paae{slot}", on, v[on, None] * 4 + cols_h, hist)
+            put(f"tpae{slot}", on, (g[on] * V + v[on])[:, None] * K + cols_k, row)
+        if len(b.pair_step):
+            N = b.valid.shape[1]
+            keys = (b.pair_step * N + b.pair_index[:, 0]) * N + b.pair_index[:, 1]
+            both = np.flatnonzero((labels[:, 1] >= 0) & (labels[:, 2] >= 0))
+            wanted = (both * N + labels[both, 1]) * N + labels[both, 2]
+            order = np.argsort(keys)
+            at = np.searchsorted(keys, wanted, sorter=order).clip(max=len(keys) - 1)
+            hit = keys[order[at]] == wanted
+            m = order[at[hit]]
+            put("pair", both[hit], v[both[hit], None] * R + np.arange(R)[None, :], b.pair_rows[m])
+        if parts:
+            r, c, d = (np.concatenate(x) for x in zip(*parts, strict=True))
+        else:
+            r, c, d = np.zeros(0, int), np.zeros(0, int), np.zeros(0)
+        keep = d != 0.0
+        out = sp.csr_matrix((d[keep], (r[keep], c[keep])), shape=(S, self.size_joint_feature))
+        out.sort_indices()
+        return out
