@@ -21,8 +21,9 @@ def run(settings: None, paths: IngestPaths, tracker: Tracker = NO_RUN) -> dict[s
     """Raises `LogError` (file, record, field) or `FileNotFoundError` before anything is written.
 
     A folder of people's demonstrations (`--people`, or records `taskseq serve` wrote and none of the scripted
-    demonstrator's, `logs.ingest.people_folder`): a file with a problem is named on stderr and left out, and the
-    others are ingested; it raises only when no file is usable. The benchmark's logs fail at their first problem."""
+    demonstrator's, `demonstrations.ingest.people_folder`): a file with a problem is named on stderr and left
+    out, and the others are ingested; it raises only when no file is usable. The benchmark's logs fail at their
+    first problem."""
     input_dir, output, metrics = paths.input, paths.output, paths.metrics
     people = paths.people
     if not people and people_folder(input_dir):
