@@ -101,7 +101,7 @@ class Served:
         They are ranked by the policy the model file records (`greedy`: the best scores; `feasible`: the best
         scores among the steps that can run; `lookahead`: those, checked for the safety of what follows), as
         `taskseq plan` would run the model, and only steps the page would take are proposed
-        (`tools.runnable_first`); each says why it stands where it stands (`explain.explain`). A step's proposals
+        (`product.runnable_first`); each says why it stands where it stands (`explain.explain`). A step's proposals
         are kept with the activity: the planner is deterministic, and the page and the step posted from it then
         agree on what proposal number k is."""
         known = activity.offers.get(tuple(activity.actions))

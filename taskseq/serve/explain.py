@@ -5,7 +5,7 @@ that decides it rather than described again: the model's score
 (`StepScorer.ranked`), the lookahead of the shipped policy
 (`plan.planner.lookahead`: of the best runnable steps it takes the first
 whose imagined next steps break no safety rule), and the product's filter
-(`tools.runnable_first`: no step the simulator refuses, no unsafe step, no
+(`product.runnable_first`: no step the simulator refuses, no unsafe step, no
 `done` before the goal). The page shows the order the policy made; this
 module replays the same checks to say why, so a step listed above a
 better-scored one always carries the reason: the better one cannot run
@@ -102,7 +102,7 @@ def _task_text(state: WorldState, task: Task) -> str:
 
 def explain(planner: StepScorer, policy: str, task: Task, initial: WorldState, ctx: StepContext, state: WorldState,
             offered: Ranked) -> list[str]:
-    """For each proposal of `offered` (the policy's order, after `tools.runnable_first`), why it is where it is:
+    """For each proposal of `offered` (the policy's order, after `product.runnable_first`), why it is where it is:
     its place in the model's scores, every better-scored step it stands above or in place of and why that step
     is not above it, and what the lookahead found for the steps it imagined (`policy` is the model file's)."""
     if not offered:

@@ -1,7 +1,7 @@
 """Run the application until Ctrl-C or SIGTERM, then let the record being written finish.
 
 Werkzeug's threaded server answers each request in its own thread. A
-stopping signal reaches the main thread (`taskseq.stopping` turns SIGTERM
+stopping signal reaches the main thread (`taskseq.runtime.stopping` turns SIGTERM
 into `KeyboardInterrupt` as for every command), which ends `serve_forever`.
 The writer is then closed before the process exits: that waits for an
 append under way, so every demonstration whose page said "saved" is whole
