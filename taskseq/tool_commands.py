@@ -55,7 +55,9 @@ def _replay(args: argparse.Namespace) -> int:
 def _plan_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--model", type=Path, default=Path("models/mrf.npz"), help="model file (.npz)")
     p.add_argument("--env", type=Path, required=True,
-                   help="environment: a JSON file with 'objects' and 'state', or a .jsonl log")
+                   help="environment: a JSON file with 'objects' and 'state', or a .jsonl log; or a VEIL-500 "
+                        "environment file (.xml, with a model of `taskseq veil train`; the task is then an objective "
+                        "such as 'Boiling Water', docs/veil.md)")
     p.add_argument("--record", type=int, default=1, help="with a .jsonl log: which record (line) to take, from 1")
     p.add_argument("--task", required=True, help='the task, e.g. "pour(obj27)" or "pick_and_place(obj40,obj04)"')
     p.add_argument("--max-steps", type=int, default=Crossval.max_steps,
@@ -65,6 +67,10 @@ def _plan_options(p: argparse.ArgumentParser) -> None:
 
 
 def _plan(args: argparse.Namespace) -> int:
+    if args.env.suffix.lower() == ".xml":  # an environment of a VEIL-500 release: its own domain and model
+        from .veil.command import plan_in_environment
+
+        return plan_in_environment(args.model, args.env, args.task, max_steps=args.max_steps)
     from .product import plan_task, print_program, program_json
 
     program, names, model = plan_task(args.model, args.env, args.record, args.task, args.max_steps, args.top_k)

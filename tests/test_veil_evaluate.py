@@ -249,6 +249,8 @@ def test_a_trained_model_is_evaluated_on_another_folder_with_the_same_metrics_an
     assert main(["veil", "plan", "--model", str(model), "--environment", str(env), "--objective", "Tidy Honey"]) == 0
     printed = capsys.readouterr().out
     assert "keep_on(Honey_1, Tub)" in printed and "goal reached 100%" in printed
+    assert main(["plan", "--model", str(model), "--env", str(env), "--task", "Tidy Honey"]) == 0
+    assert capsys.readouterr().out == printed  # `taskseq plan` given a release's environment file: the same plan
     assert main(["veil", "plan", "--model", str(model), "--environment", str(env), "--objective", "Bake"]) == 2
     assert "Bake" in capsys.readouterr().err
     assert main(["veil", "plan", "--model", str(tmp_path / "none.npz"), "--environment", str(env),

@@ -140,7 +140,9 @@ def _train(args: argparse.Namespace) -> int:
 
     def body(run) -> int:
         start = time.perf_counter()
-        method, goals, trained_on = train_model(args.release, settings)
+        from ..stages.command import default_jobs
+
+        method, goals, trained_on = train_model(args.release, settings, n_jobs=default_jobs())
         save_mrf(args.output, method, goals, trained_on)
         run.params({"chosen_method": method.name, "chosen_C": method.C})
         run.metrics({"seconds": time.perf_counter() - start})
@@ -165,30 +167,37 @@ def _plan_options(p: argparse.ArgumentParser) -> None:
 
 
 def _plan(args: argparse.Namespace) -> int:
+    return plan_in_environment(args.model, args.environment, args.objective, args.release, args.policy,
+                               args.max_steps)
+
+
+def plan_in_environment(model: Path, environment: Path, objective: str, release: Path | None = None,
+                        policy: str = "feasible", max_steps: int = 40) -> int:
+    """Print the steps a trained model takes toward `objective` in an environment file, and the goal reached;
+    exit code 0 when it chose `done` with the goal reached, else 1 (`taskseq veil plan`, and `taskseq plan` given
+    a release's environment file)."""
     from .evaluate import Executor, lift, rollout
     from .metrics import goal_share
     from .persist import load_mrf
     from .plan import domain_of, environment_state
 
-    if args.max_steps < 1:
-        raise ValueError(f"--max-steps must be at least 1, got {args.max_steps}")
-    method, goals, _ = load_mrf(args.model)
-    if args.objective not in method.vocabulary.objectives:
-        raise ValueError(f"objective {args.objective!r} is not one the model knows: "
+    if max_steps < 1:
+        raise ValueError(f"--max-steps must be at least 1, got {max_steps}")
+    method, goals, _ = load_mrf(model)
+    if objective not in method.vocabulary.objectives:
+        raise ValueError(f"objective {objective!r} is not one the model knows: "
                          f"{', '.join(method.vocabulary.objectives)}")
-    domain = domain_of(args.environment, args.release)
-    state = environment_state(args.environment, domain)
-    steps, final, refused, stopped = rollout(method, Executor(domain), state, args.objective, args.policy,
-                                             args.max_steps)
+    domain = domain_of(environment, release)
+    state = environment_state(environment, domain)
+    steps, final, refused, stopped = rollout(method, Executor(domain), state, objective, policy, max_steps)
     for i, s in enumerate(steps, start=1):
         print(f"{i:3d}  {s}")
-    goal = goals.get(args.objective, frozenset())
+    goal = goals.get(objective, frozenset())
     reached = goal_share(lift(final), goal) if goal else None
-    print(("status: done" if stopped else f"status: stopped after {args.max_steps} steps")
+    print(("status: done" if stopped else f"status: stopped after {max_steps} steps")
           + (f"; {refused} refused" if refused else "")
           + (f"; goal reached {100 * reached:.0f}% ({len(goal)} facts)" if reached is not None else ""))
     return 0 if stopped and reached in (None, 1.0) else 1
-
 
 SUBCOMMANDS: dict[str, SubCommand] = {
     "import": SubCommand(

@@ -300,26 +300,37 @@ def tables(report: dict) -> str:
 
 
 # one model for use: trained on a whole release, evaluated on any folder of the same format ------------------------
-def choose_model(release: Release, replays: Sequence[Replay], settings: Settings) -> tuple[str, float]:
-    """The MRF row and C of `settings` with the best next-step accuracy on an inner held-out environment number
-    of `replays`: the choice a model for use is trained with, made on its training data alone."""
-    rows = [m for m in settings.methods if m in MRF_ROWS] or list(MRF_ROWS)
+def inner_score(name: str, C: float, data: tuple[Release, list[Replay]], held_out: frozenset[int],
+                settings: Settings) -> float:
+    """Next-step accuracy of an MRF row at C, fitted without the `held_out` numbers and checked on them."""
+    release, replays = data
+    fit_on, check_on = split(replays, held_out)
     objectives = sorted({r.point.objective for r in replays})
+    return both_accuracy(make_method(name, release, objectives, settings, C).fit(fit_on), check_on)
+
+
+def choose_model(release: Release, replays: Sequence[Replay], settings: Settings, n_jobs: int = 1
+                 ) -> tuple[str, float]:
+    """The MRF row and C of `settings` with the best next-step accuracy on an inner held-out environment number
+    of `replays`: the choice a model for use is trained with, made on its training data alone. The candidates are
+    fitted `n_jobs` at a time; the choice does not depend on it."""
+    rows = [m for m in settings.methods if m in MRF_ROWS] or list(MRF_ROWS)
     numbers = {env_number(r.point.env_id) for r in replays}
     if len(numbers) < 2:
         return rows[0], settings.C_grid[0]
-    fit_on, check_on = split(replays, environment_folds(replays, min(settings.folds, len(numbers)))[0])
-    scored = [(both_accuracy(make_method(name, release, objectives, settings, C).fit(fit_on), check_on), -i, name, C)
-              for i, (name, C) in enumerate((n, c) for n in rows for c in settings.C_grid)]
-    _, _, name, C = max(scored)  # ties: the earlier row, then the smaller C
-    return name, C
+    inner = environment_folds(replays, min(settings.folds, len(numbers)))[0]
+    candidates = [(name, C) for name in rows for C in settings.C_grid]
+    data = Shared((release, list(replays)))
+    scores = run_jobs([(inner_score, (name, C, data, inner, settings)) for name, C in candidates], n_jobs)
+    best = max(range(len(candidates)), key=lambda i: (scores[i], -i))  # ties: the earlier row, then the smaller C
+    return candidates[best]
 
 
-def train_model(release_root: Path | str, settings: Settings) -> tuple[MRFMethod, dict, list[str]]:
+def train_model(release_root: Path | str, settings: Settings, n_jobs: int = 1) -> tuple[MRFMethod, dict, list[str]]:
     """The chosen MRF row fitted on every sequence of a release, the goals of its objectives and its environments."""
     release = read_release(release_root)
     replays = replay_release(release)
-    name, C = choose_model(release, replays, settings)
+    name, C = choose_model(release, replays, settings, n_jobs)
     method = make_method(name, release, sorted({r.point.objective for r in replays}), settings, C)
     assert isinstance(method, MRFMethod)
     return method.fit(replays), derive_goals(replays), sorted({r.point.env_id for r in replays})
