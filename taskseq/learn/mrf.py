@@ -55,6 +55,7 @@ from ..features.context import (
 from ..features.cues import CUE_COLUMNS, choice_cues
 from ..sim.primitives import ALL_PRIMITIVES
 from ..sim.tasks import TASKS
+from .hamming import hamming_terms
 from .products import matmul
 
 EDGE_FAMILIES = ("ae", "pt")
@@ -307,14 +308,8 @@ class _Batched:
         S, N = b.valid.shape
         f = self.batch_tables(b, w)
         P = f.P
-        if gold is not None:
-            P = P + (np.arange(N_PRIM)[None, :] != gold[:, :1])
-            l1 = (np.arange(N)[None, :] != gold[:, 1:2]).astype(float)
-            l2 = (np.arange(N)[None, :] != gold[:, 2:3]).astype(float)
-            none1, none2 = (gold[:, 1] != -1).astype(float), (gold[:, 2] != -1).astype(float)
-        else:
-            l1 = l2 = np.zeros((S, N))
-            none1 = none2 = np.zeros(S)
+        prim_loss, l1, l2, none1, none2 = hamming_terms(gold, S, N_PRIM, N)
+        P = P + prim_loss
         rows = np.arange(S)
         best = np.empty((S, N_PRIM))
         arg1 = np.full((S, N_PRIM), -1)

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from ..runtime.atomic import atomic_file
+from ..runtime.atomic import write_arrays
 from .mrf import MRFModel
 
 FORMAT = "taskseq.mrf/1"
@@ -26,12 +26,9 @@ FORMAT = "taskseq.mrf/1"
 
 def save_model(path: Path | str, model: MRFModel, w: np.ndarray, params: dict[str, Any]) -> None:
     meta = {"format": FORMAT, "features": model.features, **params}
-    arrays = {"w": np.asarray(w, dtype=np.float64), "feature_names": np.array(model.feature_names()),
-              "meta": np.array(json.dumps(meta, sort_keys=True))}
-    with atomic_file(path) as tmp, zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_STORED) as z:
-        for name, array in arrays.items():
-            with z.open(zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0)), "w") as fh:
-                np.lib.format.write_array(fh, array, allow_pickle=False)
+    write_arrays(path, {"w": np.asarray(w, dtype=np.float64), "feature_names": np.array(model.feature_names()),
+                        "meta": np.array(json.dumps(meta, sort_keys=True))})
+
 
 
 def load_model(path: Path | str) -> tuple[MRFModel, np.ndarray, dict[str, Any]]:

@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from ..learn.hamming import hamming_terms
 from ..learn.products import matmul
 
 Label = tuple[int, int, int]
@@ -215,14 +216,8 @@ class DomainMRF:
         P, U1, U2, pair, valid = self.tables(X, w)
         S, V, N = U1.shape
         neg = np.where(valid, 0.0, -np.inf)
-        if gold is not None:
-            P = P + (np.arange(V)[None, :] != gold[:, :1])
-            l1 = (np.arange(N)[None, :] != gold[:, 1:2]).astype(float)
-            l2 = (np.arange(N)[None, :] != gold[:, 2:3]).astype(float)
-            none1, none2 = (gold[:, 1] != -1).astype(float), (gold[:, 2] != -1).astype(float)
-        else:
-            l1 = l2 = np.zeros((S, N))
-            none1 = none2 = np.zeros(S)
+        prim_loss, l1, l2, none1, none2 = hamming_terms(gold, S, V, N)
+        P = P + prim_loss
         rows = np.arange(S)
         best = np.full((S, V), -np.inf)
         arg1, arg2 = np.full((S, V), -1), np.full((S, V), -1)

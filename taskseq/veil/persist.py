@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from ..runtime.atomic import atomic_file
+from ..runtime.atomic import write_arrays
 from .features import Vocabulary
 from .methods import MRFMethod
 
@@ -34,11 +34,8 @@ def save_mrf(path: Path | str, method: MRFMethod, goals: Goals, trained_on: list
                            "categories": list(v.categories), "objectives": list(v.objectives)},
             "goals": {o: sorted(list(f) for f in facts) for o, facts in sorted(goals.items())},
             "trained_on": sorted(trained_on)}
-    arrays = {"w": np.asarray(method.w_, dtype=np.float64), "meta": np.array(json.dumps(meta, sort_keys=True))}
-    with atomic_file(path) as tmp, zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_STORED) as z:
-        for name, array in arrays.items():
-            with z.open(zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0)), "w") as fh:
-                np.lib.format.write_array(fh, array, allow_pickle=False)
+    write_arrays(path, {"w": np.asarray(method.w_, dtype=np.float64),
+                        "meta": np.array(json.dumps(meta, sort_keys=True))})
 
 
 def load_mrf(path: Path | str) -> tuple[MRFMethod, Goals, dict[str, Any]]:
