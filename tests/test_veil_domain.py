@@ -82,7 +82,7 @@ def test_initial_facts_come_from_true_states_and_category_defaults_and_other_val
     assert s.holds("state", "Beaker_2", "Tea")  # `1` is true
     assert not s.holds("state", "Teapot_1", "Tea")
     assert s.holds("state", "Honey_1", "Honey")  # the category's default
-    assert s.holds("state", "Sorbet_1", "ScoopsLeft")  # a count of 2: it holds while any is left
+    assert s.holds("state", "Sorbet_1", "ServingsLeft")  # a count of 2: it holds while any is left
     assert not any(f[0] in ("Near", "On", "In", "Grasping") for f in s.facts)
     beaker = s.world.objects["Beaker_2"]
     assert beaker.category == "Beaker" and beaker.catalogued
@@ -125,7 +125,7 @@ PRECONDITIONS = {
     ("squeeze", 2): (KITCHEN, ["moveto Beaker_1", "grasp Beaker_1", "moveto Teapot_1", "grasp Teapot_1"],
                      "squeeze Beaker_1 Teapot_1", "Beaker_1 is not IsSqueezeable"),
     ("scoop", 2): (KITCHEN, ["moveto Dipper_1", "grasp Dipper_1", "moveto Teapot_1", "grasp Teapot_1"],
-                   "scoop Dipper_1 Teapot_1", "Teapot_1 is not ScoopsLeft"),
+                   "scoop Dipper_1 Teapot_1", "Teapot_1 is not ServingsLeft"),
     ("insert", 2): (LIVING, ["moveto Player_1", "grasp Player_1", "moveto Lantern_1", "grasp Lantern_1"],
                     "insert Lantern_1 Player_1", "lantern_1 is not Tape"),
 }
@@ -168,10 +168,10 @@ def test_a_forall_when_effect_fills_what_stands_in_the_tub_and_only_that(release
     s = run(release, index, KITCHEN, ["moveto Teapot_1", "grasp Teapot_1", "moveto Tub", "keep Teapot_1 On Tub",
                                       "turn TubKnob"])
     assert s.holds("On", "Teapot_1", "Tub")
-    assert s.holds("state", "TubKnob", "TapIsOn") and s.holds("state", "Teapot_1", "Tea")
+    assert s.holds("state", "TubKnob", "TubRuns") and s.holds("state", "Teapot_1", "Tea")
     assert not s.holds("state", "Beaker_1", "Tea")
     off = run(release, index, KITCHEN, ["turn TubKnob"], s)  # both whens read the state before the step
-    assert not off.holds("state", "TubKnob", "TapIsOn") and off.holds("state", "Teapot_1", "Tea")
+    assert not off.holds("state", "TubKnob", "TubRuns") and off.holds("state", "Teapot_1", "Tea")
     lifted = run(release, index, KITCHEN, ["moveto Teapot_1", "grasp Teapot_1"], off)
     assert not lifted.holds("On", "Teapot_1", "Tub")  # grasp's forall clears what it stood on
 

@@ -157,7 +157,8 @@ def _plan_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--model", type=Path, required=True, help="a trained model (`taskseq veil train`)")
     p.add_argument("--environment", type=Path, required=True,
                    help="an environment file in the release's format (Environments/kitchen/kitchenN.xml, ...)")
-    p.add_argument("--objective", required=True, help="the objective, as the model knows it (e.g. 'Boiling Water')")
+    p.add_argument("--objective", required=True,
+                   help="the objective, as the model knows it (one of the objectives of the release it was trained on)")
     p.add_argument("--release", type=Path, default=None,
                    help="the folder whose Objects.xml, domainKnowledge.pddl and ControllerInstructions.xml describe "
                         "the domain (default: the folder holding the environment's Environments/ folder)")

@@ -1,14 +1,14 @@
-"""One action line of `data.xml` (`keep Kettle On StoveFire_2`) to the domain action that executes it, and to the
+"""One action line of `data.xml` (`keep Teapot_1 On HotPlate_1`) to the domain action that executes it, and to the
 step the learner sees.
 
-Which domain action: the object-specific action `<verb>_<Object>` when the domain defines one (`turn_StoveKnob_1`,
-`press_MicrowaveButton`; `add_<Object> ?x`: the line's remaining objects are its parameters), else the generic
+Which domain action: the object-specific action `<verb>_<Object>` when the domain defines one (`turn_HotPlateKnob_1`,
+`press_Radio_1PowerButton`; `add_<Object> ?x`: the line's remaining objects are its parameters), else the generic
 action of the verb with as many parameters as the line has arguments (`grasp ?o`, `pour ?x` or `pour ?x ?y`). For
 `keep X <Rel> Y` it is `keep_<Rel>_<Y> ?x` when defined, else the generic `keep ?x ?rel ?z`.
 
 Names (checked on the release): the domain writes an object-specific name as the object is written in the
-sequences, but for case and, for some objects, an underscore (`keep_On_StoveFire2` for the object
-`StoveFire_2`; the fixture's `keep_On_HotPlate1` for `HotPlate_1`). So an action is looked up by its object's
+sequences, but for case and, for some objects, an underscore (the fixture's
+`keep_On_HotPlate1` for the object `HotPlate_1`). So an action is looked up by its object's
 name without case and underscores (`release.loose_key`); two actions of one verb whose names meet under that
 key are an error of the domain. The relation words of the sequences are `On` and `Inside`; the domain writes
 `Inside` as `In` (`keep_In_<Object>`, `(= ?rel In)`), so `RELATIONS` maps one to the other.

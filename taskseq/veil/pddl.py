@@ -1,7 +1,7 @@
 """A tolerant reader of the release's `domainKnowledge.pddl`: its actions are parsed, never re-typed.
 
 Why a reader of our own: the `pddl` package (a dev dependency of the project, used for the benchmark's own domain)
-refuses this file. The file uses the constant `Robot` (and object names such as `StoveFire2`)
+refuses this file. The file uses the constant `Robot` (and object names such as `HotPlate1`)
 without declaring them, declares no `:requirements` although it uses `:conditional-effects`, `forall` and
 equality, overloads `pour` with one and with two parameters, and has actions without parameters or without a
 precondition. This reader accepts all of that and keeps every formula as written (also where one looks like a slip
@@ -22,7 +22,7 @@ from .xmltree import VeilFormatError
 
 @dataclass(frozen=True)
 class Atom:
-    """A predicate applied to terms: variables (`?x`) or constants (`Robot`, `StoveFire2`, a state name)."""
+    """A predicate applied to terms: variables (`?x`) or constants (`Robot`, `HotPlate1`, a state name)."""
 
     predicate: str
     args: tuple[str, ...]

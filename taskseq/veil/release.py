@@ -24,7 +24,7 @@ from .xmltree import Node, VeilFormatError, child_text, read_xml
 ROOMS = ("kitchen", "livingRoom")
 _KITCHEN_ID = re.compile(r"kitchen_scenario_environment_number_(\d+)")
 _LIVING_ID = re.compile(r"living_room_scenario_environment_number(\d+)")
-_INSTANCE = re.compile(r"_\d+$")  # `Mug_1` is instance 1 of `Mug`
+_INSTANCE = re.compile(r"_\d+$")  # `Beaker_1` is instance 1 of `Beaker`
 _TRAILING = re.compile(r"[_\d]+$")  # `Crate2_1` is a `Crate`
 
 
@@ -48,8 +48,8 @@ class NameIndex:
     """Object names of one environment, looked up without case, and failing that without case and underscores.
 
     Sequences name objects as their environment does but for case (`Bench_1`, `bench_1`); the domain's
-    object-specific actions and constants drop an underscore too (`keep_On_StoveFire2`, `(On ?x StoveFire2)` for
-    the object `StoveFire_2`). The looser key is used only when it names one object of the environment.
+    object-specific actions and constants drop an underscore too (`keep_On_HotPlate1`, `(On ?x HotPlate1)` for
+    the object `HotPlate_1`). The looser key is used only when it names one object of the environment.
     """
 
     def __init__(self, names: Iterable[str]) -> None:
@@ -96,8 +96,8 @@ class Catalog:
 
     def category_of(self, name: str) -> tuple[str, Category | None]:
         """An object's category from its name: the whole name, else the name without its instance suffix `_N`,
-        else without any trailing digits and underscores, matched without case (`Mug_1` -> `Mug`,
-        `A_1B_1` -> `A_1B`, `StoveKnob_1` -> `StoveKnob_1` when that is a category, `Crate2_1` -> `Crate`). A name
+        else without any trailing digits and underscores, matched without case (`Beaker_1` -> `Beaker`,
+        `A_1B_1` -> `A_1B`, `HotPlateKnob_1` -> `HotPlateKnob_1` when that is a category, `Crate2_1` -> `Crate`). A name
         with no category in the file (the release's buttons and a few others) gets its base name (`Crate_1` -> `Crate`)
         as category and None: no affordances and no default states."""
         candidates = [name, _INSTANCE.sub("", name), _TRAILING.sub("", name)]

@@ -1,19 +1,19 @@
 """Immutable symbolic states of a VEIL environment, and the release's parsed actions applied to them.
 
 A `State` is a `World` (the environment's objects: category, affordances, position, non-boolean state values;
-shared by every state of a sequence) and a frozenset of facts: ("Near", "Robot", "Mug_1"),
-("Grasping", "Robot", "Mug_1"), ("On", "Kettle", "StoveFire_2"), ("In", "X", "Y"), ("state", "Mug_1", "Water").
+shared by every state of a sequence) and a frozenset of facts: ("Near", "Robot", "Beaker_1"),
+("Grasping", "Robot", "Beaker_1"), ("On", "Teapot_1", "HotPlate_1"), ("In", "X", "Y"), ("state", "Beaker_1", "Tea").
 
 Initial facts: an object's states are its category's defaults in `Objects.xml` overridden by the values its
 environment file lists; a value `True` or a whole number other than 0 is a fact ("state", obj, name) (the
-domain's comment: a state predicate holds when its value is 1, is false at 0; a count such as an ice-cream tub's
-`ScoopsLeft` of 2 holds while any is left), `False` and `0` are no fact, and any other value (`Low`, `Null`) is
+domain's comment: a state predicate holds when its value is 1, is false at 0; a count such as a value of 2
+holds while any is left), `False` and `0` are no fact, and any other value (`Low`, `Null`) is
 kept as an attribute of the object and makes no fact. The environments give no relations, so
 no Near, On or In holds at first.
 
 Meaning of the parsed formulas (`apply`): parameters are bound to the step's arguments; the constant `Robot` is
-the robot; any other constant that names an object of the environment (`NameIndex.resolve`: `StoveFire2` is the
-object `StoveFire_2`) is that object, except a `state` atom's second argument, which is a state name; a one-place
+the robot; any other constant that names an object of the environment (`NameIndex.resolve`: `HotPlate1` is the
+object `HotPlate_1`) is that object, except a `state` atom's second argument, which is a state name; a one-place
 atom such as (IsGraspable ?o) holds when the object has that affordance or the fact is present; `forall` ranges
 over the environment's objects (not the robot); every condition of a step, `when` conditions included, is
 evaluated on the state before the step, and the step's deletes are applied before its adds.
@@ -95,7 +95,7 @@ class StepRefused(Exception):
 
 def _boolean(value: str) -> bool | None:
     v = value.strip().lower()
-    if v.isdigit():  # a count (an ice-cream tub's `ScoopsLeft` is 2): the state holds while any is left
+    if v.isdigit():  # a count (a value of 2): the state holds while any is left
         return int(v) != 0
     return True if v in TRUE_VALUES else False if v in FALSE_VALUES else None
 
