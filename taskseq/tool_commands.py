@@ -140,7 +140,8 @@ def _scaling_options(p: argparse.ArgumentParser) -> None:
 def _scaling(args: argparse.Namespace) -> int:
     from .bench.scaling import Plan, format_scaling, parse_rooms, plot_scaling, run_scaling
     from .runtime.atomic import write_json_atomic
-    from .stages.command import default_jobs, load_params
+    from .runtime.jobs import default_jobs
+    from .stages.command import load_params
 
     learner = load_params(args).train
     C = learner.C if args.C is None else args.C

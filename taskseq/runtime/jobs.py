@@ -81,6 +81,16 @@ def _call(f: Callable[..., Any], args: tuple[Any, ...]) -> Any:
     return f(*(a.value if isinstance(a, Shared) else a for a in args))
 
 
+def default_jobs() -> int:
+    """Workers for parallel work (stages, the VEIL experiment): `TASKSEQ_N_JOBS` if set, else one per CPU."""
+    value = os.environ.get("TASKSEQ_N_JOBS")
+    if value is None:
+        return os.cpu_count() or 1
+    if not value.isdigit() or int(value) < 1:
+        raise SystemExit(f"error: TASKSEQ_N_JOBS must be a positive whole number, got {value!r}")
+    return int(value)
+
+
 def run_jobs(jobs: Iterable[Job], n_jobs: int = 1, verbose: int = 0,
              cost: Sequence[float] | None = None) -> list[Any]:
     """`[f(*args) for f, args in jobs]`, in that order, run in parallel where the setting says.

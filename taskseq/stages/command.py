@@ -12,23 +12,13 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import os
 from dataclasses import MISSING, fields
 from pathlib import Path
 from typing import Any
 
+from ..runtime.jobs import default_jobs
 from ..settings import Params
 from . import STAGES
-
-
-def default_jobs() -> int:
-    """Workers for parallel stages: `TASKSEQ_N_JOBS` if set, else one per CPU."""
-    value = os.environ.get("TASKSEQ_N_JOBS")
-    if value is None:
-        return os.cpu_count() or 1
-    if not value.isdigit() or int(value) < 1:
-        raise SystemExit(f"error: TASKSEQ_N_JOBS must be a positive whole number, got {value!r}")
-    return int(value)
 
 
 def positive(value: str) -> int:

@@ -88,7 +88,7 @@ def _evaluate(args: argparse.Namespace) -> int:
             method, goals, _ = load_mrf(args.model)
             report = evaluate_model(method, goals, args.release, settings, progress=bar)
         else:
-            from ..stages.command import default_jobs
+            from ..runtime.jobs import default_jobs
 
             report = run_experiment(args.release, settings, n_jobs=default_jobs(), recordings_dir=args.recordings_dir)
         write_reports(report, args.output)
@@ -140,7 +140,7 @@ def _train(args: argparse.Namespace) -> int:
 
     def body(run) -> int:
         start = time.perf_counter()
-        from ..stages.command import default_jobs
+        from ..runtime.jobs import default_jobs
 
         method, goals, trained_on = train_model(args.release, settings, n_jobs=default_jobs())
         save_mrf(args.output, method, goals, trained_on)

@@ -136,9 +136,8 @@ def label_of(step: Step, state: State) -> tuple[int, int, int]:
             names.index(step.a2) if step.a2 is not None else -1)
 
 
-def step_of(label: Sequence[int], state: State) -> Step:
-    """The step a label names in `state`."""
-    names = list(state.world.objects)
+def step_of(label: Sequence[int], names: Sequence[str]) -> Step:
+    """The step a label names among a state's objects `names` (in the world's order)."""
     verb, _ = SIGNATURES[int(label[0])]
     a1, a2 = (names[int(a)] if int(a) >= 0 else None for a in label[1:3])
     return Step(verb, a1, a2)

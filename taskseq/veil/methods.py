@@ -78,5 +78,6 @@ class MRFMethod:
 
     def ranked(self, state: State, history: Sequence[Step], objective: str) -> Iterator[Step]:
         labels, _ = self.model_.scores(self.vocabulary.step_input(state, history, objective), self.w_)
+        names = list(state.world.objects)  # once per ranking, not per candidate
         for label in labels:
-            yield step_of(label, state)
+            yield step_of(label, names)
