@@ -49,6 +49,7 @@ class Group:
 
     modules: tuple[str, ...]
     tests: tuple[str, ...]
+    timeout_multiplier: float = 15.0  # mutmut's: a mutant is stopped after about this many times its tests' time
 
     def dotted(self) -> set[str]:
         """The modules as mutmut's names begin with them (`taskseq.sim.primitives`)."""
@@ -77,6 +78,7 @@ GROUPS = {
     "world": Group(("taskseq/sim/safety.py", "taskseq/sim/procedural.py", "taskseq/sim/demonstrator.py"),
                    ("tests/test_safety.py", "tests/test_demonstrator.py", "tests/test_procedural.py",
                     "tests/test_primitives.py")),
+    "atomic": Group(("taskseq/runtime/atomic.py",), ("tests/test_atomic_behaviour.py",)),
 }
 
 
@@ -93,7 +95,8 @@ def _scratch(name: str, group: Group) -> Path:
         "", "[tool.mutmut]", 'source_paths = ["taskseq"]',
         f"only_mutate = {list(group.modules)!r}",
         f"pytest_add_cli_args_test_selection = {tests!r}",
-        'pytest_add_cli_args = ["-p", "no:cacheprovider", "-n", "0"]', "",  # mutmut follows one process
+        'pytest_add_cli_args = ["-p", "no:cacheprovider", "-n", "0"]',  # mutmut follows one process
+        f"timeout_multiplier = {group.timeout_multiplier!r}", "",
     ]).replace("'", '"')
     (scratch / "pyproject.toml").write_text((ROOT / "pyproject.toml").read_text() + settings)
     return scratch
