@@ -15,6 +15,7 @@ import pytest
 
 from taskseq.cli import main
 from taskseq.demonstrations.ingest import (
+    SCHEMAS,
     is_person_record,
     load_logs,
     load_people_logs,
@@ -76,6 +77,41 @@ def test_two_versions_of_a_room_ingest_together_and_the_tables_give_back_every_r
     records, summary = people_records(folder)
     assert len(records) == 4 and summary["environments"] == 2
     assert summary["objects"] == len(world_environment(0, "env01").state.specs) + 1  # the two cups
+
+
+def test_a_participant_and_corrections_survive_the_tables(tmp_path):
+    """Record -> ingest -> tables -> records keeps each record's `participant` and `corrected` (absent, empty and
+    not), as `taskseq serve` writes them; the sequences table holds them in columns null where a record has none."""
+    folder = tmp_path / "people"
+    writer = RecordWriter(folder)
+    env = world_environment(0, "env01")
+    actions = demonstrate(env.state, POUR)[0]
+    kinds = [{}, {"participant": "p07"}, {"corrected": []}, {"participant": "p07", "corrected": [2, 0]},
+             {"participant": "walkthrough", "corrected": [len(actions)]}]
+    for kind in kinds:
+        path = writer.append(person_record(env, POUR, actions, **kind))
+    written = lines(path)
+    assert [(r.get("participant"), r.get("corrected")) for r in written] == [
+        (None, None), ("p07", None), (None, []), ("p07", [0, 2]), ("walkthrough", [len(actions)])]
+    assert main(["--no-mlflow", "ingest", "--input", str(folder), "--output", str(tmp_path / "t")]) == 0
+    tables = read_tables(tmp_path / "t")
+    assert tables["sequences"].column_names[-2:] == ["participant", "corrected"]
+    assert records_from_tables(tables) == written
+    assert records_from_tables(load_people_logs(folder)[0]) == written
+
+
+def test_the_person_columns_are_there_only_where_a_record_carries_the_field(tmp_path):
+    """A column is written only where some record carries its field, so the benchmark's tables, whose records
+    carry neither, keep their schema (and bytes), and a folder without corrections has no `corrected` column."""
+    folder = tmp_path / "people"
+    env = world_environment(0, "env01")
+    RecordWriter(folder).append(person_record(env, POUR, demonstrate(env.state, POUR)[0], participant="p07"))
+    tables = load_people_logs(folder)[0]
+    assert tables["sequences"].column_names == [*SCHEMAS["sequences"].names, "participant"]
+    assert records_from_tables(tables)[0]["participant"] == "p07"
+    person, bench = people_and_benchmark(tmp_path / "mixed")
+    person.unlink()  # the scripted demonstrator's log alone
+    assert load_logs(bench.parent)[0]["sequences"].schema == SCHEMAS["sequences"]
 
 
 def as_benchmark(path: Path) -> None:

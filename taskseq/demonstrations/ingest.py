@@ -6,7 +6,8 @@ Tables (one Parquet file each):
                 per object of each environment, with its `env_id` first
   environments  which objects each environment holds, in log order
   scenarios     environment + task + task arguments, with its number of sequences
-  sequences     one row per demonstration, with the file and line it came from
+  sequences     one row per demonstration, with the file and line it came from; with `participant` and
+                `corrected` columns only where a record carries these fields (people's demonstrations)
   steps         one row per primitive executed
   states        the world before every step and after the last, one row per object
 """
@@ -49,8 +50,17 @@ SCHEMAS: dict[str, pa.Schema] = {
     ),
 }
 TABLES = tuple(SCHEMAS)
+# the optional fields a record of `taskseq serve` may carry, as columns of the sequences table: each column is written
+# only where some record of the input carries its field (null where a record does not), so the tables of the
+# benchmark's logs, which carry neither, keep their schema and bytes
+PERSON_COLUMNS: dict[str, pa.DataType] = {"participant": STR, "corrected": pa.list_(I32)}
 # the objects table where an object id means different objects in different environments
 OBJECTS_BY_ENVIRONMENT = pa.schema([("env_id", STR), *SCHEMAS["objects"]])
+
+
+def sequences_schema(columns: list[str] | tuple[str, ...]) -> pa.Schema:
+    """The sequences table's schema with those of `PERSON_COLUMNS` named in `columns`, in their fixed order."""
+    return pa.schema([*SCHEMAS["sequences"], *((c, t) for c, t in PERSON_COLUMNS.items() if c in columns)])
 
 
 def _arg(args: list[str], i: int) -> str | None:
@@ -125,7 +135,7 @@ class _Collector:
         sid = rec["demo_id"]
         self.rows["sequences"].append(
             {"sequence_id": sid, "scenario_id": rec["scenario_id"], "source": item.path.name, "line": item.line,
-             "n_steps": len(rec["steps"])}
+             "n_steps": len(rec["steps"]), **{c: rec[c] for c in PERSON_COLUMNS if c in rec}}
         )
         for k, step in enumerate(rec["steps"]):
             self.rows["steps"].append(
@@ -167,7 +177,9 @@ class _Collector:
             self.rows["scenarios"].append(
                 {"scenario_id": scen_id, **{k: s[k] for k in ("env_id", "task", "arg1", "arg2", "n_sequences")}}
             )
-        schemas = {**SCHEMAS, "objects": SCHEMAS["objects"] if one_each else OBJECTS_BY_ENVIRONMENT}
+        carried = [c for c in PERSON_COLUMNS if any(c in row for row in self.rows["sequences"])]
+        schemas = {**SCHEMAS, "objects": SCHEMAS["objects"] if one_each else OBJECTS_BY_ENVIRONMENT,
+                   "sequences": sequences_schema(carried)}
         return {t: pa.Table.from_pylist(self.rows[t], schema=schemas[t]) for t in TABLES}
 
 
@@ -284,15 +296,18 @@ def write_tables(tables: dict[str, pa.Table], output: Path | str) -> None:
 
 
 def read_tables(directory: Path | str) -> dict[str, pa.Table]:
-    """The tables `write_tables` wrote; the objects table as it was written, per environment or not."""
+    """The tables `write_tables` wrote; the objects table as it was written, per environment or not, and the
+    sequences table with the person's columns it was written with."""
     directory = Path(directory)
     per_env = pq.read_schema(directory / "objects.parquet").names[0] == "env_id"
-    schemas = {**SCHEMAS, "objects": OBJECTS_BY_ENVIRONMENT if per_env else SCHEMAS["objects"]}
+    sequences = sequences_schema(pq.read_schema(directory / "sequences.parquet").names)
+    schemas = {**SCHEMAS, "objects": OBJECTS_BY_ENVIRONMENT if per_env else SCHEMAS["objects"], "sequences": sequences}
     return {t: pq.read_table(directory / f"{t}.parquet", schema=schemas[t]) for t in TABLES}
 
 
 def records_from_tables(tables: dict[str, pa.Table]) -> list[dict[str, Any]]:
-    """Rebuild the log records from the tables, in their original file and line order."""
+    """Rebuild the log records from the tables, in their original file and line order, with the `participant` and
+    `corrected` of the records that carried them."""
     objects = {(o.get("env_id"), o["object_id"]): o for o in tables["objects"].to_pylist()}
     per_env = "env_id" in tables["objects"].column_names
     env_objects: dict[str, list[str]] = {}
@@ -332,7 +347,7 @@ def records_from_tables(tables: dict[str, pa.Table]) -> list[dict[str, Any]]:
     for seq in sorted(tables["sequences"].to_pylist(), key=lambda s: (s["source"], s["line"])):
         sid, scen = seq["sequence_id"], scenarios[seq["scenario_id"]]
         rows = sorted(steps.get(sid, []), key=lambda r: r["step"])
-        out.append({
+        record = {
             "format": FORMAT,
             "demo_id": sid,
             "scenario_id": seq["scenario_id"],
@@ -345,5 +360,9 @@ def records_from_tables(tables: dict[str, pa.Table]) -> list[dict[str, Any]]:
                 for r in rows
             ],
             "final_state": state(sid, seq["n_steps"]),
-        })
+        }
+        for column in PERSON_COLUMNS:
+            if seq.get(column) is not None:
+                record[column] = seq[column]
+        out.append(record)
     return out
