@@ -21,7 +21,8 @@ from ..product import parse_environment
 from ..sim.catalog import ENVIRONMENTS, ENVIRONMENTS_BY_ID, build_environment
 from ..sim.state import WorldState
 
-SAFE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")  # file names and participant ids: no dots, no slashes
+SAFE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}\Z")  # file names and participant ids: no dots, no slashes,
+# no newline (`$` would let a final one through)
 MAX_SEED = 2**31 - 1
 
 
