@@ -17,66 +17,11 @@ from ..features.context import StepContext, step_context
 from ..sim.primitives import Action, PreconditionError, execute, try_execute
 from ..sim.safety import violations
 from ..sim.state import WorldState
-from ..sim.tasks import Task, goal_reached
+from ..sim.tasks import Task
+from .records import DONE, INFEASIBLE, STEP_CAP, PlanStep, Program
 
 if TYPE_CHECKING:  # only named in hints: the stages that read programs need not import the learner (Numba, scipy)
     from ..learn.estimator import StepScorer
-
-DONE = "done"
-STEP_CAP = "step_cap"
-INFEASIBLE = "infeasible"
-
-
-@dataclass
-class PlanStep:
-    action: Action
-    score: float
-    alternatives: list[tuple[Action, float]]  # the policy's other proposals in its order (a lookahead may have
-    # passed over better-scored ones)
-    unsafe: list[str] = field(default_factory=list)  # safety rules the action breaks
-
-
-@dataclass
-class Program:
-    """What a rollout did: its steps and the world before each, and why it stopped.
-
-    `states[k]` is the world before step k, and the last one the world the
-    program left: len(steps) + 1 states, or len(steps) when the last step was
-    infeasible (it changed nothing). Recordings and metrics read these states,
-    so nothing is executed a second time.
-    """
-
-    task: Task
-    steps: list[PlanStep]
-    status: str  # DONE, STEP_CAP or INFEASIBLE
-    states: list[WorldState]
-    error: str | None = None
-
-    @property
-    def initial(self) -> WorldState:
-        return self.states[0]
-
-    @property
-    def final(self) -> WorldState:
-        return self.states[-1]
-
-    @property
-    def actions(self) -> list[Action]:
-        return [s.action for s in self.steps]
-
-    @property
-    def goal_reached(self) -> bool:
-        return goal_reached(self.task, self.initial, self.final)
-
-    @property
-    def safe(self) -> bool:
-        return not any(s.unsafe for s in self.steps)
-
-    @property
-    def success(self) -> bool:
-        """Stopped by choice, goal reached and no safety rule broken."""
-        return self.status == DONE and self.goal_reached and self.safe
-
 
 Y = tuple[int, int, int]
 Ranked = list[tuple[Y, float]]
