@@ -8,8 +8,8 @@
 - The CLI reference page is the help of `taskseq.cli.build_parser()`, every subcommand's.
 - A page line `<!-- generated: NAME -->` is replaced by the table `GENERATED[NAME]` makes:
   the timings of `reports/bench.json` and `reports/scaling.json`, the mutation scores of
-  `reports/mutation/`, the development world's ranking in `reports/selection.json`, and the
-  package's layout from its modules' docstrings.
+  `reports/mutation/`, the development world's ranking in `reports/selection.json`, the `teach`
+  stage's tables of `reports/teach/`, and the package's layout from its modules' docstrings.
 
 Nothing is copied by hand, so a build after `dvc repro` (or `taskseq bench`, `taskseq
 scaling`, `scripts/mutation.py`) shows that run's numbers.
@@ -18,6 +18,7 @@ scaling`, `scripts/mutation.py`) shows that run's numbers.
 from __future__ import annotations
 
 import ast
+import csv
 import json
 import os
 import re
@@ -363,7 +364,37 @@ def veil_results() -> str:
         "\nWritten by `dvc repro veil/dvc.yaml` (stage `evaluate`: `taskseq veil evaluate`).\n"
 
 
+TEACH_COMMAND = "dvc repro teach"
+
+
+def teach_results() -> str:
+    """The `teach` stage's table (`reports/teach/teach.md` without its title), each world's counts of held-out tasks
+    and successes per k (`reports/teach/teach_seeds.csv`), and what changes from the smallest k to the largest."""
+    path = REPORTS / "teach" / "teach.md"
+    seeds = REPORTS / "teach" / "teach_seeds.csv"
+    if not path.is_file() or not seeds.is_file():
+        return _missing("teach/teach.md", TEACH_COMMAND)
+    text = path.read_text()
+    text = text.split("\n", 1)[1].lstrip("\n") if text.startswith("# ") else text
+    with open(seeds, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    ks = sorted({int(r["k"]) for r in rows})
+    worlds = sorted({int(r["world_seed"]) for r in rows})
+    count = {(int(r["world_seed"]), int(r["k"])): (int(r["successes"]), int(r["held_out_tasks"])) for r in rows}
+    table = _rows(["world seed", "held-out tasks", *(f"successes, k = {k}" for k in ks)], "r" * (len(ks) + 2),
+                  [[w, count[w, ks[0]][1], *(count[w, k][0] for k in ks)] for w in worlds])
+    first, last = ks[0], ks[-1]
+    moves = ", ".join(f"{count[w, last][0] - count[w, first][0]:+d} in world {w}" for w in worlds)
+    total = sum(count[w, first][1] for w in worlds)
+    gained = sum(count[w, last][0] - count[w, first][0] for w in worlds)
+    return (text.rstrip("\n") + "\n\nPer world (`reports/teach/teach_seeds.csv`), the held-out tasks and how many "
+            "succeed for each k:\n\n" + table
+            + f"\nFrom k = {first} to k = {last}, successes change by {moves}: {gained:+d} of {total} held-out tasks "
+            "in all.\n")
+
+
 GENERATED = {
+    "teach-results": teach_results,
     "bench-training": bench_training,
     "bench-latency": bench_latency,
     "scaling-fit": scaling_fit,

@@ -51,6 +51,20 @@ def test_the_results_page_holds_the_reports_as_they_are():
     assert "crossval_sequences.csv" not in page  # DVC-cached, absent from a fresh clone
 
 
+def test_the_teach_page_shows_the_teach_reports_as_they_are():
+    """docs/teach.md's figures are the `teach` stage's reports, filled in at build time, never rows typed in."""
+    hooks = _hooks()
+    text = hooks.teach_results()
+    rows = [line for line in (ROOT / "reports" / "teach" / "teach.md").read_text().splitlines() if line.startswith("|")]
+    assert rows and all(row in text for row in rows)
+    for seed in (ROOT / "reports" / "teach" / "teach_seeds.csv").read_text().splitlines()[1:]:
+        world, _, held_out, _ = seed.split(",")[:4]
+        assert f"| {world} | {held_out} |" in text
+    page = (DOCS / "teach.md").read_text()
+    assert "<!-- generated: teach-results -->" in page
+    assert not any(row in page for row in rows[2:])
+
+
 def test_every_module_has_its_api_reference():
     """A subpackage's page renders its modules (show_submodules); top-level modules each need a block."""
     blocks = set()
