@@ -26,13 +26,13 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 from .features import DONE, line_of
-from .grounding import ActionError, ActionIndex, Step, UnknownObject
+from .grounding import ActionError, ActionIndex, Grounded, Step, UnknownObject
 from .methods import VeilMethod, training_steps
 from .metrics import goal_share, nearest_edit_distance
 from .plan import DomainFiles
 from .release import Release, environment_file
 from .replay import Replay
-from .state import State, StepRefused, step
+from .state import State, StepRefused, World, step
 
 POLICIES = ("plain", "feasible")
 GOAL_SHARE = 0.5  # a lifted fact is part of an objective's goal when this share of its training sequences reach it
@@ -124,17 +124,30 @@ class Run:
 
 
 class Executor:
-    """Runs steps in the release's domain: a step's line grounded as the importer grounds people's."""
+    """Runs steps in the release's domain: a step's line grounded as the importer grounds people's.
+
+    A step's grounding depends on its environment's names only, never on the state, so it is made once per
+    (environment, step) and kept: searches and lookaheads try the same steps in many states."""
 
     def __init__(self, release: Release | DomainFiles) -> None:
         self.index = ActionIndex(release.domain)
         self.arities = {k: tuple(len(p) for p in v) for k, v in release.instructions.items()}
+        self._grounded: dict[tuple[str, Step], Grounded | None] = {}
+
+    def grounded(self, world: World, s: Step) -> Grounded | None:
+        """The domain action and arguments of `s` in `world`, or None when no action executes it there."""
+        key = (world.env_id, s)
+        if key not in self._grounded:
+            try:
+                self._grounded[key] = self.index.ground(line_of(s), world.names, self.arities)
+            except (ActionError, UnknownObject):
+                self._grounded[key] = None
+        return self._grounded[key]
 
     def after(self, state: State, s: Step) -> State | None:
         """The state after `s`, or None when the domain refuses it."""
-        try:
-            g = self.index.ground(line_of(s), state.world.names, self.arities)
-        except (ActionError, UnknownObject):
+        g = self.grounded(state.world, s)
+        if g is None:
             return None
         result = step(state, g.action, g.args)
         return None if isinstance(result, StepRefused) else result

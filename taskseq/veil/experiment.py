@@ -36,22 +36,28 @@ from .evaluate import (
     states_of,
 )
 from .features import Vocabulary
+from .lookahead import GoalLookahead
 from .methods import MRFMethod, VeilMethod
 from .metrics import bootstrap_by_group, paired_sign_flip
 from .recordings import record_run
 from .release import Release, read_release
 from .replay import Replay, replay_release
+from .symbolic import SymbolicPlanner
 
-BASELINES = ("chance", "most_frequent", "nearest_demonstration", "multiclass_svm")
+BASELINES = ("chance", "most_frequent", "nearest_demonstration", "multiclass_svm", "symbolic_planner")
 # each MRF row: its feature set, whether an object's row says its category, and how C is chosen inside the
-# training environments: by next-step accuracy, or by the share of the goal closed-loop runs reach
+# training environments: by next-step accuracy, or by the share of the goal closed-loop runs reach. A row with a
+# `base` is that row's fitted model run another way (`lookahead.GoalLookahead`): it shares the base's C and fit.
 MRF_ROWS = {"mrf_attributes": {"features": "full", "categories": False, "select": "next_step"},
             "mrf_categories": {"features": "full", "categories": True, "select": "next_step"},
-            "mrf_categories_goal": {"features": "full", "categories": True, "select": "goal"}}
+            "mrf_categories_goal": {"features": "full", "categories": True, "select": "goal"},
+            "mrf_categories_lookahead": {"base": "mrf_categories"}}
 LABELS = {"chance": "chance", "most_frequent": "most frequent next step",
           "nearest_demonstration": "nearest demonstration, replayed", "multiclass_svm": "multiclass SVM",
+          "symbolic_planner": "symbolic planner toward the derived goal",
           "mrf_attributes": "ours - full (attributes)", "mrf_categories": "ours - full + categories",
           "mrf_categories_goal": "ours - full + categories, C by goal reached",
+          "mrf_categories_lookahead": "ours - full + categories + goal lookahead",
           "people": "people (leave one out): a ceiling"}
 
 
@@ -68,6 +74,7 @@ class Settings:
     resamples: int = 2000
     seed: int = 0
     recordings: int = 2  # Rerun recordings per fold of the first MRF row's runs (feasible policy), when asked for
+    lookahead_widths: tuple[int, ...] = (3,)  # the goal lookahead's widths, one chosen per fold inside its training
 
     def __post_init__(self) -> None:
         unknown = set(self.methods) - set(BASELINES) - set(MRF_ROWS)
@@ -75,6 +82,9 @@ class Settings:
             raise ValueError(f"veil.methods: unknown {sorted(unknown)} (known: {list(BASELINES) + list(MRF_ROWS)})")
         if self.folds < 2 or self.max_steps < 1 or not self.C_grid or min(self.C_grid) <= 0:
             raise ValueError("veil: folds >= 2, max_steps >= 1 and a C_grid of positive values are required")
+        if not self.lookahead_widths or min(self.lookahead_widths) < 1:
+            raise ValueError(f"veil.lookahead_widths: one or more whole numbers >= 1, "
+                             f"got {list(self.lookahead_widths)}")
 
 
 @dataclass
@@ -82,8 +92,10 @@ class FoldResult:
     fold: int
     held_out: list[int]
     C: dict[str, float] = field(default_factory=dict)
+    width: dict[str, int] = field(default_factory=dict)  # of each goal-lookahead row
     next_step: dict[str, dict[str, float]] = field(default_factory=dict)
     closed_loop: dict[str, dict[str, float]] = field(default_factory=dict)
+    goals: dict[str, list[str]] = field(default_factory=dict)  # each objective's derived goal, facts as text
     seconds: dict[str, float] = field(default_factory=dict)
 
 
@@ -107,6 +119,14 @@ def make_method(name: str, release: Release, objectives: Sequence[str], settings
         return NearestDemonstration()
     if name == "multiclass_svm":
         return MulticlassSVM()
+    if name == "symbolic_planner":
+        return SymbolicPlanner(Executor(release))
+    if "base" in MRF_ROWS[name]:
+        raise ValueError(f"{name} runs another row's fitted model: `fold_job` builds it around that model")
+    return _mrf(name, release, objectives, settings, C)
+
+
+def _mrf(name: str, release: Release, objectives: Sequence[str], settings: Settings, C: float | None) -> MRFMethod:
     row = MRF_ROWS[name]
     vocabulary = Vocabulary.of(release.catalog, objectives, row["categories"])
     return MRFMethod(name, vocabulary, row["features"], C=C if C is not None else settings.C_grid[0], tol=settings.tol)
@@ -117,28 +137,57 @@ def both_accuracy(method: VeilMethod, test: Sequence[Replay]) -> float:
     return float(np.mean([r.both for r in rows])) if rows else 0.0
 
 
-def choose_C(name: str, release: Release, objectives: Sequence[str], train: Sequence[Replay],
-             settings: Settings) -> float:
-    """C of an MRF row from its training environments alone: the grid's best on an inner held-out number, by the
-    row's criterion (next-step accuracy, or the goal share of feasible closed-loop runs there, whose goals come
-    from the inner training sequences)."""
-    if len(settings.C_grid) == 1:
-        return settings.C_grid[0]
+def inner_split(train: Sequence[Replay], settings: Settings, choosing: str) -> tuple[list[Replay], list[Replay]]:
+    """The training environments split once more by number: (inner training, inner held-out), where a setting
+    (`choosing`, for the error) is chosen."""
     numbers = {env_number(r.point.env_id) for r in train}
     if len(numbers) < 2:
-        raise ValueError(f"choosing C among {settings.C_grid} needs training environments of two numbers or more, "
-                         f"got {sorted(numbers)}: give one C or fewer folds")
-    inner = environment_folds(train, min(settings.folds, len(numbers)))[0]
-    fit_on, check_on = split(train, inner)
+        raise ValueError(f"choosing {choosing} needs training environments of two numbers or more, "
+                         f"got {sorted(numbers)}: give one value or fewer folds")
+    return split(train, environment_folds(train, min(settings.folds, len(numbers)))[0])
+
+
+def _best(scores: Sequence[float]) -> int:
+    """The best score's index; no figure (no goal, no run) counts as the worst; ties: the first."""
+    return int(np.argmax(np.nan_to_num(np.array(scores, dtype=float), nan=-1.0)))
+
+
+def choose_C(name: str, release: Release, objectives: Sequence[str], train: Sequence[Replay],
+             settings: Settings, fitted_out: dict[float, VeilMethod] | None = None) -> float:
+    """C of an MRF row from its training environments alone: the grid's best on an inner held-out number, by the
+    row's criterion (next-step accuracy, or the goal share of feasible closed-loop runs there, whose goals come
+    from the inner training sequences); ties go to the smallest C, the most regularised. The inner fits are
+    left in `fitted_out` by C, for a setting chosen on the same split after it."""
+    if len(settings.C_grid) == 1:
+        return settings.C_grid[0]
+    fit_on, check_on = inner_split(train, settings, f"C among {settings.C_grid}")
     fitted = [make_method(name, release, objectives, settings, C).fit(fit_on) for C in settings.C_grid]
+    if fitted_out is not None:
+        fitted_out.update(zip(settings.C_grid, fitted, strict=True))
     if MRF_ROWS[name]["select"] == "goal":
         goals, executor = derive_goals(fit_on), Executor(release)
         scores = [_mean(closed_loop(m, executor, check_on, goals, "feasible", settings.max_steps), "goal_share")
                   for m in fitted]
     else:
         scores = [both_accuracy(m, check_on) for m in fitted]
-    # no figure (no goal, no run) counts as the worst; ties: the smallest C, the most regularised
-    return settings.C_grid[int(np.argmax(np.nan_to_num(np.array(scores, dtype=float), nan=-1.0)))]
+    return settings.C_grid[_best(scores)]
+
+
+def choose_width(base: str, C: float, release: Release, objectives: Sequence[str], train: Sequence[Replay],
+                 settings: Settings, fitted: VeilMethod | None = None) -> int:
+    """The goal lookahead's width from its training environments alone: the width of `lookahead_widths` whose
+    feasible runs on the inner held-out number reach the largest share of the goal (goals derived from the inner
+    training sequences), around the base row fitted there at C (`fitted`, when C's choice fitted it already);
+    ties go to the smallest width, the one closest to the model's own ranking."""
+    widths = sorted(settings.lookahead_widths)
+    if len(widths) == 1:
+        return widths[0]
+    fit_on, check_on = inner_split(train, settings, f"the lookahead's width among {widths}")
+    model = fitted if isinstance(fitted, MRFMethod) else _mrf(base, release, objectives, settings, C).fit(fit_on)
+    executor, goals = Executor(release), derive_goals(fit_on)
+    scores = [_mean(closed_loop(GoalLookahead("inner", model, executor, width=w).with_goals(fit_on), executor,
+                                check_on, goals, "feasible", settings.max_steps), "goal_share") for w in widths]
+    return widths[_best(scores)]
 
 
 def _mean(runs: Sequence[Run], attr: str) -> float:
@@ -146,33 +195,78 @@ def _mean(runs: Sequence[Run], attr: str) -> float:
     return float(np.mean(values)) if values else float("nan")
 
 
-def fold_job(k: int, held_out: frozenset[int], name: str, data: tuple[Release, list[Replay]],
-             settings: Settings, recordings_dir: Path | None = None
-             ) -> tuple[int, str, float | None, dict[str, float], dict[str, list[Run]], float]:
-    """One method on one fold: (fold, method, C or None, next-step figures, runs per policy, seconds). The first
-    MRF row of `settings.methods` also records its first `settings.recordings` runs into `recordings_dir`."""
-    start = time.perf_counter()
+def fit_groups(methods: Sequence[str]) -> list[tuple[str, ...]]:
+    """`methods` in jobs: a row with a `base` joins its base's job when the base runs too (one fit for both)."""
+    groups: dict[str, list[str]] = {}
+    for name in methods:
+        base = MRF_ROWS.get(name, {}).get("base")
+        groups.setdefault(base if base in methods else name, []).append(name)
+    return [tuple(g) for g in groups.values()]
+
+
+@dataclass(frozen=True)
+class MethodOnFold:
+    """What one method did on one fold."""
+
+    fold: int
+    name: str
+    C: float | None  # of an MRF row, chosen inside the fold's training environments
+    width: int | None  # of a goal-lookahead row, likewise
+    next_step: dict[str, float]  # verb, args, both (NaN for a method that predicts no next step)
+    runs: dict[str, list[Run]]  # by policy
+    seconds: float
+
+
+def fold_job(k: int, held_out: frozenset[int], names: tuple[str, ...], data: tuple[Release, list[Replay]],
+             settings: Settings, recordings_dir: Path | None = None) -> list[MethodOnFold]:
+    """`names` on one fold; a row with a `base` runs the base's model, fitted once when the base is among
+    `names`. The first MRF row of `settings.methods` also records its first `settings.recordings` runs into
+    `recordings_dir`."""
     release, replays = data
     objectives = sorted({r.point.objective for r in replays})
     train, test = split(replays, held_out)
     goals = derive_goals(train)
-    C = choose_C(name, release, objectives, train, settings) if name in MRF_ROWS else None
-    method = make_method(name, release, objectives, settings, C).fit(train)
-    rows = next_steps(method, test)
-    figures = {part: float(np.mean([getattr(r, part) for r in rows])) for part in ("verb", "args", "both")}
     executor = Executor(release)
-    runs = {policy: closed_loop(method, executor, test, goals, policy, settings.max_steps)
-            for policy in settings.policies}
-    recorded = next((m for m in settings.methods if m in MRF_ROWS), None)
-    if recordings_dir is not None and name == recorded and settings.recordings:
-        policy = settings.policies[-1]
-        people = {r.point.seq_id: r for r in test}
-        for run in runs[policy][: settings.recordings]:
-            replay = people[run.seq_id]
-            record_run(Path(recordings_dir) / f"fold{k}_{run.seq_id}.rrd", f"veil-{name}-{run.seq_id}",
-                       states_of(executor, replay.initial, run.steps), run.steps, run.objective, replay.kept,
-                       f"{name}, {policy}: goal reached {100 * (run.goal_share or 0):.0f}%")
-    return k, name, C, figures, runs, time.perf_counter() - start
+    fitted: dict[str, VeilMethod] = {}
+    chosen_C: dict[str, float] = {}
+    inner_fits: dict[str, dict[float, VeilMethod]] = {}  # each fitted row's fits on the inner split, by C
+    out = []
+    for name in names:
+        start = time.perf_counter()
+        base = MRF_ROWS.get(name, {}).get("base")
+        row = base or name
+        C: float | None = None
+        width: int | None = None
+        if name in MRF_ROWS:
+            if row not in chosen_C:
+                inner_fits[row] = {}
+                chosen_C[row] = choose_C(row, release, objectives, train, settings, inner_fits[row])
+            C = chosen_C[row]
+        if base is not None and C is not None:
+            width = choose_width(base, C, release, objectives, train, settings, inner_fits[base].get(C))
+            model = fitted.get(base) or make_method(base, release, objectives, settings, C).fit(train)
+            method: VeilMethod = GoalLookahead(name, model, executor, width=width).with_goals(train)
+        else:
+            method = make_method(name, release, objectives, settings, C).fit(train)
+        fitted[name] = method
+        if getattr(method, "predicts_next_step", True):
+            rows = next_steps(method, test)
+            figures = {part: float(np.mean([getattr(r, part) for r in rows])) for part in ("verb", "args", "both")}
+        else:
+            figures = {part: float("nan") for part in ("verb", "args", "both")}
+        runs = {policy: closed_loop(method, executor, test, goals, policy, settings.max_steps)
+                for policy in settings.policies}
+        recorded = next((m for m in settings.methods if m in MRF_ROWS), None)
+        if recordings_dir is not None and name == recorded and settings.recordings:
+            policy = settings.policies[-1]
+            people = {r.point.seq_id: r for r in test}
+            for run in runs[policy][: settings.recordings]:
+                replay = people[run.seq_id]
+                record_run(Path(recordings_dir) / f"fold{k}_{run.seq_id}.rrd", f"veil-{name}-{run.seq_id}",
+                           states_of(executor, replay.initial, run.steps), run.steps, run.objective, replay.kept,
+                           f"{name}, {policy}: goal reached {100 * (run.goal_share or 0):.0f}%")
+        out.append(MethodOnFold(k, name, C, width, figures, runs, time.perf_counter() - start))
+    return out
 
 
 def run_experiment(release_root: Path | str, settings: Settings, n_jobs: int = 1,
@@ -184,24 +278,29 @@ def run_experiment(release_root: Path | str, settings: Settings, n_jobs: int = 1
     replays = replay_release(release)
     folds = environment_folds(replays, settings.folds)
     data = Shared((release, replays))
-    jobs = [(fold_job, (k, held_out, name, data, settings, recordings_dir)) for k, held_out in enumerate(folds)
-            for name in settings.methods]
-    done = run_jobs(jobs, n_jobs, cost=[10.0 if args[2] in MRF_ROWS else 1.0 for _, args in jobs])
+    jobs = [(fold_job, (k, held_out, names, data, settings, recordings_dir)) for k, held_out in enumerate(folds)
+            for names in fit_groups(settings.methods)]
+    done = run_jobs(jobs, n_jobs, cost=[10.0 * len(args[2]) if args[2][0] in MRF_ROWS else 1.0 for _, args in jobs])
     results = [FoldResult(k, sorted(held_out)) for k, held_out in enumerate(folds)]
-    per_sequence: dict[str, list[Run]] = {}
-    for k, name, C, figures, runs, seconds in done:
-        fr = results[k]
-        if C is not None:
-            fr.C[name] = C
-        fr.next_step[name] = figures
-        fr.seconds[name] = seconds
-        for policy, policy_runs in runs.items():
-            fr.closed_loop[f"{name}/{policy}"] = _figures(policy_runs)
-            per_sequence.setdefault(f"{name}/{policy}", []).extend(policy_runs)
+    per_sequence: dict[str, list[Run]] = {f"{name}/{policy}": [] for name in settings.methods
+                                          for policy in settings.policies}
+    for m in (method for job in done for method in job):
+        fr = results[m.fold]
+        if m.C is not None:
+            fr.C[m.name] = m.C
+        if m.width is not None:
+            fr.width[m.name] = m.width
+        fr.next_step[m.name] = m.next_step
+        fr.seconds[m.name] = m.seconds
+        for policy, policy_runs in m.runs.items():
+            fr.closed_loop[f"{m.name}/{policy}"] = _figures(policy_runs)
+            per_sequence[f"{m.name}/{policy}"].extend(policy_runs)
     people: list[Run] = []
     for k, held_out in enumerate(folds):
         train, test = split(replays, held_out)
-        own = people_runs(test, derive_goals(train))
+        goals = derive_goals(train)
+        results[k].goals = {objective: sorted(map(fact_text, facts)) for objective, facts in goals.items()}
+        own = people_runs(test, goals)
         people.extend(own)
         results[k].closed_loop["people"] = _figures(own)
     return summarize(results, per_sequence, people, settings)
@@ -260,6 +359,11 @@ def write_reports(report: dict, output: Path | str) -> None:
         (tmp / "tables.md").write_text(tables(figures))
 
 
+def fact_text(fact: tuple[str, ...]) -> str:
+    """A lifted fact as the tables print it: `Kettle is Water`, `Plate On Sink`."""
+    return f"{fact[1]} is {fact[2]}" if fact[0] == "state" else f"{fact[1]} {fact[0]} {fact[2]}"
+
+
 def _pm(figure: dict, scale: float = 100.0) -> str:
     if figure["mean"] is None:
         return "-"
@@ -291,6 +395,29 @@ def tables(report: dict) -> str:
         lines.append(f"| {LABELS[name]} | {policy or '-'} | {_pm(figs['goal_share'])} | "
                      f"{interval} | {_three(figs['edit_distance']['mean'])} | "
                      f"{_pm(figs['exact']).split(' ±')[0]} | {_pm(figs['stopped']).split(' ±')[0]} |")
+    chosen = [name for name in report["next_step"] if any(name in fold.get("C", {}) for fold in report["folds"])]
+    if chosen and "model" not in report:
+        lines += ["", "Settings each fold chose inside its training environments (C; the lookahead's width):", "",
+                  "| method | " + " | ".join(f"fold {fold['fold'] + 1}" for fold in report["folds"]) + " |",
+                  "|---|" + "---:|" * len(report["folds"])]
+        for name in chosen:
+            cells = [f"{fold['C'][name]:g}" + (f"; {fold['width'][name]}" if name in fold.get("width", {}) else "")
+                     for fold in report["folds"]]
+            lines.append(f"| {LABELS[name]} | " + " | ".join(cells) + " |")
+    derived: dict[str, dict[str, int]] = {}
+    for fold in report["folds"]:
+        for objective, facts in fold.get("goals", {}).items():
+            for fact in facts:
+                derived.setdefault(objective, {}).setdefault(fact, 0)
+                derived[objective][fact] += 1
+    if report["folds"] and "goals" in report["folds"][0]:
+        objectives = sorted({o for fold in report["folds"] for o in fold["goals"]})
+        lines += ["", "Goals derived from each fold's training sequences (an objective with none is not scored for "
+                  "goal reached):", "", "| objective | goal facts (folds deriving each) |", "|---|---|"]
+        for objective in objectives:
+            facts = derived.get(objective, {})
+            text = ", ".join(f"{f} ({n})" for f, n in sorted(facts.items())) or "none"
+            lines.append(f"| {objective} | {text} |")
     if report["paired_tests"]:
         lines += ["", "Paired sign-flip tests on goal reached, per held-out sequence:", "",
                   "| best MRF row | against | difference (points) | p |", "|---|---|---:|---:|"]
@@ -314,7 +441,8 @@ def choose_model(release: Release, replays: Sequence[Replay], settings: Settings
     """The MRF row and C of `settings` with the best next-step accuracy on an inner held-out environment number
     of `replays`: the choice a model for use is trained with, made on its training data alone. The candidates are
     fitted `n_jobs` at a time; the choice does not depend on it."""
-    rows = [m for m in settings.methods if m in MRF_ROWS] or list(MRF_ROWS)
+    fitted_rows = [m for m in MRF_ROWS if "base" not in MRF_ROWS[m]]  # a model for use is one MRF's weights
+    rows = [m for m in settings.methods if m in fitted_rows] or fitted_rows
     numbers = {env_number(r.point.env_id) for r in replays}
     if len(numbers) < 2:
         return rows[0], settings.C_grid[0]
@@ -347,6 +475,7 @@ def evaluate_model(method: MRFMethod, goals: dict, release_root: Path | str, set
                          f"{sorted(known)})")
     executor = Executor(release)
     fr = FoldResult(0, sorted({env_number(r.point.env_id) for r in replays}))
+    fr.goals = {objective: sorted(map(fact_text, facts)) for objective, facts in goals.items()}
     rows = next_steps(method, replays)
     fr.next_step[method.name] = {part: float(np.mean([getattr(r, part) for r in rows]))
                                  for part in ("verb", "args", "both")}

@@ -1,0 +1,189 @@
+"""The symbolic planner and the MRF's goal lookahead on an invented release (the fixture of test_veil_evaluate).
+
+"Tea Beaker" fills a beaker with tea at the tub (five steps), "Tidy Honey" puts the honey on the tub (four);
+the planner must find those shortest plans in a kitchen it never saw, stop where the goal holds, and follow its
+best partial plan when the search is cut short. The lookahead is checked against a scripted base ranking.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+
+from taskseq.veil import experiment
+from taskseq.veil.evaluate import Executor, Run, derive_goals, lift, rollout, split
+from taskseq.veil.experiment import Settings, run_experiment, tables
+from taskseq.veil.grounding import Step
+from taskseq.veil.lookahead import GoalLookahead
+from taskseq.veil.metrics import goal_share
+from taskseq.veil.release import read_release
+from taskseq.veil.replay import replay_release
+from taskseq.veil.symbolic import SymbolicPlanner, groundings, relevant_categories, search
+from tests.test_veil_evaluate import release_dir  # noqa: F401  (the invented release, a module fixture)
+
+
+@pytest.fixture(scope="module")
+def data(release_dir: Path):  # noqa: F811
+    release = read_release(release_dir)
+    reps = replay_release(release)
+    train, test = split(reps, frozenset({4}))
+    return release, train, test
+
+
+def _first(test, objective):
+    return next(r for r in test if r.point.objective == objective)
+
+
+def test_relevant_categories_are_those_named_by_at_least_a_quarter_of_an_objectives_sequences(data) -> None:
+    _, train, _ = data
+    relevant = relevant_categories(train)
+    # the wasted `moveto Teapot_1` is in half of the Tea Beaker sequences: at 0.25 it counts, at 0.6 it does not
+    assert relevant["Tea Beaker"] == {"beaker", "tub", "tubknob", "teapot"}
+    assert relevant_categories(train, share=0.6)["Tea Beaker"] == {"beaker", "tub", "tubknob"}
+    assert relevant["Tidy Honey"] == {"honey", "tub"}
+
+
+@pytest.mark.parametrize(("objective", "length"), [("Tea Beaker", 5), ("Tidy Honey", 4)])
+def test_the_planner_finds_a_shortest_plan_to_the_whole_goal_in_a_kitchen_it_never_saw(data, objective, length
+                                                                                       ) -> None:
+    release, train, test = data
+    executor = Executor(release)
+    planner = SymbolicPlanner(executor).fit(train)
+    start = _first(test, objective).initial
+    plan = planner.plan(start, objective)
+    assert plan.share == 1.0 and len(plan.steps) == length
+    steps, final, refused, stopped = rollout(planner, executor, start, objective, "plain", 40)
+    assert list(steps) == list(plan.steps) and refused == 0 and stopped
+    assert goal_share(lift(final), derive_goals(train)[objective]) == 1.0
+    assert next(planner.ranked(final, steps, objective)) == Step("done")  # the goal holds: it stops
+
+
+def test_a_search_cut_short_follows_the_shortest_path_to_the_best_share_it_found(data) -> None:
+    release, train, test = data
+    executor = Executor(release)
+    start = _first(test, "Tea Beaker").initial
+    goal = derive_goals(train)["Tea Beaker"]  # beaker on the tub, tea in it, the tub running: three facts
+    moves = groundings(executor, start.world, list(start.world.objects))
+    whole = search(start, goal, moves, max_nodes=100000)
+    assert whole.share == 1.0 and len(whole.steps) == 5
+    cut = search(start, goal, moves, max_nodes=20)
+    # within 20 states only one fact of three is reached, the tub running, and by its shortest way
+    assert cut.share == pytest.approx(1 / 3)
+    assert cut.steps == (Step("moveto", "Tub"), Step("turn", "TubKnob"))
+    state = start
+    for s in cut.steps:
+        state = executor.after(state, s)
+        assert state is not None
+    assert goal_share(lift(state), goal) == cut.share
+    assert search(start, goal, moves, max_nodes=0) == type(cut)((), 0.0, 0)
+
+
+def test_an_objective_without_a_goal_stops_at_once_and_the_planner_predicts_no_next_step(data) -> None:
+    release, train, test = data
+    planner = SymbolicPlanner(Executor(release)).fit([r for r in train if r.point.objective == "Tea Beaker"])
+    assert list(planner.ranked(_first(test, "Tidy Honey").initial, [], "Tidy Honey")) == [Step("done")]
+    assert planner.predicts_next_step is False
+
+
+@dataclass
+class Scripted:
+    """A base ranking written out: for each history length, the steps in order (then `done`)."""
+
+    order: dict[int, list[Step]]
+    C: float = 1.0
+    name: str = "scripted"
+    fits: list[int] = field(default_factory=list)
+
+    def fit(self, train) -> Scripted:
+        self.fits.append(len(train))
+        return self
+
+    def ranked(self, state, history, objective) -> Iterator[Step]:
+        yield from self.order.get(len(history), [])
+        yield Step("done")
+
+
+def test_the_lookahead_takes_the_option_whose_imagined_run_reaches_more_of_the_goal(data) -> None:
+    release, train, test = data
+    executor = Executor(release)
+    start = _first(test, "Tidy Honey").initial
+    wander, go = Step("moveto", "Teapot_1"), Step("moveto", "Honey_1")
+    # the base's first choice wanders and then stops; its second leads, by the base's own next choices, to the goal
+    base = Scripted({0: [wander, go], 1: [Step("grasp", "Honey_1")], 2: [Step("moveto", "Tub")],
+                     3: [Step("keep_on", "Honey_1", "Tub")]})
+    method = GoalLookahead("look", base, executor).fit(train)
+    assert base.fits == [len(train)]
+    ranking = list(method.ranked(start, [], "Tidy Honey"))
+    assert ranking[0] == go and ranking[1:3] == [wander, Step("done")]
+    steps, final, _, stopped = rollout(method, executor, start, "Tidy Honey", "feasible", 10)
+    assert steps == [go, Step("grasp", "Honey_1"), Step("moveto", "Tub"), Step("keep_on", "Honey_1", "Tub")]
+    assert stopped and goal_share(lift(final), method.goals_["Tidy Honey"]) == 1.0
+
+
+def test_the_lookahead_keeps_the_models_order_where_imagination_sees_no_difference_and_stops_at_the_goal(
+        data) -> None:
+    release, train, test = data
+    executor = Executor(release)
+    start = _first(test, "Tidy Honey").initial
+    a, b = Step("moveto", "Teapot_1"), Step("moveto", "Beaker_1")
+    method = GoalLookahead("look", Scripted({0: [a, b]}), executor, depth=4).with_goals(train)
+    assert list(method.ranked(start, [], "Tidy Honey"))[:2] == [a, b]
+    # an objective without a goal: the base's ranking as it is
+    method.goals_ = {}
+    assert list(method.ranked(start, [], "Tidy Honey")) == [a, b, Step("done")]
+    # where the goal holds, `done` comes first whatever the base ranks first
+    method.with_goals(train)
+    state = start
+    for s in [Step("moveto", "Honey_1"), Step("grasp", "Honey_1"), Step("moveto", "Tub"),
+              Step("keep_on", "Honey_1", "Tub")]:
+        state = executor.after(state, s)
+    assert next(method.ranked(state, [], "Tidy Honey")) == Step("done")
+
+
+def test_the_lookahead_row_shares_its_base_rows_fit_and_C_and_the_planner_row_prints_no_next_step(
+        release_dir: Path, monkeypatch) -> None:  # noqa: F811
+    fits: list[str] = []
+    real = experiment.MRFMethod.fit
+
+    def spy(self, train):
+        fits.append(self.name)
+        return real(self, train)
+
+    monkeypatch.setattr(experiment.MRFMethod, "fit", spy)
+    settings = Settings(folds=2, C_grid=(1.0,), max_steps=8, resamples=50,
+                        methods=("symbolic_planner", "mrf_categories", "mrf_categories_lookahead"))
+    report = run_experiment(release_dir, settings)
+    assert fits == ["mrf_categories", "mrf_categories"]  # one fit per fold, for both rows
+    for fold in report["folds"]:
+        assert fold["C"]["mrf_categories_lookahead"] == fold["C"]["mrf_categories"]
+        assert fold["width"] == {"mrf_categories_lookahead": 3}
+    planner = report["closed_loop"]["symbolic_planner/feasible"]["goal_share"]
+    assert planner["mean"] == 1.0
+    assert report["next_step"]["symbolic_planner"]["both"]["mean"] is None
+    text = tables(report)
+    assert "| symbolic planner toward the derived goal | - | - | - |" in text
+    # both folds derive each goal; facts as the tables print them
+    assert "| Tidy Honey | Honey On Tub (2) |" in text
+    assert "| ours - full + categories + goal lookahead | 1; 3 | 1; 3 |" in text
+    assert "| Tea Beaker | Beaker On Tub (2), Beaker is Tea (2), TubKnob is TubRuns (2) |" in text
+
+
+def test_the_lookahead_width_is_the_one_whose_inner_runs_reach_most_of_the_goal(data, monkeypatch) -> None:
+    release, train, _ = data
+    objectives = sorted({r.point.objective for r in train})
+    settings = Settings(folds=2, C_grid=(1.0,), max_steps=8, lookahead_widths=(8, 2, 5))
+    seen: list[int] = []
+
+    def runs(method, executor, check_on, goals, policy, max_steps):
+        seen.append(method.width)
+        # inner held-out runs only, from the inner training's goals
+        assert not {r.point.seq_id for r in check_on} & {r.point.seq_id for r in experiment.inner_split(
+            train, settings, "x")[0]}
+        return [Run("s", "e", "o", (), 0, True, {2: 0.2, 5: 0.5, 8: 0.5}[method.width], None, False)]
+
+    monkeypatch.setattr(experiment, "closed_loop", runs)
+    assert experiment.choose_width("mrf_categories", 1.0, release, objectives, train, settings) == 5
+    assert seen == [2, 5, 8]  # in order; the tie of 5 and 8 goes to the smaller
