@@ -82,6 +82,10 @@ GROUPS = {
     "serve": Group(("taskseq/serve/writer.py", "taskseq/serve/environments.py"),
                    ("tests/test_serve_files_behaviour.py", "tests/test_serve.py")),
     "records": Group(("taskseq/plan/records.py",), ("tests/test_records_behaviour.py",)),
+    "teach": Group(("taskseq/stages/teach.py", "taskseq/experiments/teaching.py"), ("tests/test_teach_behaviour.py",)),
+    # hand-built worlds only (the world-building tests would run for every mutant), and a short timeout: a mutant of
+    # the walks of `descendants` and `shelved` can loop forever
+    "state": Group(("taskseq/sim/state.py",), ("tests/test_state_behaviour.py",), timeout_multiplier=5.0),
 }
 
 
