@@ -79,8 +79,9 @@ GROUPS = {
                    ("tests/test_safety.py", "tests/test_demonstrator.py", "tests/test_procedural.py",
                     "tests/test_primitives.py")),
     "atomic": Group(("taskseq/runtime/atomic.py",), ("tests/test_atomic_behaviour.py",)),
-    "serve": Group(("taskseq/serve/writer.py", "taskseq/serve/environments.py"),
-                   ("tests/test_serve_files_behaviour.py", "tests/test_serve.py")),
+    "serve": Group(("taskseq/serve/writer.py", "taskseq/serve/environments.py", "taskseq/serve/load.py"),
+                   ("tests/test_serve_files_behaviour.py", "tests/test_serve_load_behaviour.py",
+                    "tests/test_serve.py")),
     "records": Group(("taskseq/plan/records.py",), ("tests/test_records_behaviour.py",)),
     "teach": Group(("taskseq/stages/teach.py", "taskseq/experiments/teaching.py"), ("tests/test_teach_behaviour.py",)),
     # hand-built worlds only (the world-building tests would run for every mutant), and a short timeout: a mutant of
