@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from taskseq.veil import experiment
-from taskseq.veil.evaluate import Executor, Run, derive_goals, lift, rollout, split
+from taskseq.veil.evaluate import Executor, Run, derive_goals, env_number, lift, rollout, split
 from taskseq.veil.experiment import Settings, run_experiment, tables
 from taskseq.veil.grounding import Step
 from taskseq.veil.lookahead import GoalLookahead
@@ -153,10 +153,20 @@ def test_the_lookahead_row_shares_its_base_rows_fit_and_C_and_the_planner_row_pr
         return real(self, train)
 
     monkeypatch.setattr(experiment.MRFMethod, "fit", spy)
+    goals_from: list[set[int]] = []
+    real_goals = GoalLookahead.with_goals
+
+    def goals_spy(self, train):
+        goals_from.append({env_number(r.point.env_id) for r in train})
+        return real_goals(self, train)
+
+    monkeypatch.setattr(GoalLookahead, "with_goals", goals_spy)
     settings = Settings(folds=2, C_grid=(1.0,), max_steps=8, resamples=50,
                         methods=("symbolic_planner", "mrf_categories", "mrf_categories_lookahead"))
     report = run_experiment(release_dir, settings)
     assert fits == ["mrf_categories", "mrf_categories"]  # one fit per fold, for both rows
+    # the lookahead's goals come from its fold's training environments only
+    assert goals_from == [{1, 2, 3, 4} - set(f["held_out"]) for f in report["folds"]]
     for fold in report["folds"]:
         assert fold["C"]["mrf_categories_lookahead"] == fold["C"]["mrf_categories"]
         assert fold["width"] == {"mrf_categories_lookahead": 3}
@@ -177,13 +187,30 @@ def test_the_lookahead_width_is_the_one_whose_inner_runs_reach_most_of_the_goal(
     settings = Settings(folds=2, C_grid=(1.0,), max_steps=8, lookahead_widths=(8, 2, 5))
     seen: list[int] = []
 
+    fit_on, inner_check = experiment.inner_split(train, settings, "x")
+
     def runs(method, executor, check_on, goals, policy, max_steps):
         seen.append(method.width)
-        # inner held-out runs only, from the inner training's goals
-        assert not {r.point.seq_id for r in check_on} & {r.point.seq_id for r in experiment.inner_split(
-            train, settings, "x")[0]}
+        # runs on the inner held-out environments, toward the goals of the inner training ones
+        assert check_on == inner_check and goals == method.goals_ == derive_goals(fit_on)
         return [Run("s", "e", "o", (), 0, True, {2: 0.2, 5: 0.5, 8: 0.5}[method.width], None, False)]
 
     monkeypatch.setattr(experiment, "closed_loop", runs)
     assert experiment.choose_width("mrf_categories", 1.0, release, objectives, train, settings) == 5
     assert seen == [2, 5, 8]  # in order; the tie of 5 and 8 goes to the smaller
+
+
+def test_the_lookahead_keeps_the_models_choice_per_state_and_last_two_steps(data) -> None:
+    """The kept choices are keyed by the last two steps: a history differing two steps back is another key."""
+    release, train, test = data
+    start = _first(test, "Tidy Honey").initial
+    a, b = Step("moveto", "Teapot_1"), Step("moveto", "Beaker_1")
+
+    class TwoBack(Scripted):
+        def ranked(self, state, history, objective):
+            yield a if len(history) >= 2 and history[-2] == a else b
+
+    method = GoalLookahead("look", TwoBack({}), Executor(release)).with_goals(train)
+    assert method.first(start, [a, b], "Tidy Honey")[0] == a
+    assert method.first(start, [b, b], "Tidy Honey")[0] == b
+    assert method.first(start, [b, a, b], "Tidy Honey")[0] == a  # only the last two count

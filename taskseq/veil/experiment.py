@@ -121,13 +121,9 @@ def make_method(name: str, release: Release, objectives: Sequence[str], settings
         return MulticlassSVM()
     if name == "symbolic_planner":
         return SymbolicPlanner(Executor(release))
-    if "base" in MRF_ROWS[name]:
-        raise ValueError(f"{name} runs another row's fitted model: `fold_job` builds it around that model")
-    return _mrf(name, release, objectives, settings, C)
-
-
-def _mrf(name: str, release: Release, objectives: Sequence[str], settings: Settings, C: float | None) -> MRFMethod:
     row = MRF_ROWS[name]
+    if "base" in row:
+        raise ValueError(f"{name} runs another row's fitted model: `fold_job` builds it around that model")
     vocabulary = Vocabulary.of(release.catalog, objectives, row["categories"])
     return MRFMethod(name, vocabulary, row["features"], C=C if C is not None else settings.C_grid[0], tol=settings.tol)
 
@@ -158,19 +154,20 @@ def choose_C(name: str, release: Release, objectives: Sequence[str], train: Sequ
     row's criterion (next-step accuracy, or the goal share of feasible closed-loop runs there, whose goals come
     from the inner training sequences); ties go to the smallest C, the most regularised. The inner fits are
     left in `fitted_out` by C, for a setting chosen on the same split after it."""
-    if len(settings.C_grid) == 1:
-        return settings.C_grid[0]
-    fit_on, check_on = inner_split(train, settings, f"C among {settings.C_grid}")
-    fitted = [make_method(name, release, objectives, settings, C).fit(fit_on) for C in settings.C_grid]
+    grid = sorted(settings.C_grid)
+    if len(grid) == 1:
+        return grid[0]
+    fit_on, check_on = inner_split(train, settings, f"C among {grid}")
+    fitted = [make_method(name, release, objectives, settings, C).fit(fit_on) for C in grid]
     if fitted_out is not None:
-        fitted_out.update(zip(settings.C_grid, fitted, strict=True))
+        fitted_out.update(zip(grid, fitted, strict=True))
     if MRF_ROWS[name]["select"] == "goal":
         goals, executor = derive_goals(fit_on), Executor(release)
         scores = [_mean(closed_loop(m, executor, check_on, goals, "feasible", settings.max_steps), "goal_share")
                   for m in fitted]
     else:
         scores = [both_accuracy(m, check_on) for m in fitted]
-    return settings.C_grid[_best(scores)]
+    return grid[_best(scores)]
 
 
 def choose_width(base: str, C: float, release: Release, objectives: Sequence[str], train: Sequence[Replay],
@@ -183,7 +180,7 @@ def choose_width(base: str, C: float, release: Release, objectives: Sequence[str
     if len(widths) == 1:
         return widths[0]
     fit_on, check_on = inner_split(train, settings, f"the lookahead's width among {widths}")
-    model = fitted if isinstance(fitted, MRFMethod) else _mrf(base, release, objectives, settings, C).fit(fit_on)
+    model = fitted if fitted is not None else make_method(base, release, objectives, settings, C).fit(fit_on)
     executor, goals = Executor(release), derive_goals(fit_on)
     scores = [_mean(closed_loop(GoalLookahead("inner", model, executor, width=w).with_goals(fit_on), executor,
                                 check_on, goals, "feasible", settings.max_steps), "goal_share") for w in widths]
@@ -201,7 +198,7 @@ def fit_groups(methods: Sequence[str]) -> list[tuple[str, ...]]:
     for name in methods:
         base = MRF_ROWS.get(name, {}).get("base")
         groups.setdefault(base if base in methods else name, []).append(name)
-    return [tuple(g) for g in groups.values()]
+    return [tuple(sorted(g, key=lambda name, first=key: name != first)) for key, g in groups.items()]  # base first
 
 
 @dataclass(frozen=True)

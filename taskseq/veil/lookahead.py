@@ -73,7 +73,10 @@ class GoalLookahead:
         return out
 
     def first(self, state: State, history: Sequence[Step], objective: str) -> tuple[Step, State] | None:
-        """The model's best runnable step (or `done`), kept: imagined runs from nearby states share most steps."""
+        """The model's best runnable step (or `done`), kept: imagined runs from nearby states share most steps.
+
+        Keyed by the last two steps of the history, all an MRF's ranking reads of it (`Vocabulary.step_input`);
+        a base reading more of the history would need a longer key."""
         key = (state.world.env_id, state.facts, tuple(history[-2:]), objective)
         if key not in self._first:
             found = self.options(state, history, objective, 1)

@@ -25,6 +25,10 @@ from .state import State
 
 
 class VeilMethod(Protocol):
+    """A method of the evaluation. One that predicts no next step of a person (a planner that searches from
+    where it stands) says so with a class attribute `predicts_next_step = False`; the evaluation then gives it
+    closed-loop figures only."""
+
     name: str
 
     def fit(self, train: Sequence[Replay]) -> VeilMethod: ...

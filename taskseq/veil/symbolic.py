@@ -69,6 +69,8 @@ def groundings(executor: Executor, world: World, objects: Sequence[str]) -> list
 
 @dataclass(frozen=True)
 class Plan:
+    """What a search found: the steps, how much of the goal they reach, and what the search cost."""
+
     steps: tuple[Step, ...]
     share: float  # of the goal, after the last step
     expanded: int  # states the search expanded
@@ -137,9 +139,12 @@ class SymbolicPlanner:
         if key not in self._next:
             # every state along the plan gets the plan's next step from there, so a run that follows it
             # searches once; the plan's last state gets `done` (the goal holds, or the search's best is reached)
-            plan, here = self.plan(state, objective), state
-            for s in plan.steps:
-                self._next[(state.world.env_id, objective, here.facts)] = s
-                here = self.executor.after(here, s) or here
+            # (an entry already there stays: what a state is given never depends on which search reached it first)
+            here: State | None = state
+            for s in self.plan(state, objective).steps:
+                assert here is not None  # the search ran each step in the domain: it runs again
+                self._next.setdefault((state.world.env_id, objective, here.facts), s)
+                here = self.executor.after(here, s)
+            assert here is not None
             self._next.setdefault((state.world.env_id, objective, here.facts), Step(DONE))
         yield self._next[key]
