@@ -233,7 +233,8 @@ def other_dir(release_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Pa
 def test_a_trained_model_is_evaluated_on_another_folder_with_the_same_metrics_and_plans_there(
         release_dir: Path, other_dir: Path, tmp_path: Path, capsys) -> None:
     params = tmp_path / "params.yaml"
-    params.write_text("veil:\n  folds: 2\n  C_grid: [1.0, 10.0]\n  max_steps: 10\n  resamples: 100\n")
+    params.write_text("veil:\n  folds: 2\n  C_grid: [1.0, 10.0]\n  max_steps: 10\n  resamples: 100\n"
+                      "  lookahead_widths: [1, 3]\n")
     model = tmp_path / "model.npz"
     assert main(["--no-mlflow", "veil", "train", "--release", str(release_dir), "--output", str(model),
                  "--params", str(params)]) == 0
@@ -244,9 +245,11 @@ def test_a_trained_model_is_evaluated_on_another_folder_with_the_same_metrics_an
     (name,) = report["next_step"]
     assert name in experiment.MRF_ROWS and report["model"]["name"] == name
     assert set(report["next_step"][name]) == {"verb", "args", "both"}
-    assert {f"{name}/plain", f"{name}/feasible", "people"} <= set(report["closed_loop"])
+    assert {f"{name}/plain", f"{name}/feasible", f"{name}/lookahead", "people"} <= set(report["closed_loop"])
     assert report["folds"][0]["held_out"] == [5, 6]
     assert report["closed_loop"][f"{name}/feasible"]["goal_share"]["mean"] == 1.0
+    assert report["closed_loop"][f"{name}/lookahead"]["goal_share"]["mean"] == 1.0
+    assert report["model"]["lookahead_width"] in (1, 3)  # chosen on the release's inner split, saved with it
     capsys.readouterr()
     env = other_dir / "Environments" / "kitchen" / "kitchen6.xml"
     assert main(["veil", "plan", "--model", str(model), "--environment", str(env), "--objective", "Tidy Honey"]) == 0
@@ -254,6 +257,9 @@ def test_a_trained_model_is_evaluated_on_another_folder_with_the_same_metrics_an
     assert "keep_on(Honey_1, Tub)" in printed and "goal reached 100%" in printed
     assert main(["plan", "--model", str(model), "--env", str(env), "--task", "Tidy Honey"]) == 0
     assert capsys.readouterr().out == printed  # `taskseq plan` given a release's environment file: the same plan
+    assert main(["veil", "plan", "--model", str(model), "--environment", str(env), "--objective", "Tidy Honey",
+                 "--policy", "feasible"]) == 0
+    assert "keep_on(Honey_1, Tub)" in capsys.readouterr().out
     assert main(["veil", "plan", "--model", str(model), "--environment", str(env), "--objective", "Bake"]) == 2
     assert "Bake" in capsys.readouterr().err
     assert main(["veil", "plan", "--model", str(tmp_path / "none.npz"), "--environment", str(env),

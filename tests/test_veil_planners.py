@@ -7,10 +7,12 @@ best partial plan when the search is cut short. The lookahead is checked against
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from taskseq.veil import experiment
@@ -19,6 +21,7 @@ from taskseq.veil.experiment import Settings, run_experiment, tables
 from taskseq.veil.grounding import Step
 from taskseq.veil.lookahead import GoalLookahead
 from taskseq.veil.metrics import goal_share
+from taskseq.veil.persist import TrainedModel, load_mrf, save_mrf
 from taskseq.veil.release import read_release
 from taskseq.veil.replay import replay_release
 from taskseq.veil.symbolic import SymbolicPlanner, groundings, relevant_categories, search
@@ -214,3 +217,18 @@ def test_the_lookahead_keeps_the_models_choice_per_state_and_last_two_steps(data
     assert method.first(start, [a, b], "Tidy Honey")[0] == a
     assert method.first(start, [b, b], "Tidy Honey")[0] == b
     assert method.first(start, [b, a, b], "Tidy Honey")[0] == a  # only the last two count
+
+
+def test_a_model_file_keeps_the_lookaheads_width_and_refuses_another_format(data, tmp_path: Path) -> None:
+    release, train, _ = data
+    objectives = sorted({r.point.objective for r in train})
+    method = experiment.make_method("mrf_categories", release, objectives, Settings(C_grid=(1.0,)), 1.0).fit(train)
+    path = tmp_path / "m.npz"
+    save_mrf(path, TrainedModel(method, derive_goals(train), ["kitchen1"], 5))
+    model, meta = load_mrf(path)
+    assert model.lookahead_width == 5 and model.goals == derive_goals(train) and model.trained_on == ["kitchen1"]
+    assert (model.method.w_ == method.w_).all()
+    meta["format"] = "taskseq.veil-mrf/1"
+    np.savez(path, w=method.w_, meta=np.array(json.dumps(meta)))
+    with pytest.raises(ValueError, match="veil-mrf/1"):
+        load_mrf(path)

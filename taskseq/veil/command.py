@@ -85,8 +85,8 @@ def _evaluate(args: argparse.Namespace) -> int:
         if args.model is not None:
             from .persist import load_mrf
 
-            method, goals, _ = load_mrf(args.model)
-            report = evaluate_model(method, goals, args.release, settings, progress=bar)
+            model, _ = load_mrf(args.model)
+            report = evaluate_model(model, args.release, settings, progress=bar)
         else:
             from ..runtime.jobs import default_jobs
 
@@ -142,12 +142,13 @@ def _train(args: argparse.Namespace) -> int:
         start = time.perf_counter()
         from ..runtime.jobs import default_jobs
 
-        method, goals, trained_on = train_model(args.release, settings, n_jobs=default_jobs())
-        save_mrf(args.output, method, goals, trained_on)
-        run.params({"chosen_method": method.name, "chosen_C": method.C})
+        model = train_model(args.release, settings, n_jobs=default_jobs())
+        save_mrf(args.output, model)
+        method = model.method
+        run.params({"chosen_method": method.name, "chosen_C": method.C, "lookahead_width": model.lookahead_width})
         run.metrics({"seconds": time.perf_counter() - start})
-        print(f"{method.name} (C = {method.C:g}) trained on {len(trained_on)} environments, "
-              f"written to {args.output}")
+        print(f"{method.name} (C = {method.C:g}, goal lookahead's width {model.lookahead_width}) trained on "
+              f"{len(model.trained_on)} environments, written to {args.output}")
         return 0
 
     return _tracked(args, "veil-train", {"release": str(args.release), "C_grid": list(settings.C_grid)}, body)
@@ -162,8 +163,10 @@ def _plan_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--release", type=Path, default=None,
                    help="the folder whose Objects.xml, domainKnowledge.pddl and ControllerInstructions.xml describe "
                         "the domain (default: the folder holding the environment's Environments/ folder)")
-    p.add_argument("--policy", choices=("plain", "feasible"), default="feasible",
-                   help="plain: the best-scored step; feasible: the best-scored step the domain lets run (default)")
+    p.add_argument("--policy", choices=("plain", "feasible", "lookahead"), default="lookahead",
+                   help="plain: the best-scored step; feasible: the best-scored step the domain lets run; lookahead "
+                        "(default): stop where the goal the model was trained toward holds, else of its best runnable "
+                        "steps the one whose imagined run reaches most of that goal (docs/veil.md)")
     p.add_argument("--max-steps", type=int, default=40, help="steps at most (default 40)")
 
 
@@ -173,24 +176,28 @@ def _plan(args: argparse.Namespace) -> int:
 
 
 def plan_in_environment(model: Path, environment: Path, objective: str, release: Path | None = None,
-                        policy: str = "feasible", max_steps: int = 40) -> int:
+                        policy: str = "lookahead", max_steps: int = 40) -> int:
     """Print the steps a trained model takes toward `objective` in an environment file, and the goal reached;
     exit code 0 when it chose `done` with the goal reached, else 1 (`taskseq veil plan`, and `taskseq plan` given
     a release's environment file)."""
     from .evaluate import Executor, lift, rollout
+    from .lookahead import planner
     from .metrics import goal_share
     from .persist import load_mrf
     from .plan import domain_of, environment_state
 
     if max_steps < 1:
         raise ValueError(f"--max-steps must be at least 1, got {max_steps}")
-    method, goals, _ = load_mrf(model)
+    trained, _ = load_mrf(model)
+    method, goals = trained.method, trained.goals
     if objective not in method.vocabulary.objectives:
         raise ValueError(f"objective {objective!r} is not one the model knows: "
                          f"{', '.join(method.vocabulary.objectives)}")
     domain = domain_of(environment, release)
     state = environment_state(environment, domain)
-    steps, final, refused, stopped = rollout(method, Executor(domain), state, objective, policy, max_steps)
+    executor = Executor(domain)
+    runner, rollout_policy = planner(method, goals, executor, policy, trained.lookahead_width)
+    steps, final, refused, stopped = rollout(runner, executor, state, objective, rollout_policy, max_steps)
     for i, s in enumerate(steps, start=1):
         print(f"{i:3d}  {s}")
     goal = goals.get(objective, frozenset())

@@ -36,9 +36,10 @@ from .evaluate import (
     states_of,
 )
 from .features import Vocabulary
-from .lookahead import GoalLookahead
+from .lookahead import LOOKAHEAD, GoalLookahead, planner
 from .methods import MRFMethod, VeilMethod
 from .metrics import bootstrap_by_group, paired_sign_flip
+from .persist import TrainedModel
 from .recordings import record_run
 from .release import Release, read_release
 from .replay import Replay, replay_release
@@ -451,19 +452,24 @@ def choose_model(release: Release, replays: Sequence[Replay], settings: Settings
     return candidates[best]
 
 
-def train_model(release_root: Path | str, settings: Settings, n_jobs: int = 1) -> tuple[MRFMethod, dict, list[str]]:
-    """The chosen MRF row fitted on every sequence of a release, the goals of its objectives and its environments."""
+def train_model(release_root: Path | str, settings: Settings, n_jobs: int = 1) -> TrainedModel:
+    """The chosen MRF row fitted on every sequence of a release, with the goals of its objectives, its environments
+    and the goal lookahead's width, chosen around that row on the same inner split (`choose_width`)."""
     release = read_release(release_root)
     replays = replay_release(release)
     name, C = choose_model(release, replays, settings, n_jobs)
-    method = make_method(name, release, sorted({r.point.objective for r in replays}), settings, C)
+    objectives = sorted({r.point.objective for r in replays})
+    method = make_method(name, release, objectives, settings, C)
     assert isinstance(method, MRFMethod)
-    return method.fit(replays), derive_goals(replays), sorted({r.point.env_id for r in replays})
+    width = choose_width(name, C, release, objectives, replays, settings)
+    return TrainedModel(method.fit(replays), derive_goals(replays), sorted({r.point.env_id for r in replays}), width)
 
 
-def evaluate_model(method: MRFMethod, goals: dict, release_root: Path | str, settings: Settings,
+def evaluate_model(model: TrainedModel, release_root: Path | str, settings: Settings,
                    progress: Callable[[Iterable], Iterable] = iter) -> dict:
-    """A trained model on every sequence of a folder: the experiment's figures, the folder as one fold."""
+    """A trained model on every sequence of a folder: the experiment's figures, the folder as one fold; closed
+    loop under each of the settings' policies and the goal lookahead (`lookahead`, at the model's width)."""
+    method, goals = model.method, model.goals
     release = read_release(release_root)
     replays = replay_release(release)
     known = set(method.vocabulary.objectives)
@@ -477,15 +483,17 @@ def evaluate_model(method: MRFMethod, goals: dict, release_root: Path | str, set
     fr.next_step[method.name] = {part: float(np.mean([getattr(r, part) for r in rows]))
                                  for part in ("verb", "args", "both")}
     per_sequence: dict[str, list[Run]] = {}
-    for policy in settings.policies:
-        runs = closed_loop(method, executor, replays, goals, policy, settings.max_steps, progress)
-        per_sequence[f"{method.name}/{policy}"] = runs
-        fr.closed_loop[f"{method.name}/{policy}"] = _figures(runs)
+    for name in (*settings.policies, LOOKAHEAD):
+        runner, policy = planner(method, goals, executor, name, model.lookahead_width)
+        runs = closed_loop(runner, executor, replays, goals, policy, settings.max_steps, progress)
+        per_sequence[f"{method.name}/{name}"] = runs
+        fr.closed_loop[f"{method.name}/{name}"] = _figures(runs)
     own = people_runs(replays, goals)
     fr.closed_loop["people"] = _figures(own)
     fr.seconds[method.name] = 0.0
     report = summarize([fr], per_sequence, own, settings, methods=(method.name,))
-    report["model"] = {"name": method.name, "C": method.C, "evaluated_on": str(release_root)}
+    report["model"] = {"name": method.name, "C": method.C, "lookahead_width": model.lookahead_width,
+                       "evaluated_on": str(release_root)}
     return report
 
 

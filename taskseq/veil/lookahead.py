@@ -23,7 +23,7 @@ objective without a derived goal is left to the model as it is.
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 
 from ..plan.planner import LOOKAHEAD_DEPTH, LOOKAHEAD_WIDTH
@@ -57,7 +57,11 @@ class GoalLookahead:
     def with_goals(self, train: Sequence[Replay]) -> GoalLookahead:
         """The goals derived from `train`, around a base already fitted on the same sequences (an evaluation
         that runs the base model too fits it once)."""
-        self.goals_ = derive_goals(train)
+        return self.toward(derive_goals(train))
+
+    def toward(self, goals: Mapping[str, frozenset[Lifted]]) -> GoalLookahead:
+        """Goals given as they are (a model file's), around a fitted base."""
+        self.goals_ = dict(goals)
         self._first = {}
         return self
 
@@ -113,3 +117,15 @@ class GoalLookahead:
             chosen = options[max(range(len(options)), key=lambda i: (values[i], -i))][0]
         yield chosen
         yield from (s for s in self.base.ranked(state, history, objective) if s != chosen)
+
+
+LOOKAHEAD = "lookahead"  # a policy name beside `evaluate.POLICIES`: this class around the model, feasible steps
+
+
+def planner(model: VeilMethod, goals: Mapping[str, frozenset[Lifted]], executor: Executor, policy: str,
+            width: int) -> tuple[VeilMethod, str]:
+    """The method and the rollout policy that a policy name stands for: `lookahead` wraps `model` in the goal
+    lookahead (which proposes runnable steps first) run under `feasible`; the others take `model` as it is."""
+    if policy == LOOKAHEAD:
+        return GoalLookahead(f"{model.name}_lookahead", model, executor, width=width).toward(goals), "feasible"
+    return model, policy

@@ -7,13 +7,16 @@ weights give the same bytes. Beside the weights it keeps the vocabulary (the
 columns of an object's row and the objectives it knows), the goal of each
 objective derived from its training sequences (`evaluate.derive_goals`), so a
 folder of other environments is scored against the goals the model was
-trained toward, and the environments it was trained on.
+trained toward, the environments it was trained on, and the width of the goal
+lookahead chosen with it (`lookahead.GoalLookahead`), so the model plans as the
+evaluation's best row does.
 """
 
 from __future__ import annotations
 
 import json
 import zipfile
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -23,23 +26,33 @@ from ..runtime.atomic import write_arrays
 from .features import Vocabulary
 from .methods import MRFMethod
 
-FORMAT = "taskseq.veil-mrf/1"
+FORMAT = "taskseq.veil-mrf/2"
 Goals = dict[str, frozenset[tuple[str, ...]]]
 
 
-def save_mrf(path: Path | str, method: MRFMethod, goals: Goals, trained_on: list[str]) -> None:
-    v = method.vocabulary
+@dataclass
+class TrainedModel:
+    """A model for use: the fitted MRF, the goals it was trained toward, its environments, the lookahead's width."""
+
+    method: MRFMethod
+    goals: Goals
+    trained_on: list[str]
+    lookahead_width: int
+
+
+def save_mrf(path: Path | str, model: TrainedModel) -> None:
+    method, v = model.method, model.method.vocabulary
     meta = {"format": FORMAT, "name": method.name, "features": method.features, "C": method.C, "tol": method.tol,
             "vocabulary": {"affordances": list(v.affordances), "states": list(v.states),
                            "categories": list(v.categories), "objectives": list(v.objectives)},
-            "goals": {o: sorted(list(f) for f in facts) for o, facts in sorted(goals.items())},
-            "trained_on": sorted(trained_on)}
+            "goals": {o: sorted(list(f) for f in facts) for o, facts in sorted(model.goals.items())},
+            "trained_on": sorted(model.trained_on), "lookahead_width": model.lookahead_width}
     write_arrays(path, {"w": np.asarray(method.w_, dtype=np.float64),
                         "meta": np.array(json.dumps(meta, sort_keys=True))})
 
 
-def load_mrf(path: Path | str) -> tuple[MRFMethod, Goals, dict[str, Any]]:
-    """The fitted method, its goals and the file's metadata; a clear error for anything else."""
+def load_mrf(path: Path | str) -> tuple[TrainedModel, dict[str, Any]]:
+    """The model and the file's metadata; a clear error for anything else."""
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such model file (run `dvc repro veil/dvc.yaml` or `taskseq veil train`)")
@@ -61,4 +74,4 @@ def load_mrf(path: Path | str) -> tuple[MRFMethod, Goals, dict[str, Any]]:
         raise ValueError(f"{path}: {w.shape[0]} weights, but its vocabulary makes {method.model_.size_joint_feature}")
     method.w_ = w
     goals = {o: frozenset(tuple(f) for f in facts) for o, facts in meta["goals"].items()}
-    return method, goals, meta
+    return TrainedModel(method, goals, list(meta["trained_on"]), int(meta["lookahead_width"])), meta
