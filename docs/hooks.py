@@ -304,8 +304,7 @@ def selection_ranking() -> str:
     selection = _json("selection.json")
     if selection is None:
         return _missing("selection.json", "dvc repro select")
-    import taskseq.methods  # noqa: F401  (the added methods register themselves)
-    from taskseq.evaluate.registry import method_labels
+    from taskseq.methods import method_labels
 
     labels = method_labels()
     rows = []

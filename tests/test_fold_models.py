@@ -8,20 +8,23 @@ import pytest
 from taskseq.demonstrations.benchmark import Benchmark
 from taskseq.demonstrations.generate import generate
 from taskseq.demonstrations.ingest import load_logs
-from taskseq.evaluate.methods import MRFMethod, mrf_methods
+from taskseq.evaluate.methods import MRFMethod
 from taskseq.experiments.crossval import cross_validate
 from taskseq.experiments.fold_models import train_fold_models, training_jobs
 from taskseq.experiments.recipes import evaluate_recipes
 from taskseq.experiments.robustness import NoiseCondition, evaluate_conditions
 from taskseq.features.dataset import build_steps
 from taskseq.learn.estimator import StepScorer
-from taskseq.settings import Folds, Generate, Learner, Procedural
+from taskseq.methods import Lineup, specs
+from taskseq.selection import Selection
+from taskseq.settings import Folds, Generate, Learner, Methods, Procedural
 from taskseq.sim.procedural import NEW_KINDS
 
 SETTINGS = {"C": 3.0, "tol": 1e-2, "max_iter": 2000, "n_slacks": 0}
 # two of the paper's models and both that consult the demonstrator (chained starts, DAgger)
-METHODS = {name: make for name, make in mrf_methods(Learner(**SETTINGS, dagger_rounds=1)).items()
-           if name in ("full", "only_edge", "chained", "dagger")}
+METHODS = Lineup(Methods(), Selection(dict.fromkeys(specs(), SETTINGS["C"]), source="s"),
+                 Learner(SETTINGS["tol"], SETTINGS["max_iter"], SETTINGS["n_slacks"])).mrf(
+    ["only_edge", "full", "chained", "dagger"])
 
 
 def _steps(records: list[dict]) -> tuple:

@@ -22,7 +22,7 @@ from taskseq.stages import teach as teach_stage
 from taskseq.stages import train as train_stage
 from taskseq.stages.paths import PeoplePaths, TeachPaths, TrainPaths
 
-LEARNER = Learner(C=3.0, tol=1e-2, max_iter=300)
+LEARNER = Learner(tol=1e-2, max_iter=300)  # C: untuned, no selection file
 TAUGHT = [Task("pour", ("obj27",)), Task("throw_away", ("obj43",))]  # in env01
 
 
