@@ -157,7 +157,7 @@ def _machine(report: dict) -> str:
     return f"{m.get('cpus', '?')} CPUs, {m.get('processor', '?')}, Python {m.get('python', '?')}"
 
 
-BENCH_COMMAND = "taskseq bench --set train.C=3 --output reports/bench.json"
+BENCH_COMMAND = "taskseq bench --output reports/bench.json"
 
 
 def bench_training() -> str:
@@ -429,11 +429,12 @@ def params_page() -> str:
              "run with `--set SECTION.KEY=VALUE` on a stage's command, or as an experiment with "
              "`dvc exp run -S SECTION.KEY=VALUE` ([the pipeline](../pipeline.md#params)).\n"]
     rows: list[list[str]] = []
-    section, pending = None, []
+    section, intro, pending = None, "", []
 
     def flush():
         if section and rows:
-            parts.append(f"## `{section}`\n\n" + _rows(["setting", "value", "what it sets"], "lll", rows))
+            parts.append(f"## `{section}`\n\n" + (f"{intro}\n\n" if intro else "")
+                         + _rows(["setting", "value", "what it sets"], "lll", rows))
 
     for line in path.read_text().splitlines():
         if not line.strip():
@@ -443,10 +444,9 @@ def params_page() -> str:
             continue
         match = _SECTION.match(line)
         if match:
-            flush()
-            section, rows, pending = match.group(1), [], []
-            if match.group(2):
-                parts.append("")  # section comments go with its heading below
+            flush()  # the comments above a section and on its line say what it is: they go under its heading
+            section, rows = match.group(1), []
+            intro, pending = " ".join([*pending, match.group(2) or ""]).strip(), []
             continue
         match = _KEY.match(line)
         if match and section:

@@ -8,7 +8,7 @@ reported), runs each fold's model under the `noise` stage's conditions (its
 rates, draws and seed from params.yaml), and ranks the pairs by the mean
 sequence arg over those rates (the area under the noise curve), then by the
 mean success, then fewer copies, then the lower flip rate. The chosen pair
-goes into params.yaml by hand (`train.noise_rate`, `train.noise_copies`);
+goes into params.yaml by hand (`methods.noise_trained`: `noise_rate`, `noise_copies`);
 docs/model.md shows the table this prints.
 
     python scripts/noise_training.py --flip-rates 0.05 0.1 0.2 --copies 1 2 3

@@ -1,7 +1,11 @@
 """Every result-bearing setting of the pipeline, with its default, in one place.
 
 Each dataclass is one section of `params.yaml`, field by field (a test checks
-that the defaults here equal the file), and `Params` is the whole file. A
+that the defaults here equal the file), and `Params` is the whole file. The
+`methods` section is the one without defaults here: each method's entry (the
+experiments that run it, its own settings) is written in the file only, and
+checked against the method's spec (`taskseq.methods`) when a stage configures
+the methods. A
 stage reads the file once (`Params.load`), with any `--set section.key=value`
 of its command line on top, and picks what it needs into its own settings
 object; the stage's `params` list in `dvc.yaml` names exactly those keys (a
@@ -253,6 +257,14 @@ class Methods:
             entries.append((str(name), MethodEntry(tuple(dict.fromkeys(items)), own)))
         return cls(tuple(entries))
 
+    def flat(self) -> dict[str, Any]:
+        """Each entry's keys as `methods.NAME.KEY`, the experiments as one space-separated value."""
+        out: dict[str, Any] = {}
+        for name, entry in self.entries:
+            out[f"methods.{name}.experiments"] = " ".join(entry.experiments)
+            out |= {f"methods.{name}.{key}": value for key, value in entry.settings}
+        return out
+
     def entry(self, name: str) -> MethodEntry | None:
         """The file's entry of a method, or None when the file does not name it."""
         return dict(self.entries).get(name)
@@ -346,9 +358,15 @@ class Params:
         return cls(**sections)
 
     def flat(self) -> dict[str, Any]:
-        """Every setting as `section.key`: what a stage's run records."""
-        return {f"{s.name}.{k.name}": getattr(getattr(self, s.name), k.name)
-                for s in fields(self) for k in fields(getattr(self, s.name))}
+        """Every setting as `section.key` (a method's as `methods.NAME.KEY`): what a stage's run records."""
+        out: dict[str, Any] = {}
+        for s in fields(self):
+            section = getattr(self, s.name)
+            if isinstance(section, Methods):
+                out |= section.flat()
+            else:
+                out |= {f"{s.name}.{k.name}": getattr(section, k.name) for k in fields(section)}
+        return out
 
 
 SECTIONS: dict[str, type] = {f.name: type(getattr(Params(), f.name)) for f in fields(Params)}

@@ -1,5 +1,6 @@
 """Fold models are trained once by the `fold_models` stage and served to every evaluation stage."""
 
+from dataclasses import replace
 from functools import partial
 from pathlib import Path
 
@@ -35,7 +36,8 @@ def _steps(records: list[dict]) -> tuple:
 def _train(steps: tuple, out: Path, n_jobs: int) -> tuple:
     """The fold models of METHODS on `steps`, stored in `out`: (out, jobs, index rows)."""
     records, contexts, meta, scenarios = steps
-    jobs = training_jobs(METHODS, meta, scenarios, n_folds=2, seed=0, group_by="scenario")
+    jobs = training_jobs(METHODS, meta, scenarios, n_folds=2, seed=0, group_by="scenario",
+                         recipe_methods=("full", "chained", "choice_chained_lookahead"))
     return out, jobs, train_fold_models(METHODS, contexts, meta, scenarios, jobs, out, n_jobs=n_jobs)
 
 
@@ -97,8 +99,8 @@ def test_evaluation_stages_load_the_stored_models_without_training(small, store,
     evaluate_conditions({"full": partial(mrf, "full")}, contexts, meta, scenarios, [NoiseCondition(0.1, 0)],
                         Folds(folds=2), max_steps=20)
     evaluate_recipes(partial(mrf, "full"), contexts, meta, scenarios)
-    evaluate_recipes(partial(METHODS["chained"], store=str(out)), contexts, meta, scenarios)
-    cross_validate({"dagger": partial(METHODS["dagger"], store=str(out))}, contexts, meta,
+    evaluate_recipes(lambda: replace(METHODS["chained"](), store=str(out)), contexts, meta, scenarios)
+    cross_validate({"dagger": lambda: replace(METHODS["dagger"](), store=str(out))}, contexts, meta,
                    Benchmark.from_records(records), n_folds=2)
     assert count_fits == []
 

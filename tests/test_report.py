@@ -3,7 +3,6 @@
 import json
 
 from taskseq.methods import method_labels
-
 from taskseq.report.summary import build_summary
 
 

@@ -8,7 +8,7 @@ import shutil
 from pathlib import Path
 
 import pytest
-from params_files import params_with
+from params_files import params_with, selection_at
 
 from taskseq.cli import main
 from taskseq.demonstrations.benchmark import load_benchmark
@@ -37,7 +37,7 @@ def tiny(benchmark_logs, tmp_path_factory) -> Path:
     assert main(["ingest", "--input", str(root / "raw"), "--output", str(root / "processed"),
                  "--metrics", str(w / "dataset.json")]) == 0
     assert main(["features", "--input", str(root / "processed"), "--output", str(root / "features")]) == 0
-    (root / "selection.json").write_text(json.dumps({"C": 2.0}))
+    selection_at(root / "selection.json", 2.0)
     assert main(["fold_models", "--features", str(root / "features"), "--processed", str(root / "processed"), *FOLDS,
                  *LEARN, "--selection", str(root / "selection.json"), "--output", str(root / "store"),
                  "--metrics", str(root / "folds.json"), "--n-jobs", "1"]) == 0

@@ -44,8 +44,6 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
 
 def run(settings: Settings, paths: CrossvalPaths, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> dict[str, Any]:
     crossval, methods, output = settings.crossval, paths.methods, paths.output
-    contexts, meta = read_features(paths.features)
-    bench = load_benchmark(paths.processed)
     lineup = Lineup(settings.methods, read_selection(paths.selection), settings.learner, crossval, settings.horizon,
                     paths.store)
     every = lineup.names()
@@ -53,6 +51,8 @@ def run(settings: Settings, paths: CrossvalPaths, tracker: Tracker = NO_RUN, n_j
     if unknown:
         raise ValueError(f"unknown methods {sorted(unknown)}; known: {', '.join(every)}")
     factories = lineup.factories([name for name in every if methods is None or name in methods])
+    contexts, meta = read_features(paths.features)
+    bench = load_benchmark(paths.processed)
     print(f"cross-validating {', '.join(factories)} over {crossval.folds} folds grouped by {crossval.group_by} "
           f"({len(bench.scenarios)} scenarios, {len(contexts)} steps, {n_jobs} jobs)")
     recorded = spread(list(bench.scenarios), paths.recordings)

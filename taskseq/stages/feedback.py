@@ -40,11 +40,11 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
 
 def run(settings: Settings, paths: EvaluationPaths, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> list[dict[str, Any]]:
     feedback = settings.feedback
+    replay = settings.replay
+    lineup = Lineup(settings.methods, read_selection(paths.selection), replay.learner, store=paths.store)
+    methods = lineup.running("feedback")
     contexts, meta = read_features(paths.features)
     bench = load_benchmark(paths.processed)
-    replay = settings.replay
-    methods = Lineup(settings.methods, read_selection(paths.selection), replay.learner, store=paths.store).running(
-        "feedback")
     ns = feedback_steps(feedback, replay.max_steps)
     conditions = [FeedbackCondition(k, n) for k in feedback.k for n in ns]
     label = dict(zip(ns, feedback.n, strict=True))  # steps -> as the settings write them ("all")

@@ -27,8 +27,7 @@ class Settings:
     folds: Folds
     learner: Learner
     methods: Methods
-    recipes: bool = True  # those the recipes experiment runs are trained once per recipe kind too, on every step
-    # outside its environments
+    recipes: bool = True  # also those the recipes experiment runs, once per recipe kind (every step outside it)
 
 
 def settings(params: Params, world_seed: int | None = None) -> Settings:
@@ -37,11 +36,11 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
 
 def run(settings: Settings, paths: FoldModelsPaths, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> dict[str, Any]:
     folds, output = settings.folds, paths.output
+    lineup = Lineup(settings.methods, read_selection(paths.selection), settings.learner)
+    methods = lineup.mrf()  # a method without its C stops here, before minutes of work
+    recipe_methods = lineup.names("recipes") if settings.recipes else []
     contexts, meta = read_features(paths.features)
     bench = load_benchmark(paths.processed)
-    lineup = Lineup(settings.methods, read_selection(paths.selection), settings.learner)
-    methods = lineup.mrf()
-    recipe_methods = lineup.names("recipes") if settings.recipes else []
     jobs = training_jobs(methods, meta, bench.scenarios, folds.folds, folds.seed, folds.group_by, recipe_methods)
     recipes = ", recipes" if recipe_methods else ""
     print(f"training {len(jobs)} fold models ({folds.folds} folds grouped by {folds.group_by}{recipes}) "

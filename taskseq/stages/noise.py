@@ -41,11 +41,11 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
 
 def run(settings: Settings, paths: EvaluationPaths, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> list[dict[str, Any]]:
     noise = settings.noise
+    replay = settings.replay
+    lineup = Lineup(settings.methods, read_selection(paths.selection), replay.learner, store=paths.store)
+    methods = lineup.running("noise")
     contexts, meta = read_features(paths.features)
     bench = load_benchmark(paths.processed)
-    replay = settings.replay
-    methods = Lineup(settings.methods, read_selection(paths.selection), replay.learner, store=paths.store).running(
-        "noise")
     conditions = [NoiseCondition(r, s) for r in noise.rates for s in range(noise.draws)]
     runs, curve, sequences = [], [], []
     outcomes = evaluate_conditions(methods, contexts, meta, bench.scenarios, conditions, replay.folds,

@@ -38,10 +38,10 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
 
 
 def run(settings: Settings, paths: EvaluationPaths, tracker: Tracker = NO_RUN) -> dict[str, Any]:
+    lineup = Lineup(settings.methods, read_selection(paths.selection), settings.learner, store=paths.store)
+    methods = lineup.running("recipes")
     contexts, meta = read_features(paths.features)
     scenarios = load_benchmark(paths.processed).scenarios
-    methods = Lineup(settings.methods, read_selection(paths.selection), settings.learner, store=paths.store).running(
-        "recipes")
     reports, programs = {}, []
     for method in methods:
         outcomes = evaluate_recipes(methods[method], contexts, meta, scenarios, max_steps=settings.max_steps,
