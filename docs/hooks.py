@@ -425,7 +425,9 @@ def params_page() -> str:
     path = ROOT / "params.yaml"
     parts = ["# Parameters\n\nEvery setting of `params.yaml`, the file `dvc.yaml`'s stages read, with the value it "
              "holds and its comment there; this page is generated from the file when the site is built. The "
-             "defaults in code are `taskseq/settings.py`, which keeps them equal to this file. Change one for a "
+             "defaults in code are `taskseq/settings.py`, which keeps them equal to this file, but for the `methods` "
+             "section, which is written here only (each method's spec, in `taskseq/methods/`, holds the defaults of "
+             "its own settings). Change one for a "
              "run with `--set SECTION.KEY=VALUE` on a stage's command, or as an experiment with "
              "`dvc exp run -S SECTION.KEY=VALUE` ([the pipeline](../pipeline.md#params)).\n"]
     rows: list[list[str]] = []
