@@ -158,7 +158,7 @@ def _machine(report: dict) -> str:
     return f"{m.get('cpus', '?')} CPUs, {m.get('processor', '?')}, Python {m.get('python', '?')}"
 
 
-BENCH_COMMAND = "taskseq bench --set train.C=3 --output reports/bench.json"
+BENCH_COMMAND = "taskseq bench --output reports/bench.json"
 
 
 def bench_training() -> str:
@@ -305,8 +305,7 @@ def selection_ranking() -> str:
     selection = _json("selection.json")
     if selection is None:
         return _missing("selection.json", "dvc repro select")
-    import taskseq.methods  # noqa: F401  (the added methods register themselves)
-    from taskseq.evaluate.registry import method_labels
+    from taskseq.methods import method_labels
 
     labels = method_labels()
     rows = []
@@ -457,15 +456,18 @@ def params_page() -> str:
     path = ROOT / "params.yaml"
     parts = ["# Parameters\n\nEvery setting of `params.yaml`, the file `dvc.yaml`'s stages read, with the value it "
              "holds and its comment there; this page is generated from the file when the site is built. The "
-             "defaults in code are `taskseq/settings.py`, which keeps them equal to this file. Change one for a "
+             "defaults in code are `taskseq/settings.py`, which keeps them equal to this file, but for the `methods` "
+             "section, which is written here only (each method's spec, in `taskseq/methods/`, holds the defaults of "
+             "its own settings). Change one for a "
              "run with `--set SECTION.KEY=VALUE` on a stage's command, or as an experiment with "
              "`dvc exp run -S SECTION.KEY=VALUE` ([the pipeline](../pipeline.md#params)).\n"]
     rows: list[list[str]] = []
-    section, pending = None, []
+    section, intro, pending = None, "", []
 
     def flush():
         if section and rows:
-            parts.append(f"## `{section}`\n\n" + _rows(["setting", "value", "what it sets"], "lll", rows))
+            parts.append(f"## `{section}`\n\n" + (f"{intro}\n\n" if intro else "")
+                         + _rows(["setting", "value", "what it sets"], "lll", rows))
 
     for line in path.read_text().splitlines():
         if not line.strip():
@@ -475,10 +477,9 @@ def params_page() -> str:
             continue
         match = _SECTION.match(line)
         if match:
-            flush()
-            section, rows, pending = match.group(1), [], []
-            if match.group(2):
-                parts.append("")  # section comments go with its heading below
+            flush()  # the comments above a section and on its line say what it is: they go under its heading
+            section, rows = match.group(1), []
+            intro, pending = " ".join([*pending, match.group(2) or ""]).strip(), []
             continue
         match = _KEY.match(line)
         if match and section:

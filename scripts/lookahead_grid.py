@@ -32,9 +32,9 @@ from taskseq.demonstrations.benchmark import load_benchmark  # noqa: E402
 from taskseq.evaluate.methods import MRFMethod  # noqa: E402
 from taskseq.evaluate.metrics import summarize  # noqa: E402
 from taskseq.experiments.crossval import cross_validate  # noqa: E402
-from taskseq.experiments.selection import read_selection  # noqa: E402
 from taskseq.features.dataset import read_features  # noqa: E402
 from taskseq.plan.planner import Program, lookahead, run_loop  # noqa: E402
+from taskseq.selection import read_selection  # noqa: E402
 from taskseq.settings import Params  # noqa: E402
 from taskseq.sim.scenarios import Scenario  # noqa: E402
 
@@ -66,8 +66,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--data", type=Path, default=ROOT / "data" / "dev",
                         help="the development world's folder as `select` writes it (default: data/dev)")
     parser.add_argument("--selection", type=Path, default=ROOT / "reports" / "selection.json",
-                        help="C is the lookahead method's C there, else the choice cues' (default: "
-                             "reports/selection.json)")
+                        help="C is the lookahead method's C there (default: reports/selection.json)")
     parser.add_argument("--params", type=Path, default=ROOT / "params.yaml")
     parser.add_argument("--n-jobs", type=int, default=2)
     args = parser.parse_args(argv)
@@ -75,16 +74,16 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("depths and widths must be at least 1")
     params = Params.load(args.params)
     crossval = params.crossval
-    tuned = dict(read_selection(args.selection).tuned)
-    C = tuned.get("choice_lookahead", tuned.get("choice", params.train.C))  # the same models either way
+    C = read_selection(args.selection).of("choice_lookahead")
+    learner = {"tol": params.train.tol, "max_iter": params.train.max_iter, "n_slacks": params.train.n_slacks}
     contexts, meta = read_features(args.data / "features")
     bench = load_benchmark(args.data / "processed")
     grid = {f"{d}x{w}": (d, w) for d in args.depths for w in args.widths}
     with tempfile.TemporaryDirectory() as store:  # the six fold models, fitted once for every pair
         base = partial(LookaheadAt, features="choice", policy="lookahead", store=store,
-                       **{**params.train.learner.ssvm, "C": C})
+                       C=C, **learner)
         makes = {"feasible": partial(MRFMethod, features="choice", policy="feasible", store=store, name="feasible",
-                                     **{**params.train.learner.ssvm, "C": C})}
+                                     C=C, **learner)}
         makes |= {name: partial(base, depth=d, width=w, name=name) for name, (d, w) in grid.items()}
         print(f"{len(grid)} (depth, width) pairs x {crossval.folds} folds on the development world "
               f"({len(bench.scenarios)} scenarios), choice cues at C = {C:g}", file=sys.stderr)

@@ -8,7 +8,7 @@ reported), runs each fold's model under the `noise` stage's conditions (its
 rates, draws and seed from params.yaml), and ranks the pairs by the mean
 sequence arg over those rates (the area under the noise curve), then by the
 mean success, then fewer copies, then the lower flip rate. The chosen pair
-goes into params.yaml by hand (`train.noise_rate`, `train.noise_copies`);
+goes into params.yaml by hand (`methods.noise_trained`: `noise_rate`, `noise_copies`);
 docs/model.md shows the table this prints.
 
     python scripts/noise_training.py --flip-rates 0.05 0.1 0.2 --copies 1 2 3
@@ -31,8 +31,8 @@ sys.path.insert(0, str(ROOT))
 from taskseq.demonstrations.benchmark import load_benchmark  # noqa: E402
 from taskseq.evaluate.methods import MRFMethod  # noqa: E402
 from taskseq.experiments.robustness import NoiseCondition, evaluate_conditions, noise_curve, noise_runs  # noqa: E402
-from taskseq.experiments.selection import read_selection  # noqa: E402
 from taskseq.features.dataset import read_features  # noqa: E402
+from taskseq.selection import read_selection  # noqa: E402
 from taskseq.settings import Params  # noqa: E402
 
 
@@ -59,10 +59,11 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("flip rates must be within (0, 1] and copies at least 1")
     params = Params.load(args.params)
     noise, crossval = params.noise, params.crossval
-    C = dict(read_selection(args.selection).tuned).get("relations", params.train.C)
+    C = read_selection(args.selection).of("relations")
     contexts, meta = read_features(args.data / "features")
     bench = load_benchmark(args.data / "processed")
-    relations = partial(MRFMethod, features="relations", **{**params.train.learner.ssvm, "C": C})
+    relations = partial(MRFMethod, features="relations", C=C, tol=params.train.tol, max_iter=params.train.max_iter,
+                        n_slacks=params.train.n_slacks)
     settings = {f"{r:g}x{c}": (r, c) for r in args.flip_rates for c in args.copies} | {"none": (0.0, 0)}
     makes = {name: partial(relations, noise_rate=r, noise_copies=c, name=name) for name, (r, c) in settings.items()}
     conditions = [NoiseCondition(r, d) for r in noise.rates for d in range(noise.draws)]

@@ -1,7 +1,11 @@
 """Every result-bearing setting of the pipeline, with its default, in one place.
 
 Each dataclass is one section of `params.yaml`, field by field (a test checks
-that the defaults here equal the file), and `Params` is the whole file. A
+that the defaults here equal the file), and `Params` is the whole file. The
+`methods` section is the one without defaults here: each method's entry (the
+experiments that run it, its own settings) is written in the file only, and
+checked against the method's spec (`taskseq.methods`) when a stage configures
+the methods. A
 stage reads the file once (`Params.load`), with any `--set section.key=value`
 of its command line on top, and picks what it needs into its own settings
 object; the stage's `params` list in `dvc.yaml` names exactly those keys (a
@@ -13,7 +17,7 @@ commands only.
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
@@ -79,8 +83,6 @@ class Select:
     """Settings chosen on the development world by cross-validation, never on a reported world."""
 
     C: tuple[float, ...] = (0.3, 1.0, 3.0, 10.0)  # slack weights tried for each MRF method (grid, extended at an edge)
-    methods: tuple[str, ...] = ("full", "relations", "chained", "dagger", "feasible", "choice", "choice_feasible",
-                                "choice_lookahead", "choice_chained_lookahead", "noise_trained")  # tuned, then ranked
     max_extensions: int = 2  # grid values added beyond an edge per method at most (docs/planner-shipped.md)
     # rooms of the development world when world.family is procedural (the paper family has its 13): a large
     # benchmark chooses its settings on a world of this size, not on one as large as the reported ones
@@ -92,41 +94,18 @@ class Select:
         if len(self.C) < 2 or min(self.C) <= 0:
             raise ValueError(f"select.C must list at least two positive values (the grid's spacing is how it is "
                              f"extended), got {' '.join(f'{c:g}' for c in self.C)}")
-        if "full" not in self.methods:
-            raise ValueError("select.methods must include full: its C is also the paper's ablations' (only_edge, "
-                             "only_clique) and the teach and people stages'")
         if self.max_extensions < 0:
             raise ValueError(f"select.max_extensions must be at least 0, got {self.max_extensions}")
 
 
 @dataclass(frozen=True)
 class Learner:
-    """The cutting-plane structural SVM, and DAgger's rounds (`train` section, without the feature set)."""
+    """The cutting-plane structural SVM's settings (`train` section) but C, which is each method's own: the `select`
+    stage chooses it on the development world (`taskseq.methods.selection`)."""
 
-    C: float = 3.0  # slack weight: 0.5 ||w||^2 + C * sum of slacks; the pipeline takes it from `select`
     tol: float = 1e-3  # relative primal-dual gap to stop at
     max_iter: int = 2000  # cutting-plane iterations at most
     n_slacks: int = 0  # slack groups, one cut each per iteration (0: one per step, n-slack; 1: classic 1-slack)
-    dagger_rounds: int = 1  # DAgger rounds (roll out, ask the demonstrator, refit) of the `dagger` method
-    noise_rate: float = 0.1  # of `noise_trained`: each binary attribute flipped with this probability in a copy
-    noise_copies: int = 3  # of `noise_trained`: copies of the training steps seen with flipped attributes
-    tuned: tuple[tuple[str, float], ...] = ()  # (method, C) that `select` chose per MRF method; the rest take C
-
-    def __post_init__(self) -> None:
-        if not 0.0 <= self.noise_rate <= 1.0:
-            raise ValueError(f"train.noise_rate must lie in [0, 1] (a probability of flipping an attribute), got "
-                             f"{self.noise_rate}")
-        if self.noise_copies < 0:
-            raise ValueError(f"train.noise_copies must be at least 0, got {self.noise_copies}")
-
-    def of(self, method: str) -> Learner:
-        """The learner of one MRF method: with the C `select` chose for it, when it chose one."""
-        return replace(self, C=dict(self.tuned).get(method, self.C), tuned=())
-
-    @property
-    def ssvm(self) -> dict[str, float | int]:
-        """The structural SVM's own settings (what `StepScorer` takes besides its feature set)."""
-        return {"C": self.C, "tol": self.tol, "max_iter": self.max_iter, "n_slacks": self.n_slacks}
 
 
 @dataclass(frozen=True)
@@ -137,9 +116,8 @@ class Train(Learner):
 
     @property
     def learner(self) -> Learner:
-        """The learner without the feature set: what every evaluated MRF method takes."""
-        return Learner(self.C, self.tol, self.max_iter, self.n_slacks, self.dagger_rounds, self.noise_rate,
-                       self.noise_copies, self.tuned)
+        """The learner without the method: what every evaluated MRF method takes."""
+        return Learner(self.tol, self.max_iter, self.n_slacks)
 
 
 @dataclass(frozen=True)
@@ -170,7 +148,8 @@ class Crossval(Folds):
 
 @dataclass(frozen=True)
 class Noise:
-    methods: tuple[str, ...] = ("full", "relations", "choice", "noise_trained")  # Table I methods run under noise
+    """Attribute noise at test time (`noise` stage); the methods run are those whose `experiments` name noise."""
+
     rates: tuple[float, ...] = (0.0, 0.1, 0.2, 0.3, 0.4)  # probability of flipping each binary attribute
     draws: int = 3  # noise draws per rate
     seed: int = 0  # seed of the noise draws
@@ -178,7 +157,8 @@ class Noise:
 
 @dataclass(frozen=True)
 class Feedback:
-    methods: tuple[str, ...] = ("full", "relations")  # Table I methods run with an observer
+    """An observer's feedback (`feedback` stage); the methods run are those whose `experiments` name feedback."""
+
     k: tuple[int, ...] = (2, 3)  # candidates offered to the observer
     n: tuple[str, ...] = ("0", "1", "2", "3", "5", "all")  # steps with feedback
 
@@ -190,16 +170,9 @@ class Feedback:
 
 @dataclass(frozen=True)
 class Recipes:
-    methods: tuple[str, ...] = ("full", "chained", "choice_chained_lookahead")  # Table I methods that chain programs
+    """Programs chained into recipes (`recipes` stage); the methods run are those whose `experiments` name recipes."""
+
     observer_k: int = 3  # candidates the observer picks among at the start of each program (feedback runs)
-
-
-@dataclass(frozen=True)
-class Scenes:
-    """Rooms never seen in training (`scenes` stage): the drawn world of each reported seed, rooms held out whole."""
-
-    # MRF methods also trained on the paper-shaped world and run in the drawn one
-    transfer: tuple[str, ...] = ("full", "relations", "dagger", "choice_lookahead", "choice_chained_lookahead")
 
 
 @dataclass(frozen=True)
@@ -234,6 +207,69 @@ class Stats:
             raise ValueError(f"stats.confidence must lie strictly between 0 and 1, got {self.confidence}")
 
 
+# What a method's `experiments` may name: the experiments beside Table I, which runs every method.
+EXPERIMENTS = {
+    "select": "its own C chosen on the development world, and ranked for shipping",
+    "noise": "run with attribute noise at test time (noise stage, and the scenes stage's drawn worlds)",
+    "feedback": "run with an observer's feedback (feedback stage, and the scenes stage's drawn worlds)",
+    "recipes": "programs chained into recipes (recipes stage; fold_models trains its models per recipe)",
+    "transfer": "trained on the paper-shaped world and run in the drawn one (scenes stage)",
+}
+
+
+@dataclass(frozen=True)
+class MethodEntry:
+    """One method's entry of the `methods` section: the experiments that run it, and its own settings as written
+    (the method's spec, `taskseq.methods`, checks them against its settings and their defaults)."""
+
+    experiments: tuple[str, ...] = ()
+    settings: tuple[tuple[str, Any], ...] = ()
+
+
+@dataclass(frozen=True)
+class Methods:
+    """The `methods` section: per Table I method, its settings and the experiments beside Table I that run it.
+
+    The file's order is the order the experiments run them in (and `select` breaks a tie in the ranking by it). A
+    method the file does not name keeps its spec's defaults (`taskseq.methods`), so this class has no list of
+    methods of its own: the file is where the pipeline's are written.
+    """
+
+    entries: tuple[tuple[str, MethodEntry], ...] = ()
+
+    @classmethod
+    def parse(cls, section: Mapping[str, Any], source: str = "params.yaml") -> Methods:
+        entries = []
+        for name, entry in section.items():
+            entry = {} if entry is None else entry
+            if not isinstance(entry, dict):
+                raise ValueError(f"{source}: methods.{name} must hold keys (experiments and its own settings), got "
+                                 f"{entry!r}")
+            written = entry.get("experiments", "")
+            items = written.split() if isinstance(written, str) else written if isinstance(written, list) else None
+            if items is None:
+                raise ValueError(f"{source}: methods.{name}.experiments must list experiments, got {written!r}")
+            unknown = [e for e in items if e not in EXPERIMENTS]
+            if unknown:
+                raise ValueError(f"{source}: methods.{name}.experiments: unknown {unknown}; known: "
+                                 f"{', '.join(EXPERIMENTS)}")
+            own = tuple((k, v) for k, v in entry.items() if k != "experiments")
+            entries.append((str(name), MethodEntry(tuple(dict.fromkeys(items)), own)))
+        return cls(tuple(entries))
+
+    def flat(self) -> dict[str, Any]:
+        """Each entry's keys as `methods.NAME.KEY`, the experiments as one space-separated value."""
+        out: dict[str, Any] = {}
+        for name, entry in self.entries:
+            out[f"methods.{name}.experiments"] = " ".join(entry.experiments)
+            out |= {f"methods.{name}.{key}": value for key, value in entry.settings}
+        return out
+
+    def entry(self, name: str) -> MethodEntry | None:
+        """The file's entry of a method, or None when the file does not name it."""
+        return dict(self.entries).get(name)
+
+
 @dataclass(frozen=True)
 class Replay:
     """How the noise and feedback stages re-run the test scenarios: crossval's folds, so each scenario is run
@@ -254,11 +290,6 @@ CHOICES: dict[tuple[str, str], tuple[str, ...]] = {
     ("crossval", "group_by"): ("scenario", "environment"),
 }
 
-# Fields of a section's class that params.yaml leaves out, and why.
-NOT_IN_PARAMS = {("train", "C"): "chosen by the select stage on the development world (reports/selection.json)",
-                 ("train", "tuned"): "each MRF method's C, chosen by the select stage (reports/selection.json)"}
-
-
 @dataclass(frozen=True)
 class Params:
     """The whole of `params.yaml`, a typed section per field."""
@@ -272,7 +303,7 @@ class Params:
     noise: Noise = Noise()
     feedback: Feedback = Feedback()
     recipes: Recipes = Recipes()
-    scenes: Scenes = Scenes()
+    methods: Methods = Methods()
     people: People = People()
     teach: Teach = Teach()
     stats: Stats = Stats()
@@ -294,6 +325,8 @@ class Params:
             if not isinstance(raw, dict):
                 raise ValueError(f"{source}: expected sections such as 'train:', got {type(raw).__name__}")
         raw = {k: dict(v) if isinstance(v, dict) else v for k, v in raw.items()}
+        if isinstance(raw.get("methods"), dict):  # its entries are changed in place by overrides below: copies
+            raw["methods"] = {k: dict(v) if isinstance(v, dict) else v for k, v in raw["methods"].items()}
         for item in overrides:
             key, sep, value = item.partition("=")
             section, dot, name = key.strip().partition(".")
@@ -302,7 +335,13 @@ class Params:
             raw.setdefault(section, {})
             if not isinstance(raw[section], dict):
                 raise ValueError(f"{source}: section {section!r} must hold keys, got {raw[section]!r}")
-            raw[section][name] = yaml.safe_load(value) if value.strip() else ""
+            parsed = yaml.safe_load(value) if value.strip() else ""
+            method, dot, key = name.partition(".")
+            if section == "methods" and dot:  # methods.NAME.KEY=value: one key of one method's entry
+                entry = raw[section].get(method)
+                raw[section][method] = {**(entry if isinstance(entry, dict) else {}), key: parsed}
+            else:
+                raw[section][name] = parsed
         if overrides:
             source = f"{source} with --set {' '.join(overrides)}"
         unknown = sorted(set(raw) - {f.name for f in fields(cls)})
@@ -313,17 +352,21 @@ class Params:
             section = raw.get(f.name) or {}
             if not isinstance(section, dict):
                 raise ValueError(f"{source}: section {f.name!r} must hold keys, got {section!r}")
-            sections[f.name] = parse_section(type(getattr(cls(), f.name)), section, f.name, source)
+            kind = type(getattr(cls(), f.name))
+            sections[f.name] = kind.parse(section, source) if kind is Methods else parse_section(kind, section,
+                                                                                                    f.name, source)
         return cls(**sections)
 
-    def with_C(self, C: float, tuned: tuple[tuple[str, float], ...] = ()) -> Params:
-        """These settings with the learner's slack weight set, and each MRF method's (the `select` stage's choice)."""
-        return replace(self, train=replace(self.train, C=C, tuned=tuned))
-
     def flat(self) -> dict[str, Any]:
-        """Every setting as `section.key`: what a stage's run records."""
-        return {f"{s.name}.{k.name}": getattr(getattr(self, s.name), k.name)
-                for s in fields(self) for k in fields(getattr(self, s.name))}
+        """Every setting as `section.key` (a method's as `methods.NAME.KEY`): what a stage's run records."""
+        out: dict[str, Any] = {}
+        for s in fields(self):
+            section = getattr(self, s.name)
+            if isinstance(section, Methods):
+                out |= section.flat()
+            else:
+                out |= {f"{s.name}.{k.name}": getattr(section, k.name) for k in fields(section)}
+        return out
 
 
 SECTIONS: dict[str, type] = {f.name: type(getattr(Params(), f.name)) for f in fields(Params)}
@@ -364,8 +407,6 @@ def parse_section(cls: type, section: Mapping[str, Any], name: str | None = None
         if f.name not in section:
             continue
         value, default, key = section[f.name], getattr(cls(), f.name), f"{name}.{f.name}"
-        if (name, f.name) in NOT_IN_PARAMS and isinstance(default, tuple):
-            raise ValueError(f"{source}: {key} cannot be set: {NOT_IN_PARAMS[(name, f.name)]}")
         if isinstance(default, tuple):
             items = value.split() if isinstance(value, str) else value if isinstance(value, list) else [value]
             value = tuple(_value(type(default[0]), v, key, source) for v in items)

@@ -88,9 +88,10 @@ def _bench_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--params", type=Path, default=None,
                    help="settings file whose `train` section sets the learner (default: params.yaml, else defaults)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
-                   help="override one setting, e.g. --set train.C=3 (repeatable)")
+                   help="override one setting, e.g. --set train.tol=1e-4 (repeatable)")
     p.add_argument("--selection", type=Path, default=None,
-                   help="take C from this file written by `taskseq select` (default: train.C of the settings)")
+                   help="take the full model's C from this file written by `taskseq select` (default: no file: "
+                        "C = 3, taskseq.selection.UNTUNED_C)")
     p.add_argument("--repeats", type=int, default=50, help="timed repetitions per environment size")
     p.add_argument("--output", type=Path, required=True, help="results (JSON)")
 
@@ -99,10 +100,12 @@ def _bench(args: argparse.Namespace) -> int:
     from .bench.speed import format_bench, run_bench
     from .demonstrations.benchmark import load_benchmark
     from .runtime.atomic import write_json_atomic
+    from .selection import read_selection
     from .stages.command import load_params
 
     learner = load_params(args).train
-    result = run_bench(load_benchmark(args.processed).records, **learner.ssvm, repeats=args.repeats)
+    result = run_bench(load_benchmark(args.processed).records, C=read_selection(args.selection).of("full"),
+                       tol=learner.tol, max_iter=learner.max_iter, n_slacks=learner.n_slacks, repeats=args.repeats)
     write_json_atomic(args.output, result)
     print(format_bench(result))
     print(f"written to {args.output}")
@@ -125,8 +128,9 @@ def _scaling_options(p: argparse.ArgumentParser) -> None:
                    help="override one setting in every stage, e.g. --set train.tol=0.1 (repeatable)")
     p.add_argument("--selection", type=Path, default=None,
                    help="C of the stages and of the timed fit, from this file written by `taskseq select` "
-                        "(default: train.C of the settings)")
-    p.add_argument("--C", type=float, default=None, help="C of the timed fit (default: as the stages' C)")
+                        "(default: no file: C = 3, taskseq.selection.UNTUNED_C)")
+    p.add_argument("--C", type=float, default=None, help="C of the timed fit (default: the full model's, as the "
+                   "stages take it)")
     p.add_argument("--tol", type=float, default=1e-3, help="relative gap the timed fit stops at (default 1e-3)")
     p.add_argument("--n-jobs", type=positive, default=None,
                    help="processes of the parallel stages (default: $TASKSEQ_N_JOBS, else one per CPU)")
@@ -141,10 +145,11 @@ def _scaling(args: argparse.Namespace) -> int:
     from .bench.scaling import Plan, format_scaling, parse_rooms, plot_scaling, run_scaling
     from .runtime.atomic import write_json_atomic
     from .runtime.jobs import default_jobs
+    from .selection import read_selection
     from .stages.command import load_params
 
     learner = load_params(args).train
-    C = learner.C if args.C is None else args.C
+    C = read_selection(args.selection).of("full") if args.C is None else args.C
     plan = Plan(rooms=parse_rooms(args.rooms), stages=tuple(args.stages), C=C, tol=args.tol,
                 max_iter=learner.max_iter, n_slacks=learner.n_slacks, world_seed=args.world_seed,
                 n_jobs=args.n_jobs or default_jobs(), methods=None if args.methods is None else tuple(args.methods),

@@ -13,7 +13,7 @@ import pytest
 
 from taskseq.cli import main
 from taskseq.evaluate.failures import KINDS
-from taskseq.evaluate.registry import method_labels
+from taskseq.methods import method_labels
 from taskseq.report.csvs import SEQUENCE_COLUMNS, csv_text
 from taskseq.report.seeds import mean_sd
 from taskseq.report.summary import build_summary

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from taskseq.evaluate.methods import table1_methods
 from taskseq.features.context import RELATION_COLUMNS, step_context
 from taskseq.features.cues import CUE_COLUMNS, CUE_VOLUME_RATIOS, choice_cues
-from taskseq.settings import Crossval, Learner
+from taskseq.methods import Lineup, method_labels, specs
+from taskseq.selection import Selection
+from taskseq.settings import Methods
 from taskseq.sim.demonstrator import choose_stirrer, choose_vessel
 from taskseq.sim.objects import ObjectSpec
 from taskseq.sim.state import INSIDE, ON, WorldState
@@ -110,13 +111,11 @@ def test_the_nearest_of_each_kind_is_marked():
 
 
 def test_the_choice_cue_method_is_a_labelled_row_of_table1():
-    methods = table1_methods(Crossval(), Learner(C=2.0, tuned=(("choice", 0.5),)))
+    methods = Lineup(Methods(), Selection({**dict.fromkeys(specs(), 2.0), "choice": 0.5}, source="s")).factories()
     choice = methods["choice"]()
     assert (choice.features, choice.C, choice.dagger_rounds, choice.policy) == ("choice", 0.5, 0, "greedy")
     assert choice.learner_params() == methods["relations"]().learner_params() | {"C": 0.5}
-    from taskseq.evaluate.registry import added_methods
-
-    assert added_methods()["choice"].label == "ours + relations + choice cues"
+    assert method_labels()["choice"] == "ours + relations + choice cues"
 
 
 def test_the_choice_model_is_the_relations_model_plus_the_cue_blocks():

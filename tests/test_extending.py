@@ -1,4 +1,5 @@
-"""docs/adding-a-method.md, followed step by step: one module adds a method to Table I, MLflow and the store."""
+"""docs/adding-a-method.md, followed step by step: one module and one params.yaml entry add a method to Table I,
+with a setting of its own and a C of its own, to MLflow and the store."""
 
 from __future__ import annotations
 
@@ -9,11 +10,14 @@ import sys
 from pathlib import Path
 
 import pytest
+import yaml
 from mlflow.tracking import MlflowClient
 
 import taskseq.methods
 from taskseq.cli import main
-from taskseq.evaluate import registry
+from taskseq.methods import Lineup, MethodSpec, method_labels, register, spec
+from taskseq.selection import Selection
+from taskseq.settings import Params
 from taskseq.track.mlflow_runs import EXPERIMENT
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -25,25 +29,39 @@ SMALL = ["--set", "crossval.folds=2", "--set", "train.tol=0.01", "--set", "train
 def tutorial_module() -> tuple[str, str]:
     """The file name and code the tutorial tells a reader to save (its first Python block)."""
     text = TUTORIAL.read_text()
-    name = re.search(r"Save this\s+as `taskseq/methods/(\w+\.py)`", text).group(1)
+    name = re.search(r"Save this\s+as\s+`taskseq/methods/(\w+\.py)`", text).group(1)
     code = re.search(r"```python\n(.*?)```", text, re.S).group(1)
     return name, code
 
 
+def tutorial_entry() -> dict:
+    """The entry the tutorial tells a reader to add to params.yaml's `methods` section (its first YAML block)."""
+    return yaml.safe_load(re.search(r"```yaml\n(.*?)```", TUTORIAL.read_text(), re.S).group(1))
+
+
 @pytest.fixture
 def added(tmp_path, monkeypatch):
-    """The tutorial's module saved beside `taskseq/methods/` (a folder on the package's path), the registry
-    read afresh; both restored afterwards."""
+    """The tutorial's module saved beside `taskseq/methods/` (a folder on the package's path), the specs read
+    afresh; both restored afterwards."""
     folder = tmp_path / "methods"
     folder.mkdir()
     name, code = tutorial_module()
     (folder / name).write_text(code)
     monkeypatch.setattr(taskseq.methods, "__path__", [*taskseq.methods.__path__, str(folder)])
-    monkeypatch.setattr(registry, "_ADDED", {})
-    monkeypatch.setattr(registry, "_complete", False)
+    monkeypatch.setattr(spec, "_SPECS", dict(spec._SPECS))
     taskseq.methods.load()  # what importing the package does
     yield name.removesuffix(".py")
     sys.modules.pop(f"taskseq.methods.{name.removesuffix('.py')}", None)
+
+
+@pytest.fixture
+def params(added, tmp_path) -> Path:
+    """params.yaml with the tutorial's entry; the other methods run in Table I only, to keep the run small."""
+    data = yaml.safe_load((ROOT / "params.yaml").read_text())
+    data["methods"] = {"full": {"experiments": "select noise feedback recipes"}, **tutorial_entry()}
+    path = tmp_path / "params.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
 
 
 @pytest.fixture
@@ -59,61 +77,84 @@ def tiny(benchmark_logs, tmp_path) -> Path:
     return root
 
 
-def test_the_tutorials_method_reaches_table1_mlflow_the_store_and_the_tables_over_worlds(added, tiny, tmp_path,
-                                                                                          monkeypatch):
-    assert added == "full_chained"
-    labels = registry.method_labels()
-    assert labels["full_chained"] == "ours - full + chained starts"
-    assert list(labels)[-1] == "full_chained"  # below the built-in rows
+def test_the_tutorials_method_reaches_table1_mlflow_the_store_and_the_tables_over_worlds(added, params, tiny,
+                                                                                          tmp_path, monkeypatch):
+    assert added == "full_dagger"
+    labels = method_labels()
+    assert labels["full_dagger"] == "ours - full + dagger"
+    assert list(labels)[-1] == "full_dagger"  # below the built-in rows
+    # its entry: select gives it a C of its own; its setting is read, checked and overridden like any other
+    methods = Params.load(params).methods
+    assert Lineup(methods).names("select") == ["full", "full_dagger"]
+    assert Lineup(methods).factory("full_dagger")().dagger_rounds == 1
+    assert Lineup(Params.load(params, ["methods.full_dagger.rounds=2"]).methods).factory("full_dagger")(
+        ).dagger_rounds == 2
+    with pytest.raises(ValueError, match="methods.full_dagger.rounds must be a whole number, got 'two'"):
+        Lineup(Params.load(params, ["methods.full_dagger.rounds=two"]).methods)
+    # the C `select` chose for it, as selection.json holds it (the other MRF methods' too, which fold_models trains)
+    selection = tmp_path / "selection.json"
+    every = [n for n, m in Lineup(methods).mrf().items() if n not in ("only_edge", "only_clique")]
+    selection.write_text(json.dumps({"C": 2.0, "method": "full", "settings": {
+        **{n: {"C": 2.0} for n in every}, "full_dagger": {"C": 0.5}}}))
     uri = f"sqlite:///{tmp_path / 'mlflow.db'}"
     monkeypatch.setenv("MLFLOW_TRACKING_URI", uri)
-    data = ["--features", str(tiny / "features"), "--processed", str(tiny / "processed")]
+    data = ["--features", str(tiny / "features"), "--processed", str(tiny / "processed"), "--params", str(params),
+            "--selection", str(selection)]
 
     # the model store: the fold_models stage trains it with the built-in MRF methods
     assert main(["fold_models", *data, *SMALL, "--output", str(tiny / "store"), "--n-jobs", "1"]) == 0
     stored = json.loads((tiny / "store" / "index.json").read_text())["models"]
     uses = {u["method"] for m in stored for u in m["uses"]}
-    assert "full_chained" in uses and "full" in uses
+    assert "full_dagger" in uses and "full" in uses
 
-    # Table I of the world, and a child run in MLflow with the method's settings
+    # Table I of the world, and a child run in MLflow with the method's settings and its own C
     world = tiny / "worlds" / "0"
     assert main(["crossval", *data, *SMALL, "--model-store", str(tiny / "store"), "--methods", "full",
-                 "full_chained", "--recordings", "0", "--output", str(world), "--n-jobs", "1"]) == 0
+                 "full_dagger", "--recordings", "0", "--output", str(world), "--n-jobs", "1"]) == 0
     table = (world / "table1.md").read_text()
-    assert "ours - full + chained starts" in table and "ours - full |" in table
+    assert "ours - full + dagger" in table and "ours - full |" in table
     summary = json.loads((world / "crossval.json").read_text())
-    assert summary["full_chained"]["n_scenarios"] == summary["full"]["n_scenarios"] > 0
+    assert summary["full_dagger"]["n_scenarios"] == summary["full"]["n_scenarios"] > 0
     client = MlflowClient(tracking_uri=uri)
     experiment = client.get_experiment_by_name(EXPERIMENT)
-    (child,) = client.search_runs([experiment.experiment_id], "attributes.run_name = 'full_chained'")
-    assert child.data.params["chained_starts"] == "True" and child.data.params["feature_set"] == "full"
+    (child,) = client.search_runs([experiment.experiment_id], "attributes.run_name = 'full_dagger'")
+    assert child.data.params["dagger_rounds"] == "1" and child.data.params["feature_set"] == "full"
+    assert child.data.params["C"] == "0.5"
 
     # the tables over worlds: the rest of the world's results (small), a second world (the same) and the aggregate
     rest = [*data, *SMALL, "--model-store", str(tiny / "store"), "--output", str(world)]
     assert main(["--no-mlflow", "noise", *rest, "--set", "noise.rates=0.0", "--set", "noise.draws=1",
-                 "--set", "noise.methods=full", "--n-jobs", "1"]) == 0
+                 "--n-jobs", "1"]) == 0
     assert main(["--no-mlflow", "feedback", *rest, "--set", "feedback.k=2", "--set", "feedback.n=0",
-                 "--set", "feedback.methods=full", "--n-jobs", "1"]) == 0
-    assert main(["--no-mlflow", "recipes", *rest, "--set", "recipes.methods=full"]) == 0
+                 "--n-jobs", "1"]) == 0
+    assert main(["--no-mlflow", "recipes", *rest]) == 0
     shutil.copytree(world, tiny / "worlds" / "5")
     out = tiny / "reports"
     assert main(["--no-mlflow", "aggregate", "--set", "world.seeds=[0, 5]", "--worlds", str(tiny / "worlds"),
                  "--output", str(out)]) == 0
     rows = (out / "table1.md").read_text().splitlines()
     names = [r.split("|")[1].strip() for r in rows if r.startswith("|")]
-    assert names.index("ours - full + chained starts") > names.index("ours - full")
-    assert "full_chained" in json.loads((out / "crossval_means.json").read_text())
+    assert names.index("ours - full + dagger") > names.index("ours - full")
+    assert "full_dagger" in json.loads((out / "crossval_means.json").read_text())
 
 
-def test_the_list_is_refused_until_the_methods_package_has_registered_them(monkeypatch):
-    monkeypatch.setattr(registry, "_complete", False)
-    with pytest.raises(RuntimeError, match="import taskseq.methods first"):
-        registry.method_labels()
+def test_a_method_needs_a_c_of_its_own_when_a_selection_file_is_given(added, params):
+    lineup = Lineup(Params.load(params).methods, Selection({"full": 2.0}, source="selection.json"))
+    assert lineup.factory("only_edge")().C == 2.0  # the paper's ablations take the full model's, as their spec says
+    with pytest.raises(ValueError, match="selection.json: no C for method full_dagger: add select to "
+                                         "methods.full_dagger.experiments in params.yaml"):
+        lineup.factory("full_dagger")
+
+
+def test_an_entry_names_a_method_and_settings_it_has(added, tmp_path):
+    with pytest.raises(ValueError, match="methods.full_chained is no method of Table I"):
+        Lineup(Params.load(None, ["methods.full_chained.experiments=select"]).methods)
+    with pytest.raises(ValueError, match="unknown setting methods.full.rounds"):
+        Lineup(Params.load(None, ["methods.full.rounds=2"]).methods)
 
 
 def test_a_name_is_registered_once(added):
-    registry.added_methods()
     with pytest.raises(ValueError, match="registered twice"):
-        registry.register("full", "another full model")(lambda settings: None)
+        register(MethodSpec("full", "another full model", lambda build: None))
     with pytest.raises(ValueError, match="Python identifier"):
-        registry.register("two words", "x")
+        MethodSpec("two words", "x", lambda build: None)

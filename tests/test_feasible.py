@@ -6,11 +6,12 @@ import numpy as np
 import pytest
 
 from taskseq.demonstrations.records import parse_record, state_from_dict
-from taskseq.evaluate.methods import table1_methods
 from taskseq.features.context import candidate_index, step_context
 from taskseq.learn.estimator import StepScorer
+from taskseq.methods import Lineup, specs
 from taskseq.plan.planner import DONE, INFEASIBLE, feasible, greedy, learned_policy, run_loop
-from taskseq.settings import Crossval, Learner
+from taskseq.selection import Selection
+from taskseq.settings import Methods
 from taskseq.sim.primitives import try_execute
 
 
@@ -58,7 +59,7 @@ def test_among_the_steps_that_can_run_it_takes_the_best_scored(scenarios, benchm
 
 
 def test_the_feasible_steps_method_is_a_labelled_row_sharing_the_dagger_models():
-    methods = table1_methods(Crossval(), Learner(C=2.0))
+    methods = Lineup(Methods(), Selection(dict.fromkeys(specs(), 2.0), source="s")).factories()
     feasible_method, dagger = methods["feasible"](), methods["dagger"]()
     assert feasible_method.learner_params() == dagger.learner_params()
     assert feasible_method.features == dagger.features == "relations"
@@ -66,14 +67,16 @@ def test_the_feasible_steps_method_is_a_labelled_row_sharing_the_dagger_models()
 
 
 def test_the_choice_cues_with_feasible_steps_share_the_choice_cue_models():
-    methods = table1_methods(Crossval(), Learner(C=2.0, tuned=(("choice", 3.0), ("choice_feasible", 3.0))))
+    methods = Lineup(Methods(), Selection({**dict.fromkeys(specs(), 2.0), "choice": 3.0, "choice_feasible": 3.0},
+                                          source="s")).factories()
     both, choice = methods["choice_feasible"](), methods["choice"]()
     assert both.learner_params() == choice.learner_params() and both.features == choice.features == "choice"
     assert (both.policy, choice.policy) == ("feasible", "greedy")
 
 
 def test_the_lookahead_rows_are_the_choice_cue_models_with_the_lookahead():
-    methods = table1_methods(Crossval(), Learner(C=2.0, tuned=(("choice", 3.0), ("choice_lookahead", 3.0))))
+    methods = Lineup(Methods(), Selection({**dict.fromkeys(specs(), 2.0), "choice": 3.0, "choice_lookahead": 3.0},
+                                          source="s")).factories()
     look, choice = methods["choice_lookahead"](), methods["choice"]()
     assert look.learner_params() == choice.learner_params() and look.features == "choice"
     assert look.policy == "lookahead"

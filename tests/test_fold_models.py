@@ -1,5 +1,6 @@
 """Fold models are trained once by the `fold_models` stage and served to every evaluation stage."""
 
+from dataclasses import replace
 from functools import partial
 from pathlib import Path
 
@@ -8,20 +9,23 @@ import pytest
 from taskseq.demonstrations.benchmark import Benchmark
 from taskseq.demonstrations.generate import generate
 from taskseq.demonstrations.ingest import load_logs
-from taskseq.evaluate.methods import MRFMethod, mrf_methods
+from taskseq.evaluate.methods import MRFMethod
 from taskseq.experiments.crossval import cross_validate
 from taskseq.experiments.fold_models import train_fold_models, training_jobs
 from taskseq.experiments.recipes import evaluate_recipes
 from taskseq.experiments.robustness import NoiseCondition, evaluate_conditions
 from taskseq.features.dataset import build_steps
 from taskseq.learn.estimator import StepScorer
-from taskseq.settings import Folds, Generate, Learner, Procedural
+from taskseq.methods import Lineup, specs
+from taskseq.selection import Selection
+from taskseq.settings import Folds, Generate, Learner, Methods, Procedural
 from taskseq.sim.procedural import NEW_KINDS
 
 SETTINGS = {"C": 3.0, "tol": 1e-2, "max_iter": 2000, "n_slacks": 0}
 # two of the paper's models and both that consult the demonstrator (chained starts, DAgger)
-METHODS = {name: make for name, make in mrf_methods(Learner(**SETTINGS, dagger_rounds=1)).items()
-           if name in ("full", "only_edge", "chained", "dagger")}
+METHODS = Lineup(Methods(), Selection(dict.fromkeys(specs(), SETTINGS["C"]), source="s"),
+                 Learner(SETTINGS["tol"], SETTINGS["max_iter"], SETTINGS["n_slacks"])).mrf(
+    ["only_edge", "full", "chained", "dagger"])
 
 
 def _steps(records: list[dict]) -> tuple:
@@ -32,7 +36,8 @@ def _steps(records: list[dict]) -> tuple:
 def _train(steps: tuple, out: Path, n_jobs: int) -> tuple:
     """The fold models of METHODS on `steps`, stored in `out`: (out, jobs, index rows)."""
     records, contexts, meta, scenarios = steps
-    jobs = training_jobs(METHODS, meta, scenarios, n_folds=2, seed=0, group_by="scenario")
+    jobs = training_jobs(METHODS, meta, scenarios, n_folds=2, seed=0, group_by="scenario",
+                         recipe_methods=("full", "chained", "choice_chained_lookahead"))
     return out, jobs, train_fold_models(METHODS, contexts, meta, scenarios, jobs, out, n_jobs=n_jobs)
 
 
@@ -94,8 +99,8 @@ def test_evaluation_stages_load_the_stored_models_without_training(small, store,
     evaluate_conditions({"full": partial(mrf, "full")}, contexts, meta, scenarios, [NoiseCondition(0.1, 0)],
                         Folds(folds=2), max_steps=20)
     evaluate_recipes(partial(mrf, "full"), contexts, meta, scenarios)
-    evaluate_recipes(partial(METHODS["chained"], store=str(out)), contexts, meta, scenarios)
-    cross_validate({"dagger": partial(METHODS["dagger"], store=str(out))}, contexts, meta,
+    evaluate_recipes(lambda: replace(METHODS["chained"](), store=str(out)), contexts, meta, scenarios)
+    cross_validate({"dagger": lambda: replace(METHODS["dagger"](), store=str(out))}, contexts, meta,
                    Benchmark.from_records(records), n_folds=2)
     assert count_fits == []
 

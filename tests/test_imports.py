@@ -110,7 +110,7 @@ def package_graph(edges: dict[str, set[str]]) -> dict[str, set[str]]:
 def test_the_graph_is_read_from_the_source():
     edges = graph()
     assert "taskseq.sim.state" in edges["taskseq.sim.primitives"]  # from .state import ...
-    assert "taskseq.evaluate.registry" in edges["taskseq.methods"]  # from ..evaluate import registry
+    assert "taskseq.methods.spec" in edges["taskseq.methods"]  # from .spec import ...
     assert "taskseq.stages.paths" in edges["taskseq.stages"]  # from . import paths as P
 
 
@@ -147,3 +147,28 @@ def test_the_layers_below_the_pipeline_import_none_above_them():
                                    "taskseq.methods", "taskseq.track"}, f"{name} imports {sorted(tops)}"
                 if layer == "taskseq.evaluate":
                     assert "taskseq.experiments" not in tops, f"{name} imports the experiments"
+
+
+def test_the_methods_import_nothing_of_the_pipeline_that_runs_them():
+    # the specs are the method interface: the experiments, stages, web app and tracking run them, not the reverse
+    for name, targets in graph().items():
+        if name == "taskseq.methods" or name.startswith("taskseq.methods."):
+            tops = {".".join(t.split(".")[:2]) for t in targets}
+            assert not tops & {"taskseq.experiments", "taskseq.serve", "taskseq.stages", "taskseq.cli",
+                               "taskseq.tool_commands", "taskseq.track", "taskseq.report"}, f"{name} imports {tops}"
+
+
+def test_every_import_at_run_time_stays_in_its_package():
+    """`importlib.import_module` is the import the graph above cannot read: each call must load a module of the
+    caller's own package (`f"{__name__}.x"` or `f"{__package__}.x"`), never one up the layers."""
+    calls = 0
+    for name, path in modules().items():
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Call) and getattr(node.func, "attr", None) == "import_module":
+                calls += 1
+                (arg,) = node.args
+                first = arg.values[0] if isinstance(arg, ast.JoinedStr) else None
+                inner = getattr(first, "value", None)
+                assert isinstance(inner, ast.Name) and inner.id in ("__name__", "__package__"), \
+                    f"{name}: import_module({ast.unparse(arg)}) may load a module outside its package"
+    assert calls >= 2  # taskseq.methods loads its methods, the stages' command its stage

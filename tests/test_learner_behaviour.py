@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import logging
 import time
+from dataclasses import asdict
 
 import cvxpy as cp
 import numpy as np
@@ -19,6 +20,7 @@ from taskseq.learn.multiclass import MulticlassModel
 from taskseq.learn.persist import save_model
 from taskseq.learn.ssvm import CuttingPlaneSSVM, Iteration, learning_curve
 from taskseq.learn.working_set import WorkingSet
+from taskseq.selection import UNTUNED_C
 from taskseq.settings import Learner
 
 # --- the cutting plane ---------------------------------------------------------------------------------------
@@ -321,12 +323,14 @@ def steps() -> list[StepContext]:
 
 
 SETTINGS = {"C": 0.5, "tol": 1e-6, "max_iter": 300, "n_slacks": 0}
+DEFAULTS = {"features": "full", "C": 3.0, "tol": 1e-3, "max_iter": 2000, "n_slacks": 0}
 
 
-def test_settings_default_to_the_pipelines_and_round_trip():
-    # the learner writes its defaults as numbers (it imports nothing of `taskseq.settings`): they stay the same
+def test_settings_default_to_the_estimators_own_and_round_trip():
+    # the learner's defaults are its own numbers (it imports nothing of the pipeline); they agree with the
+    # pipeline's learner and its untuned C, so a model fitted either way is the same
     default = StepScorer()
-    assert default.get_params() == {"features": "full", **Learner().ssvm}
+    assert default.get_params() == DEFAULTS == {"features": "full", "C": UNTUNED_C, **asdict(Learner())}
     assert default.get_params(deep=False) == default.get_params()
     s = StepScorer("edge", **SETTINGS)
     assert list(s.get_params()) == ["features", "C", "tol", "max_iter", "n_slacks"]
@@ -408,14 +412,14 @@ def test_a_saved_planner_loads_with_its_settings_weights_and_meta(steps, tmp_pat
     assert loaded.predict(steps) == s.predict(steps)
     save_model(tmp_path / "bare.npz", MRFModel("clique"), np.ones(MRFModel("clique").size_joint_feature), {})
     bare = StepScorer.load(tmp_path / "bare.npz")  # settings not saved: the defaults
-    assert bare.get_params() == {"features": "clique", **Learner().ssvm}
+    assert bare.get_params() == {**DEFAULTS, "features": "clique"}
 
 
 def test_a_planner_from_given_weights(steps):
     d = MRFModel("edge").size_joint_feature
     p = StepScorer.from_weights("edge", np.arange(d), C=2.0)
     assert p.w_.dtype == np.float64 and p.C == 2.0 and p.ssvm_ is None and p.model_.features == "edge"
-    assert p.get_params() == {"features": "edge", **Learner().ssvm, "C": 2.0}
+    assert p.get_params() == {**DEFAULTS, "features": "edge", "C": 2.0}
     assert p.predict(steps) == MRFModel("edge").batch_inference(steps, np.arange(d, dtype=float))
     with pytest.raises(ValueError, match=rf"^edge weights must have shape \({d},\), got \({d - 1},\)$"):
         StepScorer.from_weights("edge", np.zeros(d - 1))

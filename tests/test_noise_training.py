@@ -5,10 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from taskseq.evaluate.methods import MRFMethod, mrf_methods
+from taskseq.evaluate.methods import MRFMethod
 from taskseq.features.perception import BINARY_COLUMNS, noisy_copies
 from taskseq.learn.persist import describe
-from taskseq.settings import Learner, Params
+from taskseq.methods import Lineup
+from taskseq.selection import Selection
+from taskseq.settings import Params
 
 
 @pytest.fixture(scope="module")
@@ -101,10 +103,12 @@ def test_the_method_trains_on_its_steps_and_their_copies_under_a_key_of_its_own(
     np.testing.assert_array_equal(again.fit(contexts, meta).planner_.w_, noisy.planner_.w_)  # the same bytes
 
 
-def test_the_registered_method_takes_its_settings_from_the_learner():
-    method = mrf_methods(Learner(C=2.0, noise_rate=0.25, noise_copies=3), names=["noise_trained"])["noise_trained"]()
+def test_the_registered_method_takes_its_own_settings_from_its_entry():
+    methods = Params.load(None, ["methods.noise_trained.noise_rate=0.25"]).methods
+    lineup = Lineup(methods, Selection({"noise_trained": 2.0}, source="s"))
+    method = lineup.factory("noise_trained")()
     assert (method.features, method.noise_rate, method.noise_copies, method.C, method.policy) == \
-        ("relations", 0.25, 3, 2.0, "greedy")
+        ("relations", 0.25, 3, 2.0, "greedy")  # the copies at their default
 
 
 def test_a_model_file_says_how_many_noisy_copies_it_trained_on():
@@ -115,11 +119,13 @@ def test_a_model_file_says_how_many_noisy_copies_it_trained_on():
     assert "noisy" not in describe({**meta, "noise_copies": 0})
 
 
-@pytest.mark.parametrize(("setting", "message"), [("train.noise_rate=1.5", r"train.noise_rate must lie in \[0, 1\]"),
-                                                  ("train.noise_rate=-0.1", r"train.noise_rate must lie in \[0, 1\]"),
-                                                  ("train.noise_copies=-1", "train.noise_copies must be at least 0")])
-def test_noisy_training_settings_are_checked_where_params_are_read(setting, message):
+@pytest.mark.parametrize(("setting", "message"), [("noise_rate=1.5", r"noise_rate must lie in \[0, 1\]"),
+                                                  ("noise_rate=-0.1", r"noise_rate must lie in \[0, 1\]"),
+                                                  ("noise_copies=-1", "noise_copies must be at least 0")])
+def test_noisy_training_settings_are_checked_where_the_methods_are_configured(setting, message):
     with pytest.raises(ValueError, match=message):
-        Params.load(None, [setting])
+        Lineup(Params.load(None, [f"methods.noise_trained.{setting}"]).methods)
     for rate in ("0.0", "1.0"):  # both ends of the range are probabilities
-        assert Params.load(None, [f"train.noise_rate={rate}", "train.noise_copies=0"]).train.learner.noise_copies == 0
+        methods = Params.load(None, [f"methods.noise_trained.noise_rate={rate}",
+                                     "methods.noise_trained.noise_copies=0"]).methods
+        assert Lineup(methods).factory("noise_trained")().noise_copies == 0

@@ -13,7 +13,7 @@ from taskseq.demonstrations.people import people_records
 from taskseq.features.dataset import build_steps, write_features
 from taskseq.serve.environments import world_environment
 from taskseq.serve.writer import RecordWriter, person_record
-from taskseq.settings import Learner, People, Teach, Train, World
+from taskseq.settings import Learner, Methods, People, Teach, Train, World
 from taskseq.sim.demonstrator import demonstrate
 from taskseq.sim.scenarios import doable_tasks
 from taskseq.sim.tasks import Task
@@ -22,7 +22,7 @@ from taskseq.stages import teach as teach_stage
 from taskseq.stages import train as train_stage
 from taskseq.stages.paths import PeoplePaths, TeachPaths, TrainPaths
 
-LEARNER = Learner(C=3.0, tol=1e-2, max_iter=300)
+LEARNER = Learner(tol=1e-2, max_iter=300)  # C: untuned, no selection file
 TAUGHT = [Task("pour", ("obj27",)), Task("throw_away", ("obj43",))]  # in env01
 
 
@@ -80,10 +80,10 @@ def test_the_people_stage_judges_the_tasks_people_did_not_demonstrate(taught, tm
 
 
 def test_the_train_switch_adds_people_steps_and_off_leaves_the_metrics_as_they_were(taught, tmp_path, features):
-    train = Train(C=3.0, tol=1e-2, max_iter=300, method="full")
-    without = train_stage.run(train_stage.Settings(train, None),
+    train = Train(tol=1e-2, max_iter=300, method="full")  # C: untuned, no selection file
+    without = train_stage.run(train_stage.Settings(train, None, Methods()),
                               TrainPaths(features=features, model=tmp_path / "a.npz"))
-    with_people = train_stage.run(train_stage.Settings(train, taught),
+    with_people = train_stage.run(train_stage.Settings(train, taught, Methods()),
                                   TrainPaths(features=features, model=tmp_path / "b.npz"))
     assert "people_sequences" not in without and with_people["people_sequences"] == 2
     assert (tmp_path / "a.npz").read_bytes() != (tmp_path / "b.npz").read_bytes()

@@ -2,7 +2,7 @@
 
 import json
 
-from taskseq.evaluate.registry import method_labels
+from taskseq.methods import method_labels
 from taskseq.report.summary import build_summary
 
 

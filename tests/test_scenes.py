@@ -8,6 +8,7 @@ import shutil
 from dataclasses import dataclass, field
 
 import pytest
+from params_files import params_with, selection_at
 
 from taskseq.cli import main
 from taskseq.demonstrations.benchmark import Benchmark
@@ -79,12 +80,12 @@ def test_the_scenes_stage_writes_every_table_over_seeds(benchmark_logs, tmp_path
     assert main(["--no-mlflow", "ingest", "--input", str(raw), "--output", str(paper / "processed")]) == 0
     assert main(["--no-mlflow", "features", "--input", str(paper / "processed"), "--output",
                  str(paper / "features")]) == 0
-    (tmp_path / "selection.json").write_text(json.dumps({"C": 2.0}))
+    selection_at(tmp_path / "selection.json", 2.0)
     out, data = tmp_path / "reports", tmp_path / "data"
     settings = ["--set", "world.seeds=[0]", "--set", "procedural.environments=3", "--set", "crossval.folds=2",
-                "--set", "noise.methods=full", "--set", "noise.rates=0 0.4", "--set", "noise.draws=1",
-                "--set", "feedback.methods=full", "--set", "feedback.k=2", "--set", "feedback.n=0 all",
-                "--set", "scenes.transfer=full relations", *LEARN]
+                *params_with(tmp_path / "p.yaml", full="noise feedback transfer", relations="transfer"),
+                "--set", "noise.rates=0 0.4", "--set", "noise.draws=1", "--set", "feedback.k=2",
+                "--set", "feedback.n=0 all", *LEARN]
     assert main(["--no-mlflow", "scenes", "--selection", str(tmp_path / "selection.json"), "--paper",
                  str(tmp_path / "paper"), "--data", str(data), "--output", str(out), *settings, "--n-jobs", "1"]) == 0
     for name in ("table1.md", "table1.csv", "failures.md", "crossval_means.json", "metrics.json"):
@@ -173,11 +174,11 @@ def test_with_drawn_reported_worlds_the_stage_runs_and_says_no_transfer_was_meas
                  str(reported / "processed")]) == 0
     assert main(["--no-mlflow", "features", "--input", str(reported / "processed"), "--output",
                  str(reported / "features")]) == 0
-    (tmp_path / "selection.json").write_text(json.dumps({"C": 2.0}))
+    selection_at(tmp_path / "selection.json", 2.0)
     out = tmp_path / "reports"
-    settings = ["--set", "world.seeds=[0]", "--set", "crossval.folds=2", "--set", "noise.methods=full",
-                "--set", "noise.rates=0", "--set", "noise.draws=1", "--set", "feedback.methods=full",
-                "--set", "feedback.k=2", "--set", "feedback.n=0", "--set", "scenes.transfer=full", *common]
+    settings = ["--set", "world.seeds=[0]", "--set", "crossval.folds=2",
+                *params_with(tmp_path / "p.yaml", full="noise feedback transfer"), "--set", "noise.rates=0",
+                "--set", "noise.draws=1", "--set", "feedback.k=2", "--set", "feedback.n=0", *common]
     assert main(["--no-mlflow", "scenes", "--selection", str(tmp_path / "selection.json"), "--paper",
                  str(tmp_path / "worlds"), "--data", str(tmp_path / "data"), "--output", str(out), *settings,
                  "--n-jobs", "1"]) == 0

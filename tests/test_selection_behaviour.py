@@ -11,23 +11,24 @@ import math
 import pytest
 
 from taskseq.demonstrations.benchmark import Benchmark
-from taskseq.evaluate.methods import MRFMethod, mrf_methods
+from taskseq.evaluate.methods import MRFMethod
 from taskseq.experiments import selection
 from taskseq.experiments.crossval import FoldResult, SequenceOutcome
 from taskseq.experiments.selection import (
     DevData,
-    Selection,
     choose_C,
     cross_validate_settings,
     rank_methods,
-    read_selection,
 )
 from taskseq.features.context import StepContext
+from taskseq.methods import Lineup
+from taskseq.selection import UNTUNED_C, Selection, read_selection
 from taskseq.settings import Folds, Learner, Params, Replay
 from taskseq.sim.primitives import ALL_PRIMITIVES
 from taskseq.stages import fold_models as fold_models_stage
 from taskseq.stages import train as train_stage
 from taskseq.stages.command import load_params
+from taskseq.stages.paths import TrainPaths
 
 GRASP = ALL_PRIMITIVES.index("grasp")
 # per C: sequences right (of 4), successes (of 4), steps with the right arguments (of 2)
@@ -83,8 +84,10 @@ def test_each_method_is_cross_validated_at_each_of_its_own_values_of_c(monkeypat
     data = DevData(contexts, meta, bench, Folds(folds=3, seed=4, group_by="environment"), 9)
     store = tmp_path / "models"
     # each value of C is tried as it is, not an earlier choice of the method's own C
-    learner = Learner(C=99.0, tol=0.02, max_iter=7, tuned=(("full", 77.0), ("feasible", 66.0)))
-    out = cross_validate_settings({"full": (0.5, 2.0), "feasible": (8.0,)}, learner, data, store, n_jobs=3, verbose=2)
+    lineup = Lineup(Params.load().methods, Selection({"full": 77.0, "feasible": 66.0}, source="x"),
+                    Learner(tol=0.02, max_iter=7))
+    out = cross_validate_settings({"full": (0.5, 2.0), "feasible": (8.0,)}, lambda m, c: lineup.at_C(c).factory(m),
+                                  data, store, n_jobs=3, verbose=2)
     # every model the three settings need, planned on the development world's folds (no chained starts there)
     assert planned == [(["feasible C=8", "full C=0.5", "full C=2"], meta, bench.scenarios, 3, 4, "environment", ())]
     assert calls[0] == ("fit", [("feasible C=8", 8.0, None), ("full C=0.5", 0.5, None), ("full C=2", 2.0, None)],
@@ -164,7 +167,8 @@ def test_methods_are_ranked_each_at_its_own_c_by_sequence_arg_then_success_then_
     ranked = rank_methods(settings)
     assert [(r["method"], r["C"]) for r in ranked] == [("dagger", 3.0), ("relations", 1.0), ("full", 1.0),
                                                        ("chained", 1.0)]
-    with pytest.raises(ValueError, match=r"^select: no MRF methods to rank \(select.methods is empty\)$"):
+    with pytest.raises(ValueError, match=r"^select: no MRF methods to rank \(no method of params.yaml's methods "
+                                         r"section names select\)$"):
         rank_methods({})
 
 
@@ -187,37 +191,44 @@ def test_a_ranking_reads_each_methods_figures_at_its_chosen_c_and_ties_within_ro
 
 
 def test_the_method_ranked_first_is_read_back_or_the_file_says_what_is_missing(tmp_path):
-    from taskseq.experiments.selection import read_selected_method
-
     path = tmp_path / "selection.json"
-    path.write_text(json.dumps({"C": 3, "method": "choice_lookahead"}))
-    assert read_selected_method(path) == "choice_lookahead"
-    for data in ({"C": 3}, {"C": 3, "method": ""}, {"C": 3, "method": 7}, [3]):
-        path.write_text(json.dumps(data))
+    path.write_text(json.dumps({"C": 3, "method": "choice_lookahead", "settings": {}}))
+    assert read_selection(path).method == "choice_lookahead"
+    paths = TrainPaths(selection=path, model=tmp_path / "m.npz")
+    assert train_stage.shipped_method(Params().train, paths)[0] == "choice_lookahead"
+    for data in ({"C": 3}, {"C": 3, "method": ""}, {"C": 3, "method": 7}):
+        path.write_text(json.dumps({**data, "settings": {}}))
+        assert read_selection(path).method is None
         with pytest.raises(ValueError, match=f"^{path}: no field 'method' \\(the method ranked first\\); the file "
                                              "predates the ranking of methods: run `taskseq select` again, or name "
                                              "the method with --set train.method=NAME$"):
-            read_selected_method(path)
+            train_stage.shipped_method(Params().train, paths)
 
 
-def test_read_selection_returns_each_methods_c(tmp_path):
+def test_read_selection_returns_each_methods_c_and_nothing_else(tmp_path):
     path = tmp_path / "selection.json"
-    path.write_text(json.dumps({"C": 2, "candidates": []}))  # from before methods had their own C: all take C
-    assert read_selection(path) == Selection(2.0, ()) and isinstance(read_selection(path).C, float)
-    path.write_text(json.dumps({"C": 0.25}))
-    assert read_selection(path).C == 0.25  # below 1 is a valid slack weight
     path.write_text(json.dumps({"C": 3, "settings": {"full": {"C": 3}, "dagger": {"C": 33.3333, "capped": True}}}))
-    assert read_selection(path) == Selection(3.0, (("dagger", 33.3333), ("full", 3.0)))
+    selection = read_selection(path)
+    assert selection == Selection({"full": 3.0, "dagger": 33.3333}, None, str(path))
+    assert selection.of("dagger") == 33.3333 and isinstance(selection.of("full"), float)
+    # the top-level C is the full model's for the summary, not everyone's fallback: a method without its own is an
+    # error that says how to give it one
+    with pytest.raises(ValueError, match=f"^{path}: no C for method relations: add select to "
+                                         "methods.relations.experiments in params.yaml"):
+        selection.of("relations")
+    path.write_text(json.dumps({"C": 2, "settings": {"full": {"C": 0.25}}}))
+    assert read_selection(path).of("full") == 0.25  # below 1 is a valid slack weight
+    # no file at all: every method at the documented untuned C
+    assert read_selection(None).of("anything") == UNTUNED_C == 3.0
 
 
 @pytest.mark.parametrize("text, message", [
     ("{not json", "not valid JSON"),
-    (json.dumps({"C": 0}), "field 'C' must be a positive number, got 0"),
-    (json.dumps({"C": -1.5}), "got -1.5"),
-    (json.dumps({"C": True}), "got True"),
-    (json.dumps({"C": "2"}), "got '2'"),
-    (json.dumps({"c": 2}), "got None"),
-    (json.dumps([2.0]), "got None"),
+    (json.dumps({"C": 2}), "field 'settings' must map each method to its choice, got None; run `taskseq select`"),
+    (json.dumps([2.0]), "field 'settings' must map each method to its choice, got None"),
+    (json.dumps({"C": 1, "settings": {"full": {"C": 0}}}), "field 'settings.full.C' must be a positive number, got 0"),
+    (json.dumps({"C": 1, "settings": {"full": {"C": True}}}), "got True"),
+    (json.dumps({"C": 1, "settings": {"full": {"C": "2"}}}), "got '2'"),
     (json.dumps({"C": 1, "settings": [1]}), "field 'settings' must map each method to its choice"),
     (json.dumps({"C": 1, "settings": {"dagger": {"C": -3}}}), "field 'settings.dagger.C' must be a positive number"),
     (json.dumps({"C": 1, "settings": {"dagger": 3}}), "field 'settings.dagger.C' .* got None"),
@@ -239,18 +250,20 @@ def test_every_stage_builds_each_mrf_method_with_its_own_c(tmp_path):
     own C, the rest (the paper's ablations) at the full model's."""
     path = tmp_path / "selection.json"
     path.write_text(json.dumps({"C": 2, "settings": {"full": {"C": 2}, "dagger": {"C": 0.5}, "feasible": {"C": 8}}}))
-    params = load_params(argparse.Namespace(params=None, overrides=[], selection=path))
-    expected = {"only_edge": 2.0, "only_clique": 2.0, "full": 2.0, "relations": 2.0, "chained": 2.0, "dagger": 0.5,
-                "choice": 2.0, "feasible": 8.0, "choice_feasible": 2.0, "choice_lookahead": 2.0,
-                "choice_chained_lookahead": 2.0, "noise_trained": 2.0}
+    params = load_params(argparse.Namespace(params=None, overrides=[]))
+    selection = read_selection(path)
     for learner in (params.train.learner, Replay.of(params).learner, train_stage.settings(params).train.learner,
                     fold_models_stage.settings(params).learner):
-        made = {name: make() for name, make in mrf_methods(learner).items()}
-        assert {name: m.C for name, m in made.items()} == expected
+        lineup = Lineup(params.methods, selection, learner)
+        made = {name: lineup.factory(name)() for name in ("only_edge", "only_clique", "full", "dagger", "feasible")}
+        assert {name: m.C for name, m in made.items()} == {"only_edge": 2.0, "only_clique": 2.0, "full": 2.0,
+                                                           "dagger": 0.5, "feasible": 8.0}
+        with pytest.raises(ValueError, match="no C for method relations"):  # not the full model's: an error
+            lineup.factory("relations")
     assert made["feasible"].policy == "feasible" and made["dagger"].policy == "greedy"
     assert made["feasible"].key([_ctx((GRASP, 0, -1))]) != made["dagger"].key([_ctx((GRASP, 0, -1))])  # C differs
-    with pytest.raises(ValueError, match="train.tuned cannot be set: each MRF method's C, chosen by the select"):
-        load_params(argparse.Namespace(params=None, overrides=["train.tuned=full"], selection=None))
+    with pytest.raises(ValueError, match="unknown setting train.tuned"):
+        load_params(argparse.Namespace(params=None, overrides=["train.tuned=full"]))
 
 
 def test_an_unknown_policy_is_refused():

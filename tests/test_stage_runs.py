@@ -8,6 +8,7 @@ import shutil
 from pathlib import Path
 
 import pytest
+from params_files import params_with, selection_at
 
 from taskseq.cli import main
 from taskseq.demonstrations.benchmark import load_benchmark
@@ -24,6 +25,7 @@ FOLDS = ["--set", "crossval.folds=2", "--set", "crossval.group_by=scenario", "--
 LEARN = ["--set", "train.tol=0.01", "--set", "train.max_iter=300", "--set", "train.n_slacks=0"]
 
 
+
 @pytest.fixture(scope="module")
 def tiny(benchmark_logs, tmp_path_factory) -> Path:
     """A tiny world: the logs of two environments, ingested, featurised and with its fold models."""
@@ -35,7 +37,7 @@ def tiny(benchmark_logs, tmp_path_factory) -> Path:
     assert main(["ingest", "--input", str(root / "raw"), "--output", str(root / "processed"),
                  "--metrics", str(w / "dataset.json")]) == 0
     assert main(["features", "--input", str(root / "processed"), "--output", str(root / "features")]) == 0
-    (root / "selection.json").write_text(json.dumps({"C": 2.0}))
+    selection_at(root / "selection.json", 2.0)
     assert main(["fold_models", "--features", str(root / "features"), "--processed", str(root / "processed"), *FOLDS,
                  *LEARN, "--selection", str(root / "selection.json"), "--output", str(root / "store"),
                  "--metrics", str(root / "folds.json"), "--n-jobs", "1"]) == 0
@@ -66,8 +68,9 @@ def test_train_and_pddl(tiny):
 
 
 def test_train_ships_the_method_the_development_world_ranked_first(tiny, tmp_path, capsys):
+    tuned = {"settings": {name: {"C": 2.0} for name in ("full", "relations", "dagger")}}
     ranked = {"C": 2.0, "method": "relations", "methods": [{"method": "relations", "sequence_arg": 70.0},
-                                                           {"method": "full", "sequence_arg": 60.0}]}
+                                                           {"method": "full", "sequence_arg": 60.0}], **tuned}
     (tmp_path / "selection.json").write_text(json.dumps(ranked))
     train = ["train", "--features", str(tiny / "features"), *LEARN, "--selection", str(tmp_path / "selection.json")]
     assert main([*train, "--model", str(tmp_path / "best.npz"), "--metrics", str(tmp_path / "train.json")]) == 0
@@ -86,11 +89,11 @@ def test_train_ships_the_method_the_development_world_ranked_first(tiny, tmp_pat
                  "--model", str(tmp_path / "d.npz")]) == 0
     assert StepScorer.load(tmp_path / "d.npz").meta_["dagger_rounds"] == 1
     # a selection file from before methods were ranked, or an unknown method, is named
-    (tmp_path / "old.json").write_text(json.dumps({"C": 2.0}))
+    (tmp_path / "old.json").write_text(json.dumps({"C": 2.0, **tuned}))
     assert main([*train[:-1], str(tmp_path / "old.json"), "--model", str(tmp_path / "o.npz")]) == 2
     assert f"{tmp_path / 'old.json'}: no field 'method'" in capsys.readouterr().err
     assert main([*train, "--set", "train.method=fancy", "--model", str(tmp_path / "o.npz")]) == 2
-    assert "unknown MRF methods ['fancy']" in capsys.readouterr().err
+    assert "unknown methods ['fancy']" in capsys.readouterr().err
 
 
 def test_the_shipped_model_records_its_own_c_and_policy_and_plan_uses_them(tiny, benchmark_logs, tmp_path, capsys):
@@ -269,9 +272,10 @@ def test_select_sees_only_the_development_world(tiny, monkeypatch, tmp_path, cap
     monkeypatch.setattr(selection, "cross_validate", spy(selection.cross_validate, lambda a: a[3].scenarios))
     out = tmp_path / "selection.json"
     assert main(["--no-mlflow", "select", "--set", "world.seeds=[0, 3]", "--set", "world.dev_seed=100",
-                 "--set", "select.C=0.5 2", "--set", "select.methods=full relations", "--set",
-                 "select.max_extensions=1", "--set", "procedural.environments=130", "--set", "select.environments=2",
-                 *FOLDS[:2], *LEARN, "--n-jobs", "1", "--data", str(tmp_path / "dev"), "--output", str(out)]) == 0
+                 "--set", "select.C=0.5 2", *params_with(tmp_path / "p.yaml", full="select", relations="select"),
+                 "--set", "select.max_extensions=1", "--set", "procedural.environments=130",
+                 "--set", "select.environments=2", *FOLDS[:2], *LEARN, "--n-jobs", "1", "--data", str(tmp_path / "dev"),
+                 "--output", str(out)]) == 0
     # C and the shipped method: the dev world only, of its own size (a large benchmark tunes on a small world)
     assert drawn == [(100, 2)] and read == [tmp_path / "dev" / "raw"]
     dev_scenarios = frozenset(load_benchmark(tmp_path / "dev" / "processed").scenarios)
@@ -296,13 +300,13 @@ def test_select_sees_only_the_development_world(tiny, monkeypatch, tmp_path, cap
                  "--model", str(model)]) == 0
     meta = StepScorer.load(model).meta_
     assert (meta["method"], meta["C"], meta["policy"]) == (first["method"], first["C"], "greedy")
-    code = main(["--no-mlflow", "select", "--set", "select.methods=full chance", "--data", str(tmp_path / "d"),
-                 "--output", str(tmp_path / "s.json")])
-    assert code == 2 and "unknown MRF methods ['chance']" in capsys.readouterr().err
+    code = main(["--no-mlflow", "select", *params_with(tmp_path / "p.yaml", full="select", chance="select"),
+                 "--data", str(tmp_path / "d"), "--output", str(tmp_path / "s.json")])
+    assert code == 2 and "chance: not MRF methods" in capsys.readouterr().err
     assert not (tmp_path / "d").exists()
-    code = main(["--no-mlflow", "select", "--set", "select.methods=relations dagger", "--data", str(tmp_path / "d"),
-                 "--output", str(tmp_path / "s.json")])
-    assert code == 2 and "select.methods must include full" in capsys.readouterr().err
+    code = main(["--no-mlflow", "select", *params_with(tmp_path / "p.yaml", relations="select", dagger="select"),
+                 "--data", str(tmp_path / "d"), "--output", str(tmp_path / "s.json")])
+    assert code == 2 and "methods.full.experiments must include select" in capsys.readouterr().err
     code = main(["--no-mlflow", "select", "--set", "world.seeds=[0, 100]", "--set", "world.dev_seed=100",
                  "--data", str(tmp_path / "d"), "--output", str(tmp_path / "s.json")])
     assert code == 2 and "also a reported seed" in capsys.readouterr().err
@@ -311,8 +315,8 @@ def test_select_sees_only_the_development_world(tiny, monkeypatch, tmp_path, cap
 
 def test_a_bad_selection_file_is_named(tiny, tmp_path, capsys):
     bad = tmp_path / "selection.json"
-    bad.write_text(json.dumps({"C": "big"}))
+    bad.write_text(json.dumps({"C": 1, "settings": {"full": {"C": "big"}}}))
     code = main(["--no-mlflow", "recipes", "--features", str(tiny / "features"), "--selection", str(bad),
                  "--output", str(tmp_path)])
-    assert code == 2 and f"{bad}: field 'C' must be a positive number" in capsys.readouterr().err
+    assert code == 2 and f"{bad}: field 'settings.full.C' must be a positive number" in capsys.readouterr().err
     assert not (tmp_path / "recipes.json").exists()

@@ -9,6 +9,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import io
+import json
 import math
 import re
 from pathlib import Path
@@ -31,7 +32,8 @@ from taskseq.stages.paths import TeachPaths
 ENVS = ("env12", "env13")
 KS = (0, 1, 2)
 SEEDS = (0, 1)
-LEARNER = Learner(C=2.5, tol=1e-3, max_iter=7)
+LEARNER = Learner(tol=1e-3, max_iter=7)
+FULL_C = 2.5  # the full model's C in the selection file the spied stage reads
 
 
 def bench(seed: int) -> list[dict]:
@@ -64,8 +66,8 @@ def spied(tmp_path, monkeypatch, capsys):
         calls.loaded.append(Path(processed))
         return SimpleNamespace(records=bench(int(Path(processed).parent.name)))
 
-    def fit(contexts, learner):
-        calls.fits.append((list(contexts), learner))
+    def fit(contexts, C, learner):
+        calls.fits.append((list(contexts), C, learner))
         return f"planner {len(calls.fits)}"
 
     def success_on_spy(planner, env_id, state, tasks, max_steps):
@@ -87,7 +89,10 @@ def spied(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(teach, "line_plot_png", lambda *a, **kw: calls.plots.append((a, kw)))
     tracker = SimpleNamespace(metrics=lambda values: calls.metrics.append(values))
     settings = teach.Settings(World(seeds=SEEDS), Teach(environments=ENVS, k=KS, seed=5), LEARNER, 17)
-    calls.table = teach.run(settings, TeachPaths(worlds=tmp_path / "worlds", output=tmp_path / "out"), tracker)
+    selection = tmp_path / "selection.json"
+    selection.write_text(json.dumps({"settings": {"full": {"C": FULL_C}, "relations": {"C": 0.1}}}))
+    calls.table = teach.run(settings, TeachPaths(worlds=tmp_path / "worlds", output=tmp_path / "out",
+                                                 selection=selection), tracker)
     calls.out = tmp_path / "out"
     calls.worlds = tmp_path / "worlds"
     calls.printed = capsys.readouterr().out
@@ -116,8 +121,8 @@ def test_training_is_the_benchmark_outside_the_held_out_environments_plus_the_fi
         base = [tag(r) for r in bench(seed) if r["env_id"] not in ENVS]
         assert [b[0] for b in base] == ["env01", "env02", "env11"]
         for i, k in enumerate(KS):
-            contexts, learner = spied.fits[s * len(KS) + i]
-            assert learner == LEARNER
+            contexts, C, learner = spied.fits[s * len(KS) + i]
+            assert C == FULL_C and learner == LEARNER  # the full model's C, not another method's
             people = []
             for e, env in enumerate(ENVS):
                 tasks, _, order = spied.orders[s * len(ENVS) + e]
@@ -198,7 +203,7 @@ def test_the_page_and_the_figure_say_what_was_measured(spied):
 def test_one_world_has_an_sd_of_zero(tmp_path, monkeypatch):
     monkeypatch.setattr(teach, "load_benchmark", lambda processed: SimpleNamespace(records=bench(0)))
     monkeypatch.setattr(teach, "build_steps", lambda records: ([tag(r) for r in records], None))
-    monkeypatch.setattr(teach, "fit", lambda contexts, learner: "planner")
+    monkeypatch.setattr(teach, "fit", lambda contexts, C, learner: "planner")
     monkeypatch.setattr(teach, "success_on", lambda planner, env_id, state, tasks, max_steps: outcome(0, 2, env_id))
     monkeypatch.setattr(teach, "line_plot_png", lambda *a, **kw: None)
     settings = teach.Settings(World(seeds=(3,)), Teach(environments=("env13",), k=(1,), seed=0), LEARNER, 20)
@@ -220,7 +225,7 @@ def test_the_first_and_last_environments_are_known(tmp_path, monkeypatch):
     monkeypatch.setattr(teach, "load_benchmark", lambda processed: seen.append(processed) or
                         SimpleNamespace(records=[]))
     monkeypatch.setattr(teach, "build_steps", lambda records: ([], None))
-    monkeypatch.setattr(teach, "fit", lambda contexts, learner: "planner")
+    monkeypatch.setattr(teach, "fit", lambda contexts, C, learner: "planner")
     monkeypatch.setattr(teach, "success_on", lambda planner, env_id, state, tasks, max_steps: outcome(0, 0, env_id))
     monkeypatch.setattr(teach, "line_plot_png", lambda *a, **kw: None)
     settings = teach.Settings(World(seeds=(0,)), Teach(environments=("env01", "env13"), k=(0,)), LEARNER, 20)
@@ -230,14 +235,13 @@ def test_the_first_and_last_environments_are_known(tmp_path, monkeypatch):
 
 def test_the_settings_come_from_train_teach_world_and_the_closed_loop_step_cap():
     base = Params()
-    params = dataclasses.replace(base, train=dataclasses.replace(base.train, C=0.37, tol=0.004, max_iter=11,
-                                                                  n_slacks=3, dagger_rounds=2),
+    params = dataclasses.replace(base, train=dataclasses.replace(base.train, tol=0.004, max_iter=11, n_slacks=3),
                                  world=World(seeds=(4, 9)), teach=Teach(environments=("env02",), k=(0, 5)),
                                  crossval=dataclasses.replace(base.crossval, max_steps=13))
     s = teach.settings(params)
     assert s.world == World(seeds=(4, 9)) and s.teach == Teach(environments=("env02",), k=(0, 5))
     assert s.max_steps == 13
-    assert s.learner == Learner(C=0.37, tol=0.004, max_iter=11, n_slacks=3)  # the full model's, no DAgger rounds
+    assert s.learner == Learner(tol=0.004, max_iter=11, n_slacks=3)
 
 
 def test_records_are_written_by_the_servers_writer_and_read_back_as_ingest_reads_them():
@@ -294,8 +298,8 @@ def test_fit_trains_the_full_model_with_the_learners_settings(monkeypatch):
             return "fitted"
 
     monkeypatch.setattr(teaching, "StepScorer", Scorer)
-    assert teaching.fit(["c1", "c2"], LEARNER) == "fitted"
-    assert made == [("full", LEARNER.ssvm), ["c1", "c2"]]
+    assert teaching.fit(["c1", "c2"], 0.7, LEARNER) == "fitted"
+    assert made == [("full", {"C": 0.7, "tol": 1e-3, "max_iter": 7, "n_slacks": LEARNER.n_slacks}), ["c1", "c2"]]
 
 
 def test_the_teaching_order_is_a_seeded_permutation_taking_one_task_kind_after_another():

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 from mlflow.tracking import MlflowClient
+from params_files import selection_at
 
 from taskseq.cli import main
 from taskseq.demonstrations.ingest import write_tables
@@ -81,7 +82,8 @@ def test_child_runs_carry_what_tells_them_apart_and_their_programs(store, benchm
     write_tables(benchmark_tables[0], tmp_path / "processed")
     write_features(*benchmark_steps, tmp_path / "features")
     code = main(["crossval", "--features", str(tmp_path / "features"), "--processed", str(tmp_path / "processed"),
-                 "--set", "crossval.folds=2", "--methods", "multiclass", "only_edge", "--set", "train.C=2.5",
+                 "--set", "crossval.folds=2", "--methods", "multiclass", "only_edge", "--selection",
+                 str(selection_at(tmp_path / "selection.json", 2.5)),
                  "--world-seed", "7", "--recordings", "0", "--output", str(tmp_path / "reports")])
     assert code == 0
     (parent,) = runs(store, "crossval")

@@ -1,8 +1,8 @@
 """Every method behind one interface, and how a step or a program is judged.
 
-`methods.py` (the `Method` protocol and the built-in methods of Table I),
-`registry.py` (the methods by name and label; methods added in
-`taskseq.methods` register here), `folds.py` (grouped folds), `metrics.py`
-(step accuracies) and `failures.py` (why a program fails). The experiments
-that run the methods are in `taskseq.experiments`.
+`methods.py` (the `Method` protocol and the kinds of method Table I's are
+made of: chance, the multiclass SVM, the symbolic planners and the MRF),
+`folds.py` (grouped folds), `metrics.py` (step accuracies) and `failures.py`
+(why a program fails). Table I's methods themselves, one spec each, are in
+`taskseq.methods`; the experiments that run them are in `taskseq.experiments`.
 """

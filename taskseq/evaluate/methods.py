@@ -7,9 +7,8 @@ is run closed-loop in the simulator from a scenario's initial state.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
-from functools import partial
 from typing import Any, Protocol
 
 import numpy as np
@@ -24,12 +23,11 @@ from ..learn.store import ModelStore, training_key
 from ..plan.planner import POLICIES, Program, learned_policy, run_loop
 from ..plan.symbolic.executor import SymbolicPolicy, first_action
 from ..plan.symbolic.roles import ROLE_OF_TASK, RoleRanker, demonstrated_roles
-from ..settings import Crossval, Learner, Pddl
+from ..settings import Crossval, Pddl
 from ..sim.primitives import Action
 from ..sim.scenarios import Scenario
 from ..sim.state import WorldState
 from ..sim.tasks import TASKS, Task
-from .registry import MethodSettings, added_methods
 
 Y = tuple[int, int, int]
 
@@ -134,10 +132,10 @@ class MRFMethod:
     """
 
     features: str = "full"
-    C: float = Learner.C  # the learner's settings default to the pipeline's (settings.Learner)
-    tol: float = Learner.tol
-    max_iter: int = Learner.max_iter
-    n_slacks: int = Learner.n_slacks
+    C: float = 3.0  # the learner's settings default to `StepScorer`'s; a Table I method is given each of them
+    tol: float = 1e-3
+    max_iter: int = 2000
+    n_slacks: int = 0
     chained_starts: bool = False
     dagger_rounds: int = 0
     noise_rate: float = 0.0
@@ -256,49 +254,6 @@ class SymbolicMethod:
         roles = self.roles(scenario.task, scenario.initial, scenario.demonstrations[0])
         return run_loop(SymbolicPolicy(scenario.task, roles, self.horizon), scenario.initial, scenario.task,
                         max_steps)
-
-
-def table1_methods(settings: Crossval, learner: Learner, horizon: int = Pddl.horizon,
-                   store: str | None = None) -> dict[str, Callable[[], Method]]:
-    """Every method of Table I, by name, as factories of unfitted methods; `horizon` is the symbolic planners'.
-
-    The built-in ones first, in the tables' order, then those the modules of
-    `taskseq.methods` register (`taskseq.evaluate.registry`), by name.
-    """
-    def mrf(name: str, **options: Any) -> Callable[[], MRFMethod]:
-        return partial(MRFMethod, **learner.of(name).ssvm, store=store, name=name, **options)
-
-    def added(name: str) -> MethodSettings:
-        return MethodSettings(settings, learner.of(name), horizon, store)
-
-    return {
-        "chance": partial(ChanceMethod, seed=settings.chance_seed),
-        "multiclass": partial(MulticlassMethod, C=settings.multiclass_C),
-        "symb_plan_svm": partial(SymbolicMethod, goals="svm", C=settings.ranking_C, horizon=horizon,
-                                 name="symb_plan_svm"),
-        "symb_plan_manual": partial(SymbolicMethod, goals="manual", horizon=horizon, name="symb_plan_manual"),
-        "only_edge": mrf("only_edge", features="edge"),
-        "only_clique": mrf("only_clique", features="clique"),
-        "full": mrf("full", features="full"),
-        "relations": mrf("relations", features="relations"),
-        "chained": mrf("chained", features="relations", chained_starts=True),
-        "dagger": mrf("dagger", features="relations", dagger_rounds=learner.dagger_rounds),
-        **{name: partial(method.make, added(name)) for name, method in added_methods().items()},
-    }
-
-
-def mrf_methods(learner: Learner, store: str | None = None,
-                names: Sequence[str] | None = None) -> dict[str, Callable[[], MRFMethod]]:
-    """The MRF methods of Table I (the ones the `fold_models` stage trains), by name; `names` picks some, in that order.
-
-    Raises `ValueError` naming any of `names` that is not an MRF method.
-    """
-    every = table1_methods(Crossval(), learner, store=store)
-    mrf = {name: make for name, make in every.items() if isinstance(make(), MRFMethod)}
-    unknown = [n for n in names or () if n not in mrf]
-    if unknown:
-        raise ValueError(f"unknown MRF methods {unknown}; known: {', '.join(mrf)}")
-    return mrf if names is None else {n: mrf[n] for n in names}
 
 
 def method_params(name: str, method: Method) -> dict[str, Any]:

@@ -22,7 +22,6 @@ from ..learn.ssvm import learning_curve
 from ..learn.store import ModelStore
 from ..runtime.atomic import atomic_directory, write_json_atomic
 from ..runtime.jobs import Shared, run_jobs
-from ..settings import Recipes
 from ..sim.scenarios import Scenario
 from .crossval import scenario_folds, training_index
 from .recipes import recipe_training_sets
@@ -39,7 +38,7 @@ class TrainingJob:
 
 def training_jobs(methods: Mapping[str, MakeMRF], meta: list[StepMeta], scenarios: dict[str, Scenario],
                   n_folds: int, seed: int, group_by: str,
-                  recipe_methods: Sequence[str] = Recipes.methods) -> list[TrainingJob]:
+                  recipe_methods: Sequence[str] = ()) -> list[TrainingJob]:
     """The MRF fits of crossval (every method x folds) and recipes (each of `recipe_methods` per kind)."""
     jobs = []
     folds = scenario_folds(scenarios, n_folds, seed, group_by)

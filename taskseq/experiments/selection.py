@@ -13,7 +13,6 @@ listed first); the `train` stage ships the first of them.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from functools import partial
@@ -21,11 +20,11 @@ from pathlib import Path
 from typing import Any
 
 from ..demonstrations.benchmark import Benchmark
-from ..evaluate.methods import MRFMethod, mrf_methods
+from ..evaluate.methods import MRFMethod
 from ..evaluate.metrics import summarize
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
-from ..settings import Folds, Learner
+from ..settings import Folds
 from .crossval import cross_validate
 from .fold_models import train_fold_models, training_jobs
 
@@ -106,17 +105,18 @@ class DevData:
     max_steps: int
 
 
-def cross_validate_settings(pending: dict[str, tuple[float, ...]], learner: Learner, data: DevData, store: Path,
+def cross_validate_settings(pending: dict[str, tuple[float, ...]],
+                            make: Callable[[str, float], Callable[[], MRFMethod]], data: DevData, store: Path,
                             n_jobs: int = 1, verbose: int = 0) -> dict[str, dict[float, dict[str, float]]]:
-    """Each method at each of its values of C, cross-validated on the same folds: every distinct model is fitted
+    """Each method at each of its values of C (`make(method, C)`: its unfitted method at that C), cross-validated
+    on the same folds: every distinct model is fitted
     once into the folder `store` (replaced), as the `fold_models` stage does (a DAgger model starts from the
     model without DAgger; `feasible` is `dagger`'s models run with another policy), then every method is run
     from it."""
     makes = {}
     for method, values in pending.items():
         for c in values:
-            make = mrf_methods(replace(learner, C=c, tuned=()), names=[method])[method]
-            makes[(method, c)] = partial(_named, make, f"{method} C={c:g}", None)
+            makes[(method, c)] = partial(_named, make(method, c), f"{method} C={c:g}", None)
     by_name = {make().name: make for make in makes.values()}
     folds = data.folds
     jobs = training_jobs(by_name, data.meta, data.bench.scenarios, folds.folds, folds.seed, folds.group_by, ())
@@ -139,7 +139,7 @@ def _figures(summary: dict[str, Any], name: str) -> dict[str, float]:
 def rank_methods(settings: Mapping[str, Mapping[str, Any]]) -> list[dict[str, Any]]:
     """The methods, each at its chosen C, best first: sequence arg, then success, then the order given."""
     if not settings:
-        raise ValueError("select: no MRF methods to rank (select.methods is empty)")
+        raise ValueError("select: no MRF methods to rank (no method of params.yaml's methods section names select)")
     rows = []
     for name, choice in settings.items():
         figures = next(r for r in choice["candidates"] if r["C"] == choice["C"])
@@ -147,52 +147,3 @@ def rank_methods(settings: Mapping[str, Mapping[str, Any]]) -> list[dict[str, An
     order = sorted(range(len(rows)), key=lambda i: (-round(rows[i]["sequence_arg"], 9),
                                                    -round(rows[i]["success"], 9), i))
     return [rows[i] for i in order]
-
-
-def _read(path: Path | str) -> tuple[Path, Any]:
-    path = Path(path)
-    try:
-        return path, json.loads(path.read_text())
-    except FileNotFoundError:
-        raise FileNotFoundError(f"{path}: no selection file; run `taskseq select` (or `dvc repro select`)") from None
-    except ValueError as err:
-        raise ValueError(f"{path}: not valid JSON: {err}") from None
-
-
-def read_selected_method(path: Path | str) -> str:
-    """The MRF method a `select` stage ranked first on the development world, from its JSON file."""
-    path, data = _read(path)
-    value = data.get("method") if isinstance(data, dict) else None
-    if not isinstance(value, str) or not value:
-        raise ValueError(f"{path}: no field 'method' (the method ranked first); the file predates the ranking of "
-                         "methods: run `taskseq select` again, or name the method with --set train.method=NAME")
-    return value
-
-
-def _positive(path: Path, field: str, value: Any) -> float:
-    if not isinstance(value, (int, float)) or isinstance(value, bool) or value <= 0:
-        raise ValueError(f"{path}: field {field!r} must be a positive number, got {value!r}")
-    return float(value)
-
-
-@dataclass(frozen=True)
-class Selection:
-    """What a `select` stage chose: the full model's C (also every MRF method's without its own), and each
-    ranked method's C. A file from before methods got their own C has no `settings`: every method takes `C`."""
-
-    C: float
-    tuned: tuple[tuple[str, float], ...]
-
-
-def read_selection(path: Path | str) -> Selection:
-    """The choice a `select` stage wrote to its JSON file, with an error that names the file and field."""
-    path, data = _read(path)
-    C = _positive(path, "C", data.get("C") if isinstance(data, dict) else None)
-    settings = data.get("settings", {})
-    if not isinstance(settings, dict):
-        raise ValueError(f"{path}: field 'settings' must map each method to its choice, got {settings!r}")
-    tuned = []
-    for method, choice in sorted(settings.items()):
-        tuned.append((method, _positive(path, f"settings.{method}.C",
-                                        choice.get("C") if isinstance(choice, dict) else None)))
-    return Selection(C, tuple(tuned))

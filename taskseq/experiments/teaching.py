@@ -45,8 +45,10 @@ class Outcome:
         return 100.0 * self.n_success / self.n_tasks if self.n_tasks else float("nan")
 
 
-def fit(contexts: list[StepContext], learner: Learner) -> StepScorer:
-    return StepScorer("full", **learner.ssvm).fit(contexts)
+def fit(contexts: list[StepContext], C: float, learner: Learner) -> StepScorer:
+    """The full model at C (the one the `select` stage chose for it) on these steps."""
+    return StepScorer("full", C=C, tol=learner.tol, max_iter=learner.max_iter, n_slacks=learner.n_slacks).fit(
+        contexts)
 
 
 def success_on(planner: StepScorer, env_id: str, state: WorldState, tasks: Iterable[Task],

@@ -41,9 +41,9 @@ class StepScorer:
         "full", "edge", "clique", "relations" or "choice" (`mrf.FEATURE_SETS`).
     C : float
         Weight of the slack; like the three below, a setting of the learner
-        (`ssvm.CuttingPlaneSSVM`). The defaults are the pipeline's (`taskseq.settings.Learner`),
-        written here as numbers so that the learner imports nothing of the pipeline; a test keeps the
-        two equal.
+        (`ssvm.CuttingPlaneSSVM`). The defaults are the estimator's own, as in scikit-learn: the
+        pipeline passes every one (C is each method's, chosen from outside by the `select` stage), so
+        the learner imports nothing of it.
     tol : float
         Relative primal-dual gap to stop at.
     max_iter : int

@@ -12,10 +12,6 @@ two blocks (`learn.mrf.CUE_FAMILY`).
 
 from __future__ import annotations
 
-from taskseq.evaluate.methods import MRFMethod
-from taskseq.evaluate.registry import MethodSettings, register
+from taskseq.methods.spec import MethodSpec, register
 
-
-@register("choice", label="ours + relations + choice cues")
-def make(settings: MethodSettings) -> MRFMethod:
-    return MRFMethod(features="choice", name="choice", store=settings.store, **settings.learner.ssvm)
+SPEC = register(MethodSpec("choice", "ours + relations + choice cues", lambda b: b.mrf("choice")))

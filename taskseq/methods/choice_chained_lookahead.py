@@ -14,11 +14,8 @@ Table I row, where it pays for the chained starts as `chained` does.
 
 from __future__ import annotations
 
-from taskseq.evaluate.methods import MRFMethod
-from taskseq.evaluate.registry import MethodSettings, register
+from taskseq.methods.spec import MethodSpec, register
 
-
-@register("choice_chained_lookahead", label="ours + relations + choice cues + chained starts + safety lookahead")
-def make(settings: MethodSettings) -> MRFMethod:
-    return MRFMethod(features="choice", chained_starts=True, name="choice_chained_lookahead", store=settings.store,
-                     policy="lookahead", **settings.learner.ssvm)
+SPEC = register(MethodSpec("choice_chained_lookahead",
+                           "ours + relations + choice cues + chained starts + safety lookahead",
+                           lambda b: b.mrf("choice", chained_starts=True), policy="lookahead"))

@@ -12,11 +12,7 @@ as this method records it and `taskseq plan` plans with it.
 
 from __future__ import annotations
 
-from taskseq.evaluate.methods import MRFMethod
-from taskseq.evaluate.registry import MethodSettings, register
+from taskseq.methods.spec import MethodSpec, register
 
-
-@register("choice_feasible", label="ours + relations + choice cues + feasible steps")
-def make(settings: MethodSettings) -> MRFMethod:
-    return MRFMethod(features="choice", name="choice_feasible", store=settings.store, policy="feasible",
-                     **settings.learner.ssvm)
+SPEC = register(MethodSpec("choice_feasible", "ours + relations + choice cues + feasible steps",
+                           lambda b: b.mrf("choice"), policy="feasible"))

@@ -14,11 +14,7 @@ its primitives' effects to imagine with, and the kitchen's safety rules.
 
 from __future__ import annotations
 
-from taskseq.evaluate.methods import MRFMethod
-from taskseq.evaluate.registry import MethodSettings, register
+from taskseq.methods.spec import MethodSpec, register
 
-
-@register("choice_lookahead", label="ours + relations + choice cues + safety lookahead")
-def make(settings: MethodSettings) -> MRFMethod:
-    return MRFMethod(features="choice", name="choice_lookahead", store=settings.store, policy="lookahead",
-                     **settings.learner.ssvm)
+SPEC = register(MethodSpec("choice_lookahead", "ours + relations + choice cues + safety lookahead",
+                           lambda b: b.mrf("choice"), policy="lookahead"))

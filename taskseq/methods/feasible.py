@@ -11,11 +11,9 @@ records it and `taskseq plan` plans with it.
 
 from __future__ import annotations
 
-from taskseq.evaluate.methods import MRFMethod
-from taskseq.evaluate.registry import MethodSettings, register
+from taskseq.methods.builtin import DaggerSettings
+from taskseq.methods.spec import MethodSpec, register
 
-
-@register("feasible", label="ours + relations + dagger + feasible steps")
-def make(settings: MethodSettings) -> MRFMethod:
-    return MRFMethod(features="relations", dagger_rounds=settings.learner.dagger_rounds, name="feasible",
-                     store=settings.store, policy="feasible", **settings.learner.ssvm)
+SPEC = register(MethodSpec("feasible", "ours + relations + dagger + feasible steps",
+                           lambda b: b.mrf("relations", dagger_rounds=b.settings.dagger_rounds), policy="feasible",
+                           settings=DaggerSettings))

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..evaluate.failures import KINDS
 from ..evaluate.metrics import headline_metrics
-from ..evaluate.registry import method_labels
+from ..methods import method_labels
 from .csvs import read_csv_rows
 
 HEADLINE = ("average_prim", "average_arg", "sequence_prim", "sequence_arg", "success", "goal_reached")

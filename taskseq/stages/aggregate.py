@@ -10,8 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from .. import methods as _every_method  # noqa: F401  (the added methods register themselves: Table I whole)
-from ..evaluate.registry import method_labels
+from ..methods import method_labels
 from ..report import paper
 from ..report.breakdown import breakdown_markdown, group_outcomes
 from ..report.csvs import RATE_DECIMALS, SEQUENCE_COLUMNS, csv_text, read_csv_rows

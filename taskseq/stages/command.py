@@ -58,17 +58,11 @@ def add_parser(sub: Any, name: str) -> None:
 
 
 def load_params(args: argparse.Namespace) -> Params:
-    """The settings in force: the file, the overrides, then the C of each MRF method from a selection file when one
-    is named."""
+    """The settings in force: the file, then the overrides (each method's C is not one: the stages read it from
+    their `--selection` file, `taskseq.selection`)."""
     if args.params is not None and not args.params.exists():
         raise FileNotFoundError(f"{args.params}: no such settings file")
-    params = Params.load(args.params or Path("params.yaml"), args.overrides)
-    if getattr(args, "selection", None) is not None:
-        from ..experiments.selection import read_selection
-
-        selection = read_selection(args.selection)
-        params = params.with_C(selection.C, selection.tuned)
-    return params
+    return Params.load(args.params or Path("params.yaml"), args.overrides)
 
 
 def prepare(args: argparse.Namespace) -> tuple[Any, Any, Any, dict[str, Any]]:

@@ -12,19 +12,19 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .. import methods as _every_method  # noqa: F401  (the added methods register themselves: Table I whole)
 from ..demonstrations.benchmark import load_benchmark
-from ..evaluate.methods import method_params, table1_methods
+from ..evaluate.methods import method_params
 from ..evaluate.metrics import confusion, headline_metrics, summarize
-from ..evaluate.registry import method_labels
 from ..experiments.crossval import cross_validate
 from ..features.dataset import read_features
+from ..methods import Lineup, method_labels
 from ..plan.symbolic.files import file_stem
 from ..report.csvs import SEQUENCE_COLUMNS, STEP_COLUMNS, csv_text, sequence_rows, step_rows
 from ..report.figures import confusion_png
 from ..report.tables import table_rows, to_csv, to_latex, to_markdown
 from ..runtime.atomic import write_json_atomic, write_text_atomic
-from ..settings import Crossval, Learner, Params
+from ..selection import read_selection
+from ..settings import Crossval, Learner, Methods, Params
 from ..track.mlflow_runs import NO_RUN, Tracker
 from ..track.recordings import record_program, spread
 from .paths import CrossvalPaths
@@ -35,21 +35,24 @@ class Settings:
     crossval: Crossval
     learner: Learner
     horizon: int  # longest plan of the symbolic baselines
+    methods: Methods
 
 
 def settings(params: Params, world_seed: int | None = None) -> Settings:
-    return Settings(params.crossval, params.train.learner, params.pddl.horizon)
+    return Settings(params.crossval, params.train.learner, params.pddl.horizon, params.methods)
 
 
 def run(settings: Settings, paths: CrossvalPaths, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> dict[str, Any]:
     crossval, methods, output = settings.crossval, paths.methods, paths.output
+    lineup = Lineup(settings.methods, read_selection(paths.selection), settings.learner, crossval, settings.horizon,
+                    paths.store)
+    every = lineup.names()
+    unknown = set(methods or []) - set(every)
+    if unknown:
+        raise ValueError(f"unknown methods {sorted(unknown)}; known: {', '.join(every)}")
+    factories = lineup.factories([name for name in every if methods is None or name in methods])
     contexts, meta = read_features(paths.features)
     bench = load_benchmark(paths.processed)
-    factories = table1_methods(crossval, settings.learner, settings.horizon, paths.store)
-    unknown = set(methods or []) - set(factories)
-    if unknown:
-        raise ValueError(f"unknown methods {sorted(unknown)}; known: {', '.join(factories)}")
-    factories = {k: v for k, v in factories.items() if methods is None or k in methods}
     print(f"cross-validating {', '.join(factories)} over {crossval.folds} folds grouped by {crossval.group_by} "
           f"({len(bench.scenarios)} scenarios, {len(contexts)} steps, {n_jobs} jobs)")
     recorded = spread(list(bench.scenarios), paths.recordings)

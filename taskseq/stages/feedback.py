@@ -11,16 +11,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from .. import methods as _every_method  # noqa: F401  (the added methods register themselves: Table I whole)
 from ..demonstrations.benchmark import load_benchmark
-from ..evaluate.methods import method_params, mrf_methods
-from ..evaluate.registry import method_labels
+from ..evaluate.methods import method_params
 from ..experiments.robustness import FeedbackCondition, evaluate_conditions, feedback_rows, feedback_steps
 from ..features.dataset import read_features
+from ..methods import Lineup, method_labels
 from ..report.csvs import OUTCOME_COLUMNS, RATE_DECIMALS, csv_text, outcome_row
 from ..report.figures import line_plot_png
 from ..runtime.atomic import write_text_atomic
-from ..settings import Feedback, Params, Replay
+from ..selection import read_selection
+from ..settings import Feedback, Methods, Params, Replay
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .paths import EvaluationPaths
 
@@ -31,18 +31,20 @@ DECIMALS = dict.fromkeys(("sequence_arg", "sequence_prim", "success"), RATE_DECI
 class Settings:
     feedback: Feedback
     replay: Replay
+    methods: Methods  # those whose experiments name feedback are run
 
 
 def settings(params: Params, world_seed: int | None = None) -> Settings:
-    return Settings(params.feedback, Replay.of(params))
+    return Settings(params.feedback, Replay.of(params), params.methods)
 
 
 def run(settings: Settings, paths: EvaluationPaths, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> list[dict[str, Any]]:
     feedback = settings.feedback
+    replay = settings.replay
+    lineup = Lineup(settings.methods, read_selection(paths.selection), replay.learner, store=paths.store)
+    methods = lineup.running("feedback")
     contexts, meta = read_features(paths.features)
     bench = load_benchmark(paths.processed)
-    replay = settings.replay
-    methods = mrf_methods(replay.learner, paths.store, feedback.methods)
     ns = feedback_steps(feedback, replay.max_steps)
     conditions = [FeedbackCondition(k, n) for k in feedback.k for n in ns]
     label = dict(zip(ns, feedback.n, strict=True))  # steps -> as the settings write them ("all")

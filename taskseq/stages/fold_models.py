@@ -11,13 +11,13 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
-from .. import methods as _every_method  # noqa: F401  (the added methods register themselves: Table I whole)
 from ..demonstrations.benchmark import load_benchmark
-from ..evaluate.methods import mrf_methods
 from ..experiments.fold_models import train_fold_models, training_jobs
 from ..features.dataset import read_features
+from ..methods import Lineup
 from ..runtime.atomic import write_json_atomic
-from ..settings import Folds, Learner, Params
+from ..selection import read_selection
+from ..settings import Folds, Learner, Methods, Params
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .paths import FoldModelsPaths
 
@@ -26,22 +26,23 @@ from .paths import FoldModelsPaths
 class Settings:
     folds: Folds
     learner: Learner
-    recipe_methods: tuple[str, ...]  # trained once per recipe kind, on every step outside its environments
+    methods: Methods
+    recipes: bool = True  # also those the recipes experiment runs, once per recipe kind (every step outside it)
 
 
 def settings(params: Params, world_seed: int | None = None) -> Settings:
-    c = params.crossval
-    return Settings(c.fold_settings, params.train.learner, params.recipes.methods)
+    return Settings(params.crossval.fold_settings, params.train.learner, params.methods)
 
 
 def run(settings: Settings, paths: FoldModelsPaths, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> dict[str, Any]:
     folds, output = settings.folds, paths.output
+    lineup = Lineup(settings.methods, read_selection(paths.selection), settings.learner)
+    methods = lineup.mrf()  # a method without its C stops here, before minutes of work
+    recipe_methods = lineup.names("recipes") if settings.recipes else []
     contexts, meta = read_features(paths.features)
     bench = load_benchmark(paths.processed)
-    methods = mrf_methods(settings.learner)
-    jobs = training_jobs(methods, meta, bench.scenarios, folds.folds, folds.seed, folds.group_by,
-                         settings.recipe_methods)
-    recipes = ", recipes" if settings.recipe_methods else ""
+    jobs = training_jobs(methods, meta, bench.scenarios, folds.folds, folds.seed, folds.group_by, recipe_methods)
+    recipes = ", recipes" if recipe_methods else ""
     print(f"training {len(jobs)} fold models ({folds.folds} folds grouped by {folds.group_by}{recipes}) "
           f"with {n_jobs} jobs")
     start = time.perf_counter()

@@ -11,17 +11,17 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from .. import methods as _every_method  # noqa: F401  (the added methods register themselves: Table I whole)
 from ..demonstrations.benchmark import load_benchmark
-from ..evaluate.methods import method_params, mrf_methods
-from ..evaluate.registry import method_labels
+from ..evaluate.methods import method_params
 from ..experiments.robustness import NoiseCondition, evaluate_conditions, noise_curve, noise_runs
 from ..features.dataset import read_features
+from ..methods import Lineup, method_labels
 from ..report import paper
 from ..report.csvs import OUTCOME_COLUMNS, RATE_DECIMALS, csv_text, outcome_row
 from ..report.figures import line_plot_png
 from ..runtime.atomic import write_text_atomic
-from ..settings import Noise, Params, Replay
+from ..selection import read_selection
+from ..settings import Methods, Noise, Params, Replay
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .paths import EvaluationPaths
 
@@ -32,18 +32,20 @@ RATE = {"rate": 1, **dict.fromkeys(("sequence_arg", "sequence_arg_std", "sequenc
 class Settings:
     noise: Noise
     replay: Replay
+    methods: Methods  # those whose experiments name noise are run
 
 
 def settings(params: Params, world_seed: int | None = None) -> Settings:
-    return Settings(params.noise, Replay.of(params))
+    return Settings(params.noise, Replay.of(params), params.methods)
 
 
 def run(settings: Settings, paths: EvaluationPaths, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> list[dict[str, Any]]:
     noise = settings.noise
+    replay = settings.replay
+    lineup = Lineup(settings.methods, read_selection(paths.selection), replay.learner, store=paths.store)
+    methods = lineup.running("noise")
     contexts, meta = read_features(paths.features)
     bench = load_benchmark(paths.processed)
-    replay = settings.replay
-    methods = mrf_methods(replay.learner, paths.store, noise.methods)
     conditions = [NoiseCondition(r, s) for r in noise.rates for s in range(noise.draws)]
     runs, curve, sequences = [], [], []
     outcomes = evaluate_conditions(methods, contexts, meta, bench.scenarios, conditions, replay.folds,

@@ -25,8 +25,8 @@ def option(help: str, default: Any = MISSING, *, input: bool = False, kind: type
 
 
 def _selection() -> Any:
-    return option("take each MRF method's C from this file written by `taskseq select` (default: train.C of the "
-                  "settings for every method)", None)
+    return option("take each MRF method's C from this file written by `taskseq select` (default: no file: every "
+                  "method at C = 3, taskseq.selection.UNTUNED_C, untuned)", None)
 
 
 def _store() -> Any:
@@ -69,7 +69,8 @@ class TrainPaths:
     processed: Path | None = option("folder of Parquet tables: the training scenarios, which methods with chained "
                                     "starts or DAgger need (default: not read)", None, input=True)
     selection: Path | None = option("the file `taskseq select` wrote: each method's C, and the method when "
-                                    "train.method is best (default: train.C of the settings)", None)
+                                    "train.method is best (default: no file: C = 3, taskseq.selection.UNTUNED_C)",
+                                    None)
     model: Path = option("model file to write (.npz)")
     metrics: Path | None = option("training metrics (JSON; default: not written)", None)
     curve: Path | None = option("objective per iteration (CSV; default: not written)", None)

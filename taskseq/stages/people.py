@@ -17,6 +17,7 @@ from ..demonstrations.records import parse_record, state_from_dict
 from ..experiments.teaching import fit, pooled, success_on
 from ..features.dataset import build_steps, read_features
 from ..runtime.atomic import write_json_atomic, write_text_atomic
+from ..selection import read_selection
 from ..settings import Learner, Params, People
 from ..sim.scenarios import doable_tasks
 from ..track.mlflow_runs import NO_RUN, Tracker
@@ -26,14 +27,14 @@ from .paths import PeoplePaths
 @dataclass(frozen=True)
 class Settings:
     people: People
-    learner: Learner  # the full model's, as `train` sets it (C from `select`)
+    learner: Learner  # the full model's, as `train` sets it (its C from the selection file)
     max_steps: int  # step cap of closed-loop runs
 
 
 def settings(params: Params, world_seed: int | None = None) -> Settings:
     t = params.train
-    return Settings(People(logs=params.people.logs), Learner(C=t.C, tol=t.tol, max_iter=t.max_iter,
-                                                              n_slacks=t.n_slacks), params.crossval.max_steps)
+    return Settings(People(logs=params.people.logs), Learner(t.tol, t.max_iter, t.n_slacks),
+                    params.crossval.max_steps)
 
 
 def run(settings: Settings, paths: PeoplePaths, tracker: Tracker = NO_RUN) -> dict[str, Any]:
@@ -42,8 +43,9 @@ def run(settings: Settings, paths: PeoplePaths, tracker: Tracker = NO_RUN) -> di
     result: dict[str, Any] = {"environments": [], "success_before": None, "success_after": None}
     if records:
         base, _ = read_features(paths.features)
-        before = fit(base, learner)
-        after = fit(base + build_steps(records)[0], learner)
+        C = read_selection(paths.selection).of("full")
+        before = fit(base, C, learner)
+        after = fit(base + build_steps(records)[0], C, learner)
         rows, outcomes = [], {"before": [], "after": []}
         for env_id in sorted({r["env_id"] for r in records}):
             mine = [r for r in records if r["env_id"] == env_id]

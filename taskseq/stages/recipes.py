@@ -1,7 +1,7 @@
 """Stage `recipes`: programs chained into recipes, in environments held out from training.
 
-Run for the methods `recipes.methods` of params.yaml names: the paper's full model and the added method
-that chains programs best on the development world.
+Run for the methods whose entry in params.yaml's `methods` section names recipes: the paper's full model and
+the added methods that chain programs best on the development world.
 recipes_programs.csv holds every program of
 every recipe run (DVC-cached, not in git), each recipe's also in its MLflow
 child run as a table.
@@ -12,15 +12,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from .. import methods as _every_method  # noqa: F401  (the added methods register themselves: Table I whole)
 from ..demonstrations.benchmark import load_benchmark
-from ..evaluate.methods import method_params, mrf_methods
-from ..evaluate.registry import method_labels
+from ..evaluate.methods import method_params
 from ..experiments.recipes import PROGRAM_COLUMNS, RECIPES, evaluate_recipes, program_rows, recipe_report
 from ..features.dataset import read_features
+from ..methods import Lineup, method_labels
 from ..report.csvs import csv_text
 from ..runtime.atomic import write_json_atomic, write_text_atomic
-from ..settings import Learner, Params, Recipes
+from ..selection import read_selection
+from ..settings import Learner, Methods, Params, Recipes
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .paths import EvaluationPaths
 
@@ -30,16 +30,18 @@ class Settings:
     recipes: Recipes
     max_steps: int  # step cap of each program
     learner: Learner
+    methods: Methods  # those whose experiments name recipes are run
 
 
 def settings(params: Params, world_seed: int | None = None) -> Settings:
-    return Settings(params.recipes, params.crossval.max_steps, params.train.learner)
+    return Settings(params.recipes, params.crossval.max_steps, params.train.learner, params.methods)
 
 
 def run(settings: Settings, paths: EvaluationPaths, tracker: Tracker = NO_RUN) -> dict[str, Any]:
+    lineup = Lineup(settings.methods, read_selection(paths.selection), settings.learner, store=paths.store)
+    methods = lineup.running("recipes")
     contexts, meta = read_features(paths.features)
     scenarios = load_benchmark(paths.processed).scenarios
-    methods = mrf_methods(settings.learner, paths.store, settings.recipes.methods)
     reports, programs = {}, []
     for method in methods:
         outcomes = evaluate_recipes(methods[method], contexts, meta, scenarios, max_steps=settings.max_steps,

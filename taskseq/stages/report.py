@@ -5,8 +5,7 @@ With `plots_template`, also the page `dvc plots show` fills, with its JavaScript
 
 from __future__ import annotations
 
-from .. import methods as _every_method  # noqa: F401  (the added methods register themselves: Table I whole)
-from ..evaluate.registry import method_labels
+from ..methods import method_labels
 from ..report.plots_page import offline_template
 from ..report.summary import build_summary
 from ..runtime.atomic import write_text_atomic

@@ -4,8 +4,8 @@ Each reported world seed also draws a procedural world (`procedural` in
 params.yaml: rooms, furniture and objects the catalog never had). On it the
 same stages run as on a paper-shaped world, with folds that hold out whole
 rooms, their new objects with them: generate, ingest, features, the fold
-models, Table I, attribute noise and feedback. The MRF methods of
-`scenes.transfer` are also trained on every step of the seed's paper-shaped
+models, Table I, attribute noise and feedback. The MRF methods whose
+`experiments` name transfer (params.yaml's `methods`) are also trained on every step of the seed's paper-shaped
 world and run on every scenario of its drawn world. The tables over seeds
 (mean ± sd) are written as the `aggregate` stage writes the paper-shaped ones.
 """
@@ -16,17 +16,16 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from .. import methods as _every_method  # noqa: F401  (the added methods register themselves: Table I whole)
 from ..demonstrations.benchmark import load_benchmark
-from ..evaluate.methods import mrf_methods
 from ..evaluate.metrics import summarize
-from ..evaluate.registry import method_labels
 from ..experiments.transfer import transfer
 from ..features.dataset import read_features
+from ..methods import Lineup, method_labels
 from ..report.csvs import csv_text
 from ..report.seeds import curve_over_seeds, json_over_seeds, world_dirs
 from ..runtime.atomic import write_json_atomic, write_text_atomic
-from ..settings import Crossval, Folds, Generate, Learner, Params, Replay, World
+from ..selection import read_selection
+from ..settings import Crossval, Folds, Generate, Learner, Methods, Params, Replay, World
 from ..track.mlflow_runs import NO_RUN, Tracker
 from . import aggregate, crossval, features, feedback, fold_models, generate, ingest, noise
 from .paths import (
@@ -55,7 +54,7 @@ class Settings:
     crossval: crossval.Settings
     noise: noise.Settings
     feedback: feedback.Settings
-    transfer: tuple[str, ...]  # MRF methods trained on the paper-shaped world and run on the drawn one
+    methods: Methods  # those whose experiments name transfer: trained on the paper-shaped world, run on the drawn one
     learner: Learner
     paper_shaped: bool = True  # the reported worlds are the paper's rooms; drawn ones leave no transfer to measure
 
@@ -67,19 +66,19 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
     return Settings(
         world=Generate(family="procedural", procedural=params.procedural),
         seeds=params.world.seeds,
-        fold_models=fold_models.Settings(rooms, learner, ()),
+        fold_models=fold_models.Settings(rooms, learner, params.methods, recipes=False),
         crossval=crossval.Settings(Crossval(c.folds, "environment", c.seed, c.chance_seed, c.multiclass_C,
-                                            c.ranking_C, c.max_steps), learner, params.pddl.horizon),
-        noise=noise.Settings(params.noise, replay),
-        feedback=feedback.Settings(params.feedback, replay),
-        transfer=params.scenes.transfer,
+                                            c.ranking_C, c.max_steps), learner, params.pddl.horizon, params.methods),
+        noise=noise.Settings(params.noise, replay, params.methods),
+        feedback=feedback.Settings(params.feedback, replay, params.methods),
+        methods=params.methods,
         learner=learner,
         paper_shaped=params.world.family == "paper",
     )
 
 
 def run(settings: Settings, paths: ScenesPaths, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> dict[str, Any]:
-    mrf_methods(settings.learner, names=settings.transfer)  # an unknown name stops here, before minutes of work
+    _transferred(settings, paths)  # a wrong entry or a missing C stops here, before minutes of work
     data, out = Path(paths.data), Path(paths.output)
     for seed in settings.seeds:
         with tracker.child(f"world={seed}", {"world_seed": seed}) as child:
@@ -136,7 +135,7 @@ def _drawn_world(settings: Settings, paths: ScenesPaths, seed: int, here: Path, 
     paper = Path(paths.paper) / str(seed)
     train = (*read_features(paper / "features"), load_benchmark(paper / "processed"))
     test = (*read_features(feats), load_benchmark(processed))
-    methods = mrf_methods(settings.learner, names=settings.transfer)
+    methods = _transferred(settings, paths)
     print(f"training {', '.join(methods)} on the paper-shaped world {seed} ({len(train[0])} steps) and running them "
           f"on the drawn one ({len(test[2].scenarios)} scenarios)")
     results, contexts = transfer(methods, train, test, settings.crossval.crossval.max_steps, n_jobs)
@@ -145,6 +144,11 @@ def _drawn_world(settings: Settings, paths: ScenesPaths, seed: int, here: Path, 
             for name in methods]
     write_text_atomic(here / "transfer.csv", csv_text(["method", *TRANSFER], rows, dict.fromkeys(TRANSFER, 2)))
     tracker.metrics({f"transfer.{r['method']}.{k}": r[k] for r in rows for k in TRANSFER})
+
+
+def _transferred(settings: Settings, paths: ScenesPaths) -> dict[str, Any]:
+    """The MRF methods the transfer experiment runs, by name, as factories of unfitted methods."""
+    return Lineup(settings.methods, read_selection(paths.selection), settings.learner).running("transfer")
 
 
 def transfer_markdown(rows: list[dict[str, Any]], n_seeds: int) -> str:

@@ -14,15 +14,14 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from .. import methods as _every_method  # noqa: F401  (the added methods register themselves: Table I whole)
 from ..demonstrations.benchmark import Benchmark
 from ..demonstrations.generate import generate
 from ..demonstrations.ingest import load_logs, write_tables
-from ..evaluate.methods import mrf_methods
 from ..experiments.selection import CRITERION, DevData, choose_C, cross_validate_settings, rank_methods
 from ..features.dataset import build_steps, write_features
+from ..methods import PAPER_MODEL, Lineup
 from ..runtime.atomic import write_json_atomic
-from ..settings import Folds, Generate, Learner, Params, Procedural, Select, World
+from ..settings import Folds, Generate, Learner, Methods, Params, Procedural, Select, World
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .paths import SelectPaths
 
@@ -32,17 +31,16 @@ class Settings:
     world: World
     procedural: Procedural  # the rooms' distribution, when world.family draws them
     select: Select
-    learner: Learner  # C is the value tried; the rest (DAgger's rounds too) as `train` sets it
+    learner: Learner  # the structural SVM's settings as `train` sets them; C is the value tried
     folds: Folds
     max_steps: int  # step cap of closed-loop runs
+    methods: Methods  # those whose experiments name select get their own C, then are ranked
 
 
 def settings(params: Params, world_seed: int | None = None) -> Settings:
-    t, c = params.train, params.crossval
-    return Settings(params.world, params.procedural, params.select,
-                    Learner(tol=t.tol, max_iter=t.max_iter, n_slacks=t.n_slacks, dagger_rounds=t.dagger_rounds,
-                            noise_rate=t.noise_rate, noise_copies=t.noise_copies),
-                    c.fold_settings, c.max_steps)
+    c = params.crossval
+    return Settings(params.world, params.procedural, params.select, params.train.learner, c.fold_settings,
+                    c.max_steps, params.methods)
 
 
 def run(settings: Settings, paths: SelectPaths, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> dict[str, Any]:
@@ -50,7 +48,12 @@ def run(settings: Settings, paths: SelectPaths, tracker: Tracker = NO_RUN, n_job
     if world.dev_seed in world.seeds:
         raise ValueError(f"params.yaml: world.dev_seed {world.dev_seed} is also a reported seed; settings must "
                          "be chosen on a world that is never reported")
-    mrf_methods(settings.learner, names=select.methods)  # an unknown name stops here, before minutes of work
+    lineup = Lineup(settings.methods, learner=settings.learner)  # a wrong entry stops here, before minutes of work
+    names = lineup.names("select")
+    if PAPER_MODEL not in names:
+        raise ValueError(f"params.yaml: methods.{PAPER_MODEL}.experiments must include select: its C is also the "
+                         "paper's ablations' (only_edge, only_clique) and the teach and people stages'")
+    lineup.mrf(names)
     data, output = paths.data, paths.output
     rooms = replace(settings.procedural, environments=select.environments)  # the development world's own size
     generate(Generate(world.dev_seed, world.family, rooms), data / "raw")
@@ -60,7 +63,7 @@ def run(settings: Settings, paths: SelectPaths, tracker: Tracker = NO_RUN, n_job
     write_features(contexts, meta, data / "features")
     bench = Benchmark.from_records([r.record for r in records])
     dev = DevData(contexts, meta, bench, folds, settings.max_steps)
-    print(f"choosing C for {', '.join(select.methods)} among {' '.join(f'{c:g}' for c in select.C)} (extended at "
+    print(f"choosing C for {', '.join(names)} among {' '.join(f'{c:g}' for c in select.C)} (extended at "
           f"an edge, {select.max_extensions} times at most) on the development world (seed {world.dev_seed}, "
           f"{len(bench.scenarios)} scenarios), {folds.folds} folds, {n_jobs} jobs")
     rounds: list[float] = []  # each round's seconds
@@ -71,16 +74,17 @@ def run(settings: Settings, paths: SelectPaths, tracker: Tracker = NO_RUN, n_job
             print(f"round {len(rounds)}: " + "; ".join(f"{m} C={' '.join(f'{c:g}' for c in v)}"
                                                       for m, v in pending.items()))
             start = time.perf_counter()
-            out = cross_validate_settings(pending, settings.learner, dev, Path(scratch) / str(len(rounds)), n_jobs,
-                                          verbose=5)
+            out = cross_validate_settings(pending, lambda name, C: lineup.at_C(C).factory(name), dev,
+                                          Path(scratch) / str(len(rounds)), n_jobs, verbose=5)
             rounds.append(time.perf_counter() - start)
             return out
 
-        chosen = choose_C(select.methods, select.C, evaluate, select.max_extensions)
+        chosen = choose_C(names, select.C, evaluate, select.max_extensions)
     ranking = rank_methods(chosen)
     result = {"C": chosen["full"]["C"], "criterion": CRITERION, "dev_seed": world.dev_seed,
               "grid": list(select.C), "max_extensions": select.max_extensions, "settings": chosen,
               "method": ranking[0]["method"], "methods": ranking,
+              # the order is now params.yaml's `methods` section's; the words stay, so the file stays the same bytes
               "method_criterion": "sequence_arg, then success, then the order of select.methods"}
     write_json_atomic(output, result)
     for name, choice in chosen.items():

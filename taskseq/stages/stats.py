@@ -12,8 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .. import methods as _every_method  # noqa: F401  (the added methods register themselves: Table I whole)
-from ..evaluate.registry import BASELINES, PAPER_METHODS, PAPER_MODEL, method_labels
+from ..methods import BASELINES, PAPER_METHODS, PAPER_MODEL, method_labels
 from ..report.csvs import read_csv_rows
 from ..report.seeds import world_dirs
 from ..report.stats import best_baseline, confidence_intervals, paired_comparisons, world_outcomes

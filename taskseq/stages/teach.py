@@ -26,6 +26,7 @@ from ..features.dataset import build_steps
 from ..report.csvs import csv_text
 from ..report.figures import line_plot_png
 from ..runtime.atomic import write_text_atomic
+from ..selection import read_selection
 from ..serve.environments import world_environment
 from ..serve.writer import RecordWriter, person_record
 from ..settings import Learner, Params, Teach, World
@@ -52,19 +53,20 @@ def written_and_read_back(records: list[dict[str, Any]]) -> list[dict[str, Any]]
 class Settings:
     world: World
     teach: Teach
-    learner: Learner  # the full model's, as `train` sets it (C from `select`)
+    learner: Learner  # the full model's, as `train` sets it (its C from the selection file)
     max_steps: int  # step cap of closed-loop runs
 
 
 def settings(params: Params, world_seed: int | None = None) -> Settings:
     t = params.train
-    return Settings(params.world, params.teach, Learner(C=t.C, tol=t.tol, max_iter=t.max_iter, n_slacks=t.n_slacks),
+    return Settings(params.world, params.teach, Learner(t.tol, t.max_iter, t.n_slacks),
                     params.crossval.max_steps)
 
 
 def run(settings: Settings, paths: TeachPaths, tracker: Tracker = NO_RUN) -> list[dict[str, Any]]:
     world, teach, learner, max_steps = settings.world, settings.teach, settings.learner, settings.max_steps
     worlds, output = paths.worlds, paths.output
+    C = read_selection(paths.selection).of("full")
     unknown = sorted(set(teach.environments) - {f"env{i:02d}" for i in range(1, 14)})
     if unknown:
         raise ValueError(f"teach.environments: unknown environments {unknown}")
@@ -83,7 +85,7 @@ def run(settings: Settings, paths: TeachPaths, tracker: Tracker = NO_RUN) -> lis
         for k in teach.k:
             people = written_and_read_back([person_record(env, task, actions, SCRIPTED)
                                             for env, shown in taught.values() for task, actions in shown[:k]])
-            planner = fit(base + (build_steps(people)[0] if people else []), learner)
+            planner = fit(base + (build_steps(people)[0] if people else []), C, learner)
             outcomes = [success_on(planner, env.env_id, env.state, tested[e], max_steps)
                         for e, (env, _) in taught.items()]
             rows.append({"world_seed": seed, "k": k, "held_out_tasks": sum(o.n_tasks for o in outcomes),

@@ -15,18 +15,16 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .. import methods as _every_method  # noqa: F401  (the added methods register themselves: Table I whole)
 from ..demonstrations.benchmark import Benchmark, load_benchmark
 from ..demonstrations.people import people_records
-from ..evaluate.methods import mrf_methods
 from ..evaluate.metrics import step_accuracy
-from ..evaluate.registry import method_labels
-from ..experiments.selection import read_selected_method
 from ..features.dataset import build_steps, read_features
 from ..learn.ssvm import learning_curve
+from ..methods import Lineup, method_labels
 from ..report.csvs import csv_text
 from ..runtime.atomic import write_json_atomic, write_text_atomic
-from ..settings import Params, Train
+from ..selection import read_selection
+from ..settings import Methods, Params, Train
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .paths import TrainPaths
 
@@ -35,14 +33,14 @@ from .paths import TrainPaths
 class Settings:
     train: Train
     people_logs: Path | None  # people's demonstrations added to the training steps (`people.train`), or None
+    methods: Methods  # the shipped method's own settings
 
 
 def settings(params: Params, world_seed: int | None = None) -> Settings:
     t, people = params.train, params.people
     logs, use = Path(people.logs), people.train  # both read, so the keys read never depend on the values
-    return Settings(Train(C=t.C, tol=t.tol, max_iter=t.max_iter, n_slacks=t.n_slacks, dagger_rounds=t.dagger_rounds,
-                          noise_rate=t.noise_rate, noise_copies=t.noise_copies, tuned=t.tuned, method=t.method),
-                    logs if use else None)
+    return Settings(Train(tol=t.tol, max_iter=t.max_iter, n_slacks=t.n_slacks, method=t.method),
+                    logs if use else None, params.methods)
 
 
 def shipped_method(settings: Train, paths: TrainPaths) -> tuple[str, str]:
@@ -52,7 +50,12 @@ def shipped_method(settings: Train, paths: TrainPaths) -> tuple[str, str]:
     if paths.selection is None:
         raise ValueError("train.method is 'best', the method the development world ranks first: give the file "
                          "`taskseq select` wrote with --selection, or name a method with --set train.method=NAME")
-    return read_selected_method(paths.selection), f"ranked first on the development world ({paths.selection})"
+    method = read_selection(paths.selection).method
+    if method is None:
+        raise ValueError(f"{paths.selection}: no field 'method' (the method ranked first); the file predates the "
+                         "ranking of methods: run `taskseq select` again, or name the method with "
+                         "--set train.method=NAME")
+    return method, f"ranked first on the development world ({paths.selection})"
 
 
 def run(settings: Settings, paths: TrainPaths, tracker: Tracker = NO_RUN) -> dict[str, Any]:
@@ -60,7 +63,7 @@ def run(settings: Settings, paths: TrainPaths, tracker: Tracker = NO_RUN) -> dic
     train = settings.train
     features, model, metrics, curve = paths.features, paths.model, paths.metrics, paths.curve
     name, chosen_by = shipped_method(train, paths)
-    method = mrf_methods(train.learner, names=[name])[name]()
+    method = Lineup(settings.methods, read_selection(paths.selection), train.learner).mrf([name])[name]()
     contexts, meta = read_features(features)
     people = people_records(settings.people_logs)[0] if settings.people_logs is not None else []
     if people:
