@@ -232,3 +232,23 @@ def test_a_model_file_keeps_the_lookaheads_width_and_refuses_another_format(data
     np.savez(path, w=method.w_, meta=np.array(json.dumps(meta)))
     with pytest.raises(ValueError, match="veil-mrf/1"):
         load_mrf(path)
+
+
+def test_rows_that_make_the_same_fits_share_them(release_dir: Path, monkeypatch) -> None:  # noqa: F811
+    """Rows of one feature set and row content differ only in how they choose C or run the model: each fold fits
+    each C once on its inner split and each chosen C once on its training environments, for all three rows."""
+    fits: list[tuple[float, int]] = []
+    real = experiment.MRFMethod.fit
+
+    def spy(self, train):
+        fits.append((self.C, len(train)))
+        return real(self, train)
+
+    monkeypatch.setattr(experiment.MRFMethod, "fit", spy)
+    rows = ("mrf_categories", "mrf_categories_goal", "mrf_categories_lookahead")
+    assert experiment.fit_groups(("chance", *rows)) == [("chance",), rows]
+    report = run_experiment(release_dir, Settings(folds=2, C_grid=(1.0, 10.0), max_steps=8, resamples=50,
+                                                  methods=rows, lookahead_widths=(1, 3)))
+    expected = sum(2 + len({fold["C"]["mrf_categories"], fold["C"]["mrf_categories_goal"]})
+                   for fold in report["folds"])
+    assert len(fits) == expected

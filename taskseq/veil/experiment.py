@@ -149,19 +149,37 @@ def _best(scores: Sequence[float]) -> int:
     return int(np.argmax(np.nan_to_num(np.array(scores, dtype=float), nan=-1.0)))
 
 
+@dataclass
+class Fits:
+    """The MRF fits of one job, shared by the rows that would make the same fit: rows of one feature set and row
+    content differ only in how they choose C or run the model, so each (C, sequences) is fitted once. Fits are
+    deterministic, so a shared fit is the very model each row would have fitted alone."""
+
+    release: Release
+    objectives: Sequence[str]
+    settings: Settings
+    _fits: dict[tuple, VeilMethod] = field(default_factory=dict)
+
+    def __call__(self, name: str, C: float, replays: Sequence[Replay]) -> VeilMethod:
+        row = MRF_ROWS[name]
+        key = (row["features"], row["categories"], C, tuple(r.point.seq_id for r in replays))
+        if key not in self._fits:
+            self._fits[key] = make_method(name, self.release, self.objectives, self.settings, C).fit(replays)
+        return self._fits[key]
+
+
 def choose_C(name: str, release: Release, objectives: Sequence[str], train: Sequence[Replay],
-             settings: Settings, fitted_out: dict[float, VeilMethod] | None = None) -> float:
+             settings: Settings, fits: Fits | None = None) -> float:
     """C of an MRF row from its training environments alone: the grid's best on an inner held-out number, by the
     row's criterion (next-step accuracy, or the goal share of feasible closed-loop runs there, whose goals come
-    from the inner training sequences); ties go to the smallest C, the most regularised. The inner fits are
-    left in `fitted_out` by C, for a setting chosen on the same split after it."""
+    from the inner training sequences); ties go to the smallest C, the most regularised. The inner fits come from
+    `fits` when given (shared with the job's other rows)."""
     grid = sorted(settings.C_grid)
     if len(grid) == 1:
         return grid[0]
+    fit = fits or Fits(release, objectives, settings)
     fit_on, check_on = inner_split(train, settings, f"C among {grid}")
-    fitted = [make_method(name, release, objectives, settings, C).fit(fit_on) for C in grid]
-    if fitted_out is not None:
-        fitted_out.update(zip(grid, fitted, strict=True))
+    fitted = [fit(name, C, fit_on) for C in grid]
     if MRF_ROWS[name]["select"] == "goal":
         goals, executor = derive_goals(fit_on), Executor(release)
         scores = [_mean(closed_loop(m, executor, check_on, goals, "feasible", settings.max_steps), "goal_share")
@@ -172,16 +190,16 @@ def choose_C(name: str, release: Release, objectives: Sequence[str], train: Sequ
 
 
 def choose_width(base: str, C: float, release: Release, objectives: Sequence[str], train: Sequence[Replay],
-                 settings: Settings, fitted: VeilMethod | None = None) -> int:
+                 settings: Settings, fits: Fits | None = None) -> int:
     """The goal lookahead's width from its training environments alone: the width of `lookahead_widths` whose
     feasible runs on the inner held-out number reach the largest share of the goal (goals derived from the inner
-    training sequences), around the base row fitted there at C (`fitted`, when C's choice fitted it already);
+    training sequences), around the base row fitted there at C (from `fits` when given: choosing C fitted it);
     ties go to the smallest width, the one closest to the model's own ranking."""
     widths = sorted(settings.lookahead_widths)
     if len(widths) == 1:
         return widths[0]
     fit_on, check_on = inner_split(train, settings, f"the lookahead's width among {widths}")
-    model = fitted if fitted is not None else make_method(base, release, objectives, settings, C).fit(fit_on)
+    model = (fits or Fits(release, objectives, settings))(base, C, fit_on)
     executor, goals = Executor(release), derive_goals(fit_on)
     scores = [_mean(closed_loop(GoalLookahead("inner", model, executor, width=w).with_goals(fit_on), executor,
                                 check_on, goals, "feasible", settings.max_steps), "goal_share") for w in widths]
@@ -194,12 +212,21 @@ def _mean(runs: Sequence[Run], attr: str) -> float:
 
 
 def fit_groups(methods: Sequence[str]) -> list[tuple[str, ...]]:
-    """`methods` in jobs: a row with a `base` joins its base's job when the base runs too (one fit for both)."""
-    groups: dict[str, list[str]] = {}
+    """`methods` in jobs: the MRF rows that make the same fits (one feature set and row content; a row with a
+    `base` as its base) run in one job, which fits each (C, sequences) once (`Fits`); a row with a `base` comes
+    after the rows it may share with."""
+
+    def identity(name: str) -> str | tuple:
+        row = MRF_ROWS.get(name)
+        if row is None:
+            return name
+        row = MRF_ROWS[row["base"]] if "base" in row else row
+        return (row["features"], row["categories"])
+
+    groups: dict[str | tuple, list[str]] = {}
     for name in methods:
-        base = MRF_ROWS.get(name, {}).get("base")
-        groups.setdefault(base if base in methods else name, []).append(name)
-    return [tuple(sorted(g, key=lambda name, first=key: name != first)) for key, g in groups.items()]  # base first
+        groups.setdefault(identity(name), []).append(name)
+    return [tuple(sorted(g, key=lambda name: "base" in MRF_ROWS.get(name, {}))) for g in groups.values()]
 
 
 @dataclass(frozen=True)
@@ -217,17 +244,16 @@ class MethodOnFold:
 
 def fold_job(k: int, held_out: frozenset[int], names: tuple[str, ...], data: tuple[Release, list[Replay]],
              settings: Settings, recordings_dir: Path | None = None) -> list[MethodOnFold]:
-    """`names` on one fold; a row with a `base` runs the base's model, fitted once when the base is among
-    `names`. The first MRF row of `settings.methods` also records its first `settings.recordings` runs into
+    """`names` on one fold, sharing their MRF fits (`Fits`); a row with a `base` runs the base's model. The first
+    MRF row of `settings.methods` also records its first `settings.recordings` runs into
     `recordings_dir`."""
     release, replays = data
     objectives = sorted({r.point.objective for r in replays})
     train, test = split(replays, held_out)
     goals = derive_goals(train)
     executor = Executor(release)
-    fitted: dict[str, VeilMethod] = {}
+    fits = Fits(release, objectives, settings)
     chosen_C: dict[str, float] = {}
-    inner_fits: dict[str, dict[float, VeilMethod]] = {}  # each fitted row's fits on the inner split, by C
     out = []
     for name in names:
         start = time.perf_counter()
@@ -237,16 +263,15 @@ def fold_job(k: int, held_out: frozenset[int], names: tuple[str, ...], data: tup
         width: int | None = None
         if name in MRF_ROWS:
             if row not in chosen_C:
-                inner_fits[row] = {}
-                chosen_C[row] = choose_C(row, release, objectives, train, settings, inner_fits[row])
+                chosen_C[row] = choose_C(row, release, objectives, train, settings, fits)
             C = chosen_C[row]
         if base is not None and C is not None:
-            width = choose_width(base, C, release, objectives, train, settings, inner_fits[base].get(C))
-            model = fitted.get(base) or make_method(base, release, objectives, settings, C).fit(train)
-            method: VeilMethod = GoalLookahead(name, model, executor, width=width).with_goals(train)
+            width = choose_width(base, C, release, objectives, train, settings, fits)
+            method: VeilMethod = GoalLookahead(name, fits(base, C, train), executor, width=width).with_goals(train)
+        elif C is not None:
+            method = fits(name, C, train)
         else:
-            method = make_method(name, release, objectives, settings, C).fit(train)
-        fitted[name] = method
+            method = make_method(name, release, objectives, settings).fit(train)
         if getattr(method, "predicts_next_step", True):
             rows = next_steps(method, test)
             figures = {part: float(np.mean([getattr(r, part) for r in rows])) for part in ("verb", "args", "both")}
@@ -445,7 +470,9 @@ def choose_model(release: Release, replays: Sequence[Replay], settings: Settings
     if len(numbers) < 2:
         return rows[0], settings.C_grid[0]
     inner = environment_folds(replays, min(settings.folds, len(numbers)))[0]
-    candidates = [(name, C) for name in rows for C in settings.C_grid]
+    # a row that makes the same fits as an earlier one would score the same and lose the tie: left out
+    distinct = list({(MRF_ROWS[m]["features"], MRF_ROWS[m]["categories"]): m for m in reversed(rows)}.values())
+    candidates = [(name, C) for name in rows if name in distinct for C in settings.C_grid]
     data = Shared((release, list(replays)))
     scores = run_jobs([(inner_score, (name, C, data, inner, settings)) for name, C in candidates], n_jobs)
     best = max(range(len(candidates)), key=lambda i: (scores[i], -i))  # ties: the earlier row, then the smaller C
