@@ -87,8 +87,10 @@ GROUPS = {
     # hand-built worlds only (the world-building tests would run for every mutant), and a short timeout: a mutant of
     # the walks of `descendants` and `shelved` can loop forever
     "state": Group(("taskseq/sim/state.py",), ("tests/test_state_behaviour.py",), timeout_multiplier=5.0),
-    # params.yaml's values, selection.json's C and the methods configured from both, on hand-written files
-    "settings": Group(("taskseq/settings.py", "taskseq/selection.py", "taskseq/methods/lineup.py"),
+    # params.yaml's values, selection.json's C, the methods' specs and the methods configured from all three, on
+    # hand-written files
+    "settings": Group(("taskseq/settings.py", "taskseq/selection.py", "taskseq/methods/spec.py",
+                       "taskseq/methods/lineup.py"),
                       ("tests/test_settings_behaviour.py", "tests/test_settings.py")),
 }
 

@@ -6,6 +6,7 @@ for. The `settings` mutation group (scripts/mutation.py) is judged by these test
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -14,6 +15,7 @@ import pytest
 
 from taskseq.methods import Lineup, MethodSpec, specs
 from taskseq.methods import lineup as lineup_module
+from taskseq.methods import spec as spec_module
 from taskseq.selection import UNTUNED_C, Selection, read_selection
 from taskseq.settings import (
     Crossval,
@@ -397,3 +399,63 @@ def test_only_methods_tuned_by_a_c_count_as_mrf_methods(monkeypatch):
     assert up.factory("fixed")().C == 1.0
     assert "fixed" not in up.mrf() and "full" in up.mrf()
     assert list(up.mrf(["fixed"])) == ["fixed"]
+
+
+# ---- a method's spec (taskseq.methods.spec) -------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Needs:
+    """Settings with a field that has no default."""
+
+    rounds: int
+
+
+@dataclass(frozen=True)
+class Listed:
+    """Settings whose one field has a default factory."""
+
+    rates: tuple[float, ...] = dataclasses.field(default_factory=lambda: (0.1,))
+
+
+def make_nothing(build):
+    return None
+
+
+def test_a_spec_is_checked_when_it_is_made():
+    assert refused(MethodSpec, "two words", "x", make_nothing) == ("method name 'two words' must be a Python "
+                                                                   "identifier (it names files and runs)")
+    assert refused(MethodSpec, "mine", "x", make_nothing, policy="random") == (
+        "method mine: unknown policy 'random'; known: greedy, feasible, lookahead")
+    message = "method mine: its settings must be a dataclass with a default for each field"
+    assert refused(MethodSpec, "mine", "x", make_nothing, settings=dict) == message
+    assert refused(MethodSpec, "mine", "x", make_nothing, settings=Needs) == message
+    assert MethodSpec("mine", "x", make_nothing, policy="lookahead", settings=Listed).settings is Listed
+    assert MethodSpec("mine", "x", make_nothing, settings=Rates).policy == "greedy"
+
+
+def test_a_spec_says_whose_c_it_takes():
+    assert MethodSpec("mine", "x", make_nothing).tuned_as == "mine"
+    assert MethodSpec("mine", "x", make_nothing, C_from="full").tuned_as == "full"
+    assert MethodSpec("mine", "x", make_nothing, C_from=None).tuned_as is None
+    assert specs()["only_edge"].tuned_as == "full" and specs()["chance"].tuned_as is None
+
+
+def test_a_name_is_registered_once_and_the_lists_keep_the_order_registered(monkeypatch):
+    monkeypatch.setattr(spec_module, "_SPECS", {})
+    first = spec_module.register(MethodSpec("b", "the b", make_nothing))
+    assert spec_module.register(MethodSpec("b", "the b", make_nothing)) == first  # the same spec again: no change
+    spec_module.register(MethodSpec("a", "the a", make_nothing))
+    assert refused(spec_module.register, MethodSpec("b", "another b", make_nothing)) == "method 'b' is registered twice"
+    assert list(spec_module.specs()) == ["b", "a"] and spec_module.specs()["b"] == first
+    assert spec_module.method_labels() == {"b": "the b", "a": "the a"}
+    spec_module.specs().clear()  # a copy
+    assert list(spec_module.specs()) == ["b", "a"]
+
+
+def test_a_build_makes_the_mrf_method_with_everything_in_force():
+    build = spec_module.Build("mine", "lookahead", 2.5, Learner(0.5, 9, 1), Crossval(), 6, "models", None)
+    method = build.mrf("relations", dagger_rounds=2)
+    assert (method.features, method.C, method.tol, method.max_iter, method.n_slacks, method.name, method.store,
+            method.policy, method.dagger_rounds) == ("relations", 2.5, 0.5, 9, 1, "mine", "models", "lookahead", 2)
+    assert refused(replace(build, C=None).mrf, "full") == ("method mine: an MRF method needs a C (its spec's C_from "
+                                                           "is None)")
