@@ -97,7 +97,8 @@ def test_set_overrides_the_file_key_by_key(tmp_path):
                                 "methods.full.dagger_rounds=1"])
     assert params.train.tol == 0.25 and params.train.max_iter == 7 and params.world.seeds == (4,)
     assert params.methods.entry("dagger") == MethodEntry(("noise",), (("dagger_rounds", 2),))
-    assert params.methods.entry("chance") == MethodEntry(("select",))  # an entry that held no keys is replaced
+    # an entry that was no mapping gives way to the key set
+    assert params.methods.entry("chance") == MethodEntry(("select",))
     assert params.methods.entry("full") == MethodEntry(("select",), (("dagger_rounds", 1),))
     assert [name for name, _ in params.methods.entries] == ["full", "dagger", "chance"]
 
