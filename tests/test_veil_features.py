@@ -65,3 +65,20 @@ def test_c_is_the_grid_value_with_the_best_inner_figure_ties_to_the_smallest(rel
         monkeypatch.setattr(experiment, "both_accuracy", lambda method, test, f=figures: f[method.C])
         objectives = sorted({r.point.objective for r in reps})
         assert experiment.choose_C("mrf_attributes", rel, objectives, reps, settings) == chosen
+
+
+def test_rows_of_one_world_share_its_fixed_part_and_never_a_states(release) -> None:
+    """The affordance, category and same-category part is made once per world; what a state holds is its own:
+    asked in turn, two states of one world, and two worlds, get the rows made afresh for each."""
+    rel, reps = release
+    worlds = list({r.initial.world.env_id: r.initial.world for r in reps if r.kept}.values())[:2]
+    first = list(worlds[0].objects)[0]
+    states = [State(worlds[0], frozenset({("Grasping", "Robot", first), ("state", first, "Tea")})),
+              State(worlds[0], frozenset()), State(worlds[1], frozenset())]
+    shared = Vocabulary.of(rel.catalog, ["x"], categories=True)
+    for state in states + states[::-1]:
+        fresh = Vocabulary.of(rel.catalog, ["x"], categories=True).rows(state)
+        for kept, made in zip(shared.rows(state), fresh, strict=True):
+            assert kept.shape == made.shape and (kept == made).all()
+    grasped = shared.rows(states[0])[0][0, shared.columns.index("grasped")]
+    assert (grasped, shared.rows(states[1])[0][0, shared.columns.index("grasped")]) == (1, 0)

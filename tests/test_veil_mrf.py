@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from taskseq.learn.ssvm import CuttingPlaneSSVM
-from taskseq.veil.mrf import FEATURE_SETS, DomainMRF, StepInput
+from taskseq.veil.mrf import FEATURE_SETS, DomainMRF, StepInput, best_first
 
 ARITIES = (0, 1, 1, 2, 2)
 
@@ -51,6 +51,28 @@ def test_scores_are_the_weights_times_the_joint_feature_and_inference_is_the_bes
         assert model.loss_augmented_inference(x, gold, w) == max(augmented, key=augmented.get)
     batch = model.batch_inference(X, w)
     assert [tuple(r) for r in batch] == [model.inference(x, w) for x in X]
+
+
+def test_labels_name_the_candidates_in_the_order_of_their_scores() -> None:
+    """`labels` decodes an index of `candidate_scores` into the candidate the brute-force list has there."""
+    model = DomainMRF(ARITIES, n_tasks=3, n_row=6, n_pair=3)
+    for n in (1, 2, 3, 7):
+        x = random_step(np.random.default_rng(n), n)
+        assert [tuple(int(t) for t in row) for row in model.labels(np.arange(len(candidates(x))), n)] == candidates(x)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_best_first_is_the_stable_descending_order_however_far_it_is_read(seed: int) -> None:
+    """The lazily sorted ranking equals the whole stable sort, ties (many here) in index order, for every prefix
+    length and every read length, the prefix's edge falling inside a run of ties included."""
+    rng = np.random.default_rng(seed)
+    values = rng.integers(0, 1 + 4 * seed, size=int(rng.integers(1, 900))).astype(float)
+    whole = np.argsort(-values, kind="stable").tolist()
+    for first in (1, 2, 5, 16, 1000):
+        assert list(best_first(values, first)) == whole
+        read = best_first(values, first)
+        length = int(rng.integers(0, len(values) + 1))
+        assert [next(read) for _ in range(length)] == whole[:length]
 
 
 def test_the_ssvm_learns_a_rule_that_depends_on_an_attribute_and_the_task() -> None:

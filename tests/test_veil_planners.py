@@ -252,3 +252,18 @@ def test_rows_that_make_the_same_fits_share_them(release_dir: Path, monkeypatch)
     expected = sum(2 + len({fold["C"]["mrf_categories"], fold["C"]["mrf_categories_goal"]})
                    for fold in report["folds"])
     assert len(fits) == expected
+
+
+def test_the_executor_keeps_a_steps_outcome_per_state_never_across_states(data) -> None:
+    """A step the domain refuses at the start and runs later gets each outcome from one executor, as from a fresh
+    one, asked in either order and again; the kept outcomes are dropped whole when there are too many."""
+    release, _, test = data
+    replay = next(r for r in test if len(r.kept) > 1)
+    states = replay.states
+    k, later = next((k, s) for k, s in enumerate(replay.kept) if Executor(release).after(replay.initial, s) is None)
+    executor = Executor(release)
+    for state in (replay.initial, states[k], replay.initial, states[k]):
+        assert executor.after(state, later) == Executor(release).after(state, later)
+    assert executor.after(replay.initial, later) is None and executor.after(states[k], later) is not None
+    executor.KEPT_OUTCOMES = 1
+    assert executor.after(replay.initial, replay.kept[0]) is not None and len(executor._outcomes) == 1

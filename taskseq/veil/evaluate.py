@@ -127,12 +127,17 @@ class Executor:
     """Runs steps in the release's domain: a step's line grounded as the importer grounds people's.
 
     A step's grounding depends on its environment's names only, never on the state, so it is made once per
-    (environment, step) and kept: searches and lookaheads try the same steps in many states."""
+    (environment, step) and kept: searches and lookaheads try the same steps in many states. Its outcome depends
+    on the state's facts too; lookaheads try the same step in the same state again and again (about three times
+    in five), so the last `KEPT_OUTCOMES` outcomes are kept as well (a state holds about ten facts)."""
+
+    KEPT_OUTCOMES = 200_000
 
     def __init__(self, release: Release | DomainFiles) -> None:
         self.index = ActionIndex(release.domain)
         self.arities = {k: tuple(len(p) for p in v) for k, v in release.instructions.items()}
         self._grounded: dict[tuple[str, Step], Grounded | None] = {}
+        self._outcomes: dict[tuple[str, frozenset, Step], State | None] = {}
 
     def grounded(self, world: World, s: Step) -> Grounded | None:
         """The domain action and arguments of `s` in `world`, or None when no action executes it there."""
@@ -146,11 +151,15 @@ class Executor:
 
     def after(self, state: State, s: Step) -> State | None:
         """The state after `s`, or None when the domain refuses it."""
+        key = (state.world.env_id, state.facts, s)
+        if key in self._outcomes:
+            return self._outcomes[key]
         g = self.grounded(state.world, s)
-        if g is None:
-            return None
-        result = step(state, g.action, g.args)
-        return None if isinstance(result, StepRefused) else result
+        result = None if g is None else step(state, g.action, g.args)
+        if len(self._outcomes) >= self.KEPT_OUTCOMES:  # dropped whole: the outcomes are the same either way
+            self._outcomes.clear()
+        outcome = self._outcomes[key] = None if isinstance(result, StepRefused) else result
+        return outcome
 
 
 def rollout(method: VeilMethod, executor: Executor, start: State, objective: str, policy: str,

@@ -163,11 +163,22 @@ class Fits:
     _fits: dict[tuple, VeilMethod] = field(default_factory=dict)
 
     def __call__(self, name: str, C: float, replays: Sequence[Replay]) -> VeilMethod:
-        row = MRF_ROWS[name]
-        key = (row["features"], row["categories"], C, tuple(r.point.seq_id for r in replays))
+        key = self._key(name, C, replays)
         if key not in self._fits:
             self._fits[key] = make_method(name, self.release, self.objectives, self.settings, C).fit(replays)
         return self._fits[key]
+
+    def add(self, name: str, C: float, replays: Sequence[Replay], weights: np.ndarray) -> None:
+        """The weights of a fit made elsewhere (another process) of row `name` at C on `replays`."""
+        method = make_method(name, self.release, self.objectives, self.settings, C)
+        assert isinstance(method, MRFMethod)
+        method.w_ = weights
+        self._fits[self._key(name, C, replays)] = method
+
+    @staticmethod
+    def _key(name: str, C: float, replays: Sequence[Replay]) -> tuple:
+        row = MRF_ROWS[name]
+        return row["features"], row["categories"], C, tuple(r.point.seq_id for r in replays)
 
 
 def choose_C(name: str, release: Release, objectives: Sequence[str], train: Sequence[Replay],
@@ -446,45 +457,52 @@ def tables(report: dict) -> str:
 
 
 # one model for use: trained on a whole release, evaluated on any folder of the same format ------------------------
-def inner_score(name: str, C: float, data: tuple[Release, list[Replay]], held_out: frozenset[int],
-                settings: Settings) -> float:
-    """Next-step accuracy of an MRF row at C, fitted without the `held_out` numbers and checked on them."""
+def inner_fit(name: str, C: float, data: tuple[Release, list[Replay]], held_out: frozenset[int],
+              settings: Settings) -> tuple[float, np.ndarray]:
+    """An MRF row at C fitted without the `held_out` numbers: its next-step accuracy on them, and its weights."""
     release, replays = data
     fit_on, check_on = split(replays, held_out)
     objectives = sorted({r.point.objective for r in replays})
-    return both_accuracy(make_method(name, release, objectives, settings, C).fit(fit_on), check_on)
+    method = make_method(name, release, objectives, settings, C).fit(fit_on)
+    assert isinstance(method, MRFMethod)
+    return both_accuracy(method, check_on), method.w_
 
 
 def choose_model(release: Release, replays: Sequence[Replay], settings: Settings, n_jobs: int = 1
-                 ) -> tuple[str, float]:
+                 ) -> tuple[str, float, Fits]:
     """The MRF row and C of `settings` with the best next-step accuracy on an inner held-out environment number
-    of `replays`: the choice a model for use is trained with, made on its training data alone. The candidates are
-    fitted `n_jobs` at a time; the choice does not depend on it."""
+    of `replays`: the choice a model for use is trained with, made on its training data alone; with the winner's
+    inner fit in a `Fits` (what `choose_width` reads next, on the same split). The candidates are fitted `n_jobs`
+    at a time; the choice does not depend on it."""
     fitted_rows = [m for m in MRF_ROWS if "base" not in MRF_ROWS[m]]  # a model for use is one MRF's weights
     rows = [m for m in settings.methods if m in fitted_rows] or fitted_rows
+    objectives = sorted({r.point.objective for r in replays})
+    fits = Fits(release, objectives, settings)
     numbers = {env_number(r.point.env_id) for r in replays}
     if len(numbers) < 2:
-        return rows[0], settings.C_grid[0]
+        return rows[0], settings.C_grid[0], fits
     inner = environment_folds(replays, min(settings.folds, len(numbers)))[0]
     # a row that makes the same fits as an earlier one would score the same and lose the tie: left out
     distinct = list({(MRF_ROWS[m]["features"], MRF_ROWS[m]["categories"]): m for m in reversed(rows)}.values())
     candidates = [(name, C) for name in rows if name in distinct for C in settings.C_grid]
     data = Shared((release, list(replays)))
-    scores = run_jobs([(inner_score, (name, C, data, inner, settings)) for name, C in candidates], n_jobs)
-    best = max(range(len(candidates)), key=lambda i: (scores[i], -i))  # ties: the earlier row, then the smaller C
-    return candidates[best]
+    done = run_jobs([(inner_fit, (name, C, data, inner, settings)) for name, C in candidates], n_jobs)
+    best = max(range(len(candidates)), key=lambda i: (done[i][0], -i))  # ties: the earlier row, then the smaller C
+    name, C = candidates[best]
+    fits.add(name, C, split(replays, inner)[0], done[best][1])
+    return name, C, fits
 
 
 def train_model(release_root: Path | str, settings: Settings, n_jobs: int = 1) -> TrainedModel:
     """The chosen MRF row fitted on every sequence of a release, with the goals of its objectives, its environments
-    and the goal lookahead's width, chosen around that row on the same inner split (`choose_width`)."""
+    and the goal lookahead's width, chosen around that row's inner fit on the same inner split (`choose_width`)."""
     release = read_release(release_root)
     replays = replay_release(release)
-    name, C = choose_model(release, replays, settings, n_jobs)
+    name, C, fits = choose_model(release, replays, settings, n_jobs)
     objectives = sorted({r.point.objective for r in replays})
     method = make_method(name, release, objectives, settings, C)
     assert isinstance(method, MRFMethod)
-    width = choose_width(name, C, release, objectives, replays, settings)
+    width = choose_width(name, C, release, objectives, replays, settings, fits)
     return TrainedModel(method.fit(replays), derive_goals(replays), sorted({r.point.env_id for r in replays}), width)
 
 

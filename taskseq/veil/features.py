@@ -17,14 +17,14 @@ person's sequence ends with: the planner stops when it scores best.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from .grounding import VERBS, Step
 from .mrf import StepInput
 from .release import Catalog
-from .state import ROBOT, State
+from .state import ROBOT, State, World
 
 DONE = "done"
 _TWO = frozenset({"keep_on", "keep_inside", "add", "insert", "scoop", "squeeze", "place"})
@@ -44,6 +44,8 @@ class Vocabulary:
     states: tuple[str, ...]
     categories: tuple[str, ...]
     objectives: tuple[str, ...]
+    _worlds: dict[int, tuple[World, np.ndarray, dict]] = field(default_factory=dict, init=False, repr=False,
+                                                              compare=False, hash=False)
 
     @classmethod
     def of(cls, catalog: Catalog, objectives: Sequence[str], categories: bool) -> Vocabulary:
@@ -60,23 +62,12 @@ class Vocabulary:
 
     def rows(self, state: State) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(N, K) object rows of `state`, and its (M, 2) related pairs with their (M, R) relation rows."""
-        names = list(state.world.objects)
-        index = {n: i for i, n in enumerate(names)}
-        K = len(self.columns)
-        rows = np.zeros((len(names), K))
-        a0, s0 = len(ROBOT_COLUMNS), len(ROBOT_COLUMNS) + len(self.affordances)
-        c0 = s0 + len(self.states)
-        aff = {a: a0 + i for i, a in enumerate(self.affordances)}
+        base, same_category = self._world_rows(state.world)
+        index = {n: i for i, n in enumerate(state.world.objects)}
+        rows = base.copy()
+        s0 = len(ROBOT_COLUMNS) + len(self.affordances)
         sta = {s.lower(): s0 + i for i, s in enumerate(self.states)}
-        cat = {c.lower(): c0 + i for i, c in enumerate(self.categories)}
-        for name, info in state.world.objects.items():
-            i = index[name]
-            for a in info.affordances:
-                if a in aff:
-                    rows[i, aff[a]] = 1.0
-            if (j := cat.get(info.category.lower())) is not None:
-                rows[i, j] = 1.0
-        pairs: dict[tuple[int, int], np.ndarray] = {}
+        pairs = {k: v.copy() for k, v in same_category.items()}
 
         def relate(x: int, y: int, column: int) -> None:
             pairs.setdefault((x, y), np.zeros(len(PAIR_COLUMNS)))[column] = 1.0
@@ -94,18 +85,40 @@ class Vocabulary:
                 rows[y, 4 if kind == "On" else 5] = 1.0
                 relate(x, y, 0 if kind == "On" else 1)
                 relate(y, x, 2 if kind == "On" else 3)
-        by_category: dict[str, list[int]] = {}
-        for name, info in state.world.objects.items():
-            by_category.setdefault(info.category.lower(), []).append(index[name])
-        for members in by_category.values():
-            for x in members:
-                for y in members:
-                    if x != y:
-                        relate(x, y, 4)
         keys = sorted(pairs)
         pair_index = np.array(keys, dtype=int).reshape(-1, 2)
         pair_rows = np.array([pairs[k] for k in keys]).reshape(-1, len(PAIR_COLUMNS))
         return rows, pair_index, pair_rows
+
+    def _world_rows(self, world: World) -> tuple[np.ndarray, dict[tuple[int, int], np.ndarray]]:
+        """What an environment's every state shares: the rows' affordance and category columns, and the pairs
+        of the same category. Made once per world (a run asks for thousands of its states)."""
+        kept = self._worlds.get(id(world))
+        if kept is not None:
+            return kept[1], kept[2]
+        index = {n: i for i, n in enumerate(world.objects)}
+        rows = np.zeros((len(index), len(self.columns)))
+        a0 = len(ROBOT_COLUMNS)
+        c0 = a0 + len(self.affordances) + len(self.states)
+        aff = {a: a0 + i for i, a in enumerate(self.affordances)}
+        cat = {c.lower(): c0 + i for i, c in enumerate(self.categories)}
+        by_category: dict[str, list[int]] = {}
+        for name, info in world.objects.items():
+            i = index[name]
+            for a in info.affordances:
+                if a in aff:
+                    rows[i, aff[a]] = 1.0
+            if (j := cat.get(info.category.lower())) is not None:
+                rows[i, j] = 1.0
+            by_category.setdefault(info.category.lower(), []).append(i)
+        same: dict[tuple[int, int], np.ndarray] = {}
+        for members in by_category.values():
+            for x in members:
+                for y in members:
+                    if x != y:
+                        same.setdefault((x, y), np.zeros(len(PAIR_COLUMNS)))[4] = 1.0
+        self._worlds[id(world)] = (world, rows, same)  # the world kept with its rows: its id stays its own
+        return rows, same
 
     def step_input(self, state: State, history: Sequence[Step], objective: str) -> StepInput:
         """The model's view of `state` after the steps `history`, working toward `objective`."""

@@ -19,7 +19,7 @@ import numpy as np
 from ..learn.ssvm import CuttingPlaneSSVM
 from .features import ARITIES, DONE, PAIR_COLUMNS, Vocabulary, label_of, step_of
 from .grounding import Step
-from .mrf import DomainMRF, StepInput
+from .mrf import DomainMRF, StepInput, best_first
 from .replay import Replay
 from .state import State
 
@@ -81,7 +81,8 @@ class MRFMethod:
         return self
 
     def ranked(self, state: State, history: Sequence[Step], objective: str) -> Iterator[Step]:
-        labels, _ = self.model_.scores(self.vocabulary.step_input(state, history, objective), self.w_)
+        x = self.vocabulary.step_input(state, history, objective)
+        values = self.model_.candidate_scores(x, self.w_)
         names = list(state.world.objects)  # once per ranking, not per candidate
-        for label in labels:
-            yield step_of(label, names)
+        for index in best_first(values):  # sorted only as far as the caller reads
+            yield step_of(self.model_.labels(np.array([index]), x.n)[0], names)

