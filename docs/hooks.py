@@ -9,7 +9,8 @@
 - A page line `<!-- generated: NAME -->` is replaced by the table `GENERATED[NAME]` makes:
   the timings of `reports/bench.json` and `reports/scaling.json`, the mutation scores of
   `reports/mutation/`, the development world's ranking in `reports/selection.json`, the `teach`
-  stage's tables of `reports/teach/`, and the package's layout from its modules' docstrings.
+  stage's tables of `reports/teach/`, the VEIL pipeline's timing of `reports/veil_timing.json`,
+  and the package's layout from its modules' docstrings.
 
 Nothing is copied by hand, so a build after `dvc repro` (or `taskseq bench`, `taskseq
 scaling`, `scripts/mutation.py`) shows that run's numbers.
@@ -363,6 +364,24 @@ def veil_results() -> str:
         "\nWritten by `dvc repro veil/dvc.yaml` (stage `evaluate`: `taskseq veil evaluate`).\n"
 
 
+VEIL_TIMING_COMMAND = "python scripts/veil_timing.py --output reports/veil_timing.json"
+
+
+def veil_timing() -> str:
+    """Where the VEIL pipeline's time goes (`reports/veil_timing.json`, from its last MLflow runs)."""
+    timing = _json("veil_timing.json")
+    if timing is None:
+        return _missing("veil_timing.json", f"dvc repro veil/dvc.yaml` then `{VEIL_TIMING_COMMAND}")
+    stages = [[name, f"{seconds:.0f}"] for name, seconds in timing["stages"].items()]
+    methods = sorted(timing["evaluate_methods"].items(), key=lambda kv: -kv[1])
+    return (f"`{timing['command']}`, then `{VEIL_TIMING_COMMAND}`, on {_machine(timing)}: "
+            f"{timing['total']:.0f} s ({timing['total'] / 60:.1f} min) in the stages' own runs.\n\n"
+            + _rows(["stage", "wall s"], "lr", stages)
+            + "\nThe evaluation's methods, seconds summed over their folds (the folds run in parallel, so the sum "
+            "exceeds the stage's wall time):\n\n"
+            + _rows(["method", "seconds"], "lr", [[name, f"{seconds:.0f}"] for name, seconds in methods]))
+
+
 TEACH_COMMAND = "dvc repro teach"
 
 
@@ -403,6 +422,7 @@ GENERATED = {
     "selection-ranking": selection_ranking,
     "package-layout": package_layout,
     "veil-results": veil_results,
+    "veil-timing": veil_timing,
 }
 
 
