@@ -119,11 +119,11 @@ def test_the_choice_cue_method_is_a_labelled_row_of_table1():
 
 
 def test_the_choice_model_is_the_relations_model_plus_the_cue_blocks():
-    from taskseq.learn.mrf import CUE_FAMILY, MRFModel
+    from taskseq.learn.mrf import CUE_FAMILY, StepMRF
 
     state = kitchen()
     ctx = step_context(state, Task.parse("stir(obj08)"), [])
-    choice, relations = MRFModel("choice"), MRFModel("relations")
+    choice, relations = StepMRF("choice"), StepMRF("relations")
     cue = choice.family_of() == CUE_FAMILY
     names = np.array(choice.feature_names())
     at = ctx.object_ids.index

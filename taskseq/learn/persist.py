@@ -19,19 +19,19 @@ from typing import Any
 import numpy as np
 
 from ..runtime.atomic import write_arrays
-from .mrf import MRFModel
+from .mrf import StepMRF
 
 FORMAT = "taskseq.mrf/1"
 
 
-def save_model(path: Path | str, model: MRFModel, w: np.ndarray, params: dict[str, Any]) -> None:
+def save_model(path: Path | str, model: StepMRF, w: np.ndarray, params: dict[str, Any]) -> None:
     meta = {"format": FORMAT, "features": model.features, **params}
     write_arrays(path, {"w": np.asarray(w, dtype=np.float64), "feature_names": np.array(model.feature_names()),
                         "meta": np.array(json.dumps(meta, sort_keys=True))})
 
 
 
-def load_model(path: Path | str) -> tuple[MRFModel, np.ndarray, dict[str, Any]]:
+def load_model(path: Path | str) -> tuple[StepMRF, np.ndarray, dict[str, Any]]:
     """The model, its weights and the parameters it was trained with."""
     path = Path(path)
     if not path.exists():
@@ -46,7 +46,7 @@ def load_model(path: Path | str) -> tuple[MRFModel, np.ndarray, dict[str, Any]]:
         raise ValueError(f"{path}: not a readable taskseq model file ({err})") from None
     if meta.get("format") != FORMAT:
         raise ValueError(f"{path}: format {meta.get('format')!r}, expected {FORMAT!r}")
-    model = MRFModel(meta["features"])
+    model = StepMRF(meta["features"])
     if names != model.feature_names():
         raise ValueError(f"{path}: its feature names do not match this version's {meta['features']!r} model")
     return model, w, meta

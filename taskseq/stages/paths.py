@@ -104,7 +104,7 @@ class EvaluationPaths(WorldPaths):
 
     @property
     def store(self) -> str | None:
-        """The model store as the methods take it (`MRFMethod.store`), or None to train."""
+        """The model store as the methods take it (`ScorerMethod.store`), or None to train."""
         return None if self.model_store is None else str(self.model_store)
 
 
