@@ -27,7 +27,7 @@ from taskseq.features.context import (
     step_context,
 )
 from taskseq.features.cues import CUE_COLUMNS
-from taskseq.learn.mrf import FEATURE_SETS, StepBatch, StepMRF, rel_row
+from taskseq.learn.mrf import FEATURE_SETS, StepBatch, StepMRF, relations_row
 from taskseq.sim.primitives import ALL_PRIMITIVES, ARITY, Action, execute
 from taskseq.sim.state import INSIDE, ON, WorldState
 from taskseq.sim.tasks import Task
@@ -401,23 +401,35 @@ def test_the_model_sizes_and_names():
     assert sizes == {"full": 1589, "edge": 45, "clique": 1544, "relations": 7829, "choice": 7829 + 2 * 5 * 8 * 20}
     edge = StepMRF("edge")
     names = edge.feature_names()
-    assert names[:5] == ["ae1[held]", "ae1[distance]", "ae2[held]", "ae2[distance]", "ae_pair[collide]"]
-    assert names[5] == "pt[stir,move_close]" and names[-1] == "pt[throw_away,done]" and len(names) == 45
+    assert names[:5] == ["argument_environment1[held]", "argument_environment1[distance]",
+                         "argument_environment2[held]", "argument_environment2[distance]",
+                         "argument_environment_pair[collide]"]
+    assert names[5] == "primitive_task[stir,move_close]" and names[-1] == "primitive_task[throw_away,done]"
+    assert len(names) == 45
     full = StepMRF("full")
     names = full.feature_names()
     assert len(names) == 1589 and len(set(names)) == 1589
-    assert "ppt1[pour,none->grasp]" in names and "ppt2[stir,done->release]" in names
-    assert "aet_obj1[pour_to,empty_hand,volume]" in names and "paae2[done,a2_prev2]" in names
+    assert "primitive_previous_task1[pour,none->grasp]" in names
+    assert "primitive_previous_task2[stir,done->release]" in names
+    assert "argument_environment_task_object1[pour_to,empty_hand,volume]" in names
+    assert "primitive_argument_previous_argument2[done,a2_prev2]" in names
     families = full.family_of()
-    assert len(families) == 1589 and families[0] == "ae" and families[-1] == "paae"
-    assert [f for f, n in zip(families, names, strict=True) if n.startswith("ppt")] == ["ppt"] * (2 * 5 * 9 * 8)
-    assert set(StepMRF("relations").family_of()) == {"ae", "pt", "aet", "pae", "ppt", "paae", "rel"}
+    assert len(families) == 1589
+    assert families[0] == "argument_environment" and families[-1] == "primitive_argument_previous_argument"
+    assert [f for f, n in zip(families, names, strict=True) if n.startswith("primitive_previous_task")] == \
+        ["primitive_previous_task"] * (2 * 5 * 9 * 8)
+    assert set(StepMRF("relations").family_of()) == {
+        "argument_environment", "primitive_task", "argument_environment_task", "primitive_argument_environment",
+        "primitive_previous_task", "primitive_argument_previous_argument", "relations"}
     with pytest.raises(ValueError, match=r"^features must be one of \['choice', 'clique', 'edge', 'full', "
                                          r"'relations'\], got 'nope'$"):
         StepMRF("nope")
 
 
-@pytest.mark.parametrize(("features", "families"), [("edge", {"ae", "pt"}), ("clique", {"aet", "pae", "ppt", "paae"})])
+@pytest.mark.parametrize(("features", "families"), [
+    ("edge", {"argument_environment", "primitive_task"}),
+    ("clique", {"argument_environment_task", "primitive_argument_environment", "primitive_previous_task",
+                "primitive_argument_previous_argument"})])
 def test_a_feature_set_writes_only_its_families(steps, features, families):
     full, part = StepMRF("relations"), StepMRF(features)
     mask = np.isin(full.family_of(), list(families))
@@ -449,17 +461,17 @@ def test_a_padded_batch_never_picks_padding(steps):
     assert batch.valid.shape == (6, 5) and batch.valid.sum() == 3 + 4 + 2 + 5 + 4 + 1
     assert np.isneginf(batch.valid_neg[2, 2:]).all() and not batch.valid_neg[2, :2].any()
     assert not batch.pair_valid[0, 1, 1] and batch.pair_valid[0, 0, 1] and not batch.pair_valid[0, 0, 3]
-    np.testing.assert_array_equal(batch.rel_rows[1, :4], rel_row(steps[1].objects, steps[1].task_rel,
-                                                                 steps[1].relations))
-    assert not batch.rel_rows[1, 4:].any()
-    assert StepBatch.of(steps, relations=False).rel_rows.shape == (6, 5, 0)
-    assert StepBatch.of(steps, relations=False).by_task == []
+    np.testing.assert_array_equal(batch.relations_rows[1, :4], relations_row(steps[1].objects, steps[1].task_rel,
+                                                                             steps[1].relations))
+    assert not batch.relations_rows[1, 4:].any()
+    assert StepBatch.of(steps, relations=False).relations_rows.shape == (6, 5, 0)
+    assert StepBatch.of(steps, relations=False).relations_by_task == []
     # the choice cues only when asked for (and only with the relations they are read from)
     for without in (batch, StepBatch.of(steps, relations=True, cues=False), StepBatch.of(steps, False, True)):
-        assert without.cue_rows.shape == (6, 5, 0) and without.cues_by_task == []
+        assert without.cues_rows.shape == (6, 5, 0) and without.cues_by_task == []
     with_cues = StepBatch.of(steps, relations=True, cues=True)
-    assert with_cues.cue_rows.shape == (6, 5, len(CUE_COLUMNS))
-    assert len(with_cues.cues_by_task) == len(batch.by_task) == len({x.task for x in steps})
+    assert with_cues.cues_rows.shape == (6, 5, len(CUE_COLUMNS))
+    assert len(with_cues.cues_by_task) == len(batch.relations_by_task) == len({x.task for x in steps})
     model = StepMRF("relations")
     w = -np.abs(np.random.default_rng(5).normal(size=model.size_joint_feature))  # padding at zero would win
     assert model.batch_inference(steps, w) == [model.inference(x, w) for x in steps]
@@ -478,13 +490,13 @@ def test_the_batch_of_the_last_steps_is_kept_until_released(steps):
     assert model._batch_cache is None
 
 
-def test_rel_rows_key_the_state_on_the_task_object_and_its_container():
+def test_relations_rows_key_the_state_on_the_task_object_and_its_container():
     objects = np.arange(2 * len(OBJECT_COLUMNS), dtype=float).reshape(2, -1)
     task_rel = np.array([[1.0, 0, 0, 0], [0, 1.0, 0, 0]])
     rel = np.zeros((2, len(RELATION_COLUMNS)))
     rel[0, RELATION_COLUMNS.index("is_object")] = 1.0
     rel[1, RELATION_COLUMNS.index("is_container")] = 1.0
-    rows = rel_row(objects, task_rel, rel)
+    rows = relations_row(objects, task_rel, rel)
     k = len(STATE_COLUMNS)
     np.testing.assert_array_equal(rows[0], np.concatenate([rel[0], task_rel[0], objects[0, :k], objects[0, :k],
                                                            np.zeros(k)]))
@@ -515,7 +527,7 @@ def test_the_pair_features_of_colliding_arguments(steps):
     pairs = [(p, a1, a2) for p, a1, a2 in all_candidates(x) if a2 >= 0 and x.collide[a1, a2]]
     assert any(a1 == 0 for _, a1, _ in pairs) and any(a2 == 0 for _, _, a2 in pairs)
     rows = model.batch_joint_feature_rows([x] * len(pairs), pairs).toarray()
-    collide = model.feature_names().index("ae_pair[collide]")
+    collide = model.feature_names().index("argument_environment_pair[collide]")
     assert np.all(rows[:, collide] == 1.0)
     np.testing.assert_array_equal(rows, [model.joint_feature(x, y) for y in pairs])
 
@@ -523,27 +535,36 @@ def test_the_pair_features_of_colliding_arguments(steps):
 def test_the_default_model_is_the_full_one():
     model = StepMRF()
     assert model.features == "full" and model.size_joint_feature == 1589
-    assert StepMRF("edge").features == "edge" and StepMRF("edge").families == ("ae", "pt")
+    assert StepMRF("edge").features == "edge"
+    assert StepMRF("edge").families == ("argument_environment", "primitive_task")
 
 
 def test_the_blocks_of_the_model():
     from taskseq.features.context import HISTORY_ARG_COLUMNS, TASK_REL_COLUMNS
-    from taskseq.learn.mrf import REL_ROW, _blocks
+    from taskseq.learn.mrf import RELATIONS_ROW, _blocks
     from taskseq.sim.tasks import TASKS
 
     prims, prev = ALL_PRIMITIVES, ALL_PRIMITIVES + ("none",)
     hands = ("holding", "empty_hand")
     expected = [
-        ("ae1", "ae", (("held", "distance"),)), ("ae2", "ae", (("held", "distance"),)),
-        ("ae_pair", "ae", (("collide",),)), ("pt", "pt", (TASKS, prims)),
-        ("aet_rel1", "aet", (TASKS, TASK_REL_COLUMNS)), ("aet_obj1", "aet", (TASKS, hands, OBJECT_COLUMNS)),
-        ("aet_rel2", "aet", (TASKS, TASK_REL_COLUMNS)), ("aet_obj2", "aet", (TASKS, hands, OBJECT_COLUMNS)),
-        ("pae1", "pae", (prims, OBJECT_COLUMNS)), ("pae2", "pae", (prims, OBJECT_COLUMNS)),
-        ("ppt1", "ppt", (TASKS, prev, prims)), ("ppt2", "ppt", (TASKS, prev, prims)),
-        ("paae1", "paae", (prims, HISTORY_ARG_COLUMNS)), ("paae2", "paae", (prims, HISTORY_ARG_COLUMNS)),
-        ("rel1", "rel", (TASKS, prims, REL_ROW)), ("rel2", "rel", (TASKS, prims, REL_ROW)),
-        ("rel_pair", "rel", (TASKS, prims, TASK_REL_COLUMNS, TASK_REL_COLUMNS)),
-        ("cue1", "cue", (TASKS, prims, CUE_COLUMNS)), ("cue2", "cue", (TASKS, prims, CUE_COLUMNS)),
+        ("argument_environment1", "argument_environment", (("held", "distance"),)),
+        ("argument_environment2", "argument_environment", (("held", "distance"),)),
+        ("argument_environment_pair", "argument_environment", (("collide",),)),
+        ("primitive_task", "primitive_task", (TASKS, prims)),
+        ("argument_environment_task_relation1", "argument_environment_task", (TASKS, TASK_REL_COLUMNS)),
+        ("argument_environment_task_object1", "argument_environment_task", (TASKS, hands, OBJECT_COLUMNS)),
+        ("argument_environment_task_relation2", "argument_environment_task", (TASKS, TASK_REL_COLUMNS)),
+        ("argument_environment_task_object2", "argument_environment_task", (TASKS, hands, OBJECT_COLUMNS)),
+        ("primitive_argument_environment1", "primitive_argument_environment", (prims, OBJECT_COLUMNS)),
+        ("primitive_argument_environment2", "primitive_argument_environment", (prims, OBJECT_COLUMNS)),
+        ("primitive_previous_task1", "primitive_previous_task", (TASKS, prev, prims)),
+        ("primitive_previous_task2", "primitive_previous_task", (TASKS, prev, prims)),
+        ("primitive_argument_previous_argument1", "primitive_argument_previous_argument", (prims, HISTORY_ARG_COLUMNS)),
+        ("primitive_argument_previous_argument2", "primitive_argument_previous_argument", (prims, HISTORY_ARG_COLUMNS)),
+        ("relations1", "relations", (TASKS, prims, RELATIONS_ROW)),
+        ("relations2", "relations", (TASKS, prims, RELATIONS_ROW)),
+        ("relations_pair", "relations", (TASKS, prims, TASK_REL_COLUMNS, TASK_REL_COLUMNS)),
+        ("cues1", "cues", (TASKS, prims, CUE_COLUMNS)), ("cues2", "cues", (TASKS, prims, CUE_COLUMNS)),
     ]
     blocks = _blocks()
     assert [(b.name, b.family, b.labels) for b in blocks] == expected
@@ -570,9 +591,9 @@ def test_the_oracle_charges_done_nothing_for_the_arguments_a_done_label_lacks():
     model = StepMRF("edge")
     x = hand_step(np.random.default_rng(8), 3, 1)
     w = np.zeros(model.size_joint_feature)
-    w[model.feature_names().index("pt[pick_and_place,done]")] = 2.5
+    w[model.feature_names().index("primitive_task[pick_and_place,done]")] = 2.5
     assert model.inference(x, w) == (7, -1, -1)
     assert model.loss_augmented_inference(x, (7, -1, -1), w) == (3, 0, 1)
     assert model.batch_loss_augmented_inference([x], [(7, -1, -1)], w).tolist() == [[3, 0, 1]]
-    w[model.feature_names().index("pt[pick_and_place,done]")] = 3.5
+    w[model.feature_names().index("primitive_task[pick_and_place,done]")] = 3.5
     assert model.batch_loss_augmented_inference([x], [(7, -1, -1)], w).tolist() == [[7, -1, -1]]

@@ -104,8 +104,10 @@ def test_edge_and_clique_use_exactly_their_families(some_steps):
 def test_every_weight_has_a_readable_name():
     names = StepMRF("full").feature_names()
     assert len(names) == len(set(names)) == StepMRF("full").size_joint_feature
-    for name in ("ppt1[pour,hold_above->follow_traj_pour]", "pae1[grasp,has_load]", "pt[stir,follow_traj_circle]",
-                 "aet_rel1[pick_and_place,is_task_arg1]", "ae_pair[collide]", "paae2[hold_above,a1_prev1]"):
+    for name in ("primitive_previous_task1[pour,hold_above->follow_traj_pour]",
+                 "primitive_argument_environment1[grasp,has_load]", "primitive_task[stir,follow_traj_circle]",
+                 "argument_environment_task_relation1[pick_and_place,is_task_arg1]",
+                 "argument_environment_pair[collide]", "primitive_argument_previous_argument2[hold_above,a1_prev1]"):
         assert name in names
 
 
