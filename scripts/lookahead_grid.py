@@ -29,7 +29,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from taskseq.demonstrations.benchmark import load_benchmark  # noqa: E402
-from taskseq.evaluate.methods import MRFMethod  # noqa: E402
+from taskseq.evaluate.methods import ScorerMethod  # noqa: E402
 from taskseq.evaluate.metrics import summarize  # noqa: E402
 from taskseq.experiments.crossval import cross_validate  # noqa: E402
 from taskseq.features.dataset import read_features  # noqa: E402
@@ -40,7 +40,7 @@ from taskseq.sim.scenarios import Scenario  # noqa: E402
 
 
 @dataclass
-class LookaheadAt(MRFMethod):
+class LookaheadAt(ScorerMethod):
     """The choice-cue method with the lookahead at a depth and width of the grid (the stored models are shared:
     neither changes a weight)."""
 
@@ -82,7 +82,7 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as store:  # the six fold models, fitted once for every pair
         base = partial(LookaheadAt, features="choice", policy="lookahead", store=store,
                        C=C, **learner)
-        makes = {"feasible": partial(MRFMethod, features="choice", policy="feasible", store=store, name="feasible",
+        makes = {"feasible": partial(ScorerMethod, features="choice", policy="feasible", store=store, name="feasible",
                                      C=C, **learner)}
         makes |= {name: partial(base, depth=d, width=w, name=name) for name, (d, w) in grid.items()}
         print(f"{len(grid)} (depth, width) pairs x {crossval.folds} folds on the development world "

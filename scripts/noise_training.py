@@ -29,7 +29,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from taskseq.demonstrations.benchmark import load_benchmark  # noqa: E402
-from taskseq.evaluate.methods import MRFMethod  # noqa: E402
+from taskseq.evaluate.methods import ScorerMethod  # noqa: E402
 from taskseq.experiments.robustness import NoiseCondition, evaluate_conditions, noise_curve, noise_runs  # noqa: E402
 from taskseq.features.dataset import read_features  # noqa: E402
 from taskseq.selection import read_selection  # noqa: E402
@@ -62,7 +62,7 @@ def main(argv: list[str] | None = None) -> int:
     C = read_selection(args.selection).of("relations")
     contexts, meta = read_features(args.data / "features")
     bench = load_benchmark(args.data / "processed")
-    relations = partial(MRFMethod, features="relations", C=C, tol=params.train.tol, max_iter=params.train.max_iter,
+    relations = partial(ScorerMethod, features="relations", C=C, tol=params.train.tol, max_iter=params.train.max_iter,
                         n_slacks=params.train.n_slacks)
     settings = {f"{r:g}x{c}": (r, c) for r in args.flip_rates for c in args.copies} | {"none": (0.0, 0)}
     makes = {name: partial(relations, noise_rate=r, noise_copies=c, name=name) for name, (r, c) in settings.items()}

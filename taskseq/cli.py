@@ -1,6 +1,6 @@
 """The `taskseq` command line: subcommands from the stage and tool tables, errors and signals to exit codes.
 
-A stage's options come from its `Paths` (`taskseq.stages`), its settings from
+A stage's options come from its `Options` class (`taskseq.stages`), its settings from
 `params.yaml` (`taskseq.settings`), and its MLflow run from `taskseq.track`;
 this module only puts them together. Exit codes: 0 done; 1 a stage that
 wrote nothing because its inputs were missing or bad, or a plan that did not
@@ -18,7 +18,7 @@ from collections.abc import Sequence
 from .runtime import memory, stopping
 from .stages import STAGES
 from .stages.command import add_parser, execute, prepare
-from .stages.paths import inputs
+from .stages.options import inputs
 from .tool_commands import TOOLS
 
 
@@ -46,16 +46,16 @@ def _user_errors() -> tuple[type[BaseException], ...]:
 
 def _stage(args: argparse.Namespace) -> int:
     """Run a stage, inside its MLflow run unless `--no-mlflow`."""
-    module, settings, paths, record = prepare(args)
+    module, settings, options, record = prepare(args)
     if args.no_mlflow:
         from .track.mlflow_runs import NO_RUN
 
-        return execute(args, module, settings, paths, NO_RUN)
+        return execute(args, module, settings, options, NO_RUN)
     from .track.mlflow_runs import tracked
 
     labels = {"world_seed": args.world_seed} if getattr(args, "world_seed", None) is not None else None
-    return tracked(args.command, record, inputs(paths), labels,
-                   lambda run: _guarded(args, lambda: execute(args, module, settings, paths, run)))
+    return tracked(args.command, record, inputs(options), labels,
+                   lambda run: _guarded(args, lambda: execute(args, module, settings, options, run)))
 
 
 def _guarded(args: argparse.Namespace, body) -> int:

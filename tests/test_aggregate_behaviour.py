@@ -20,7 +20,7 @@ from taskseq.report.summary import build_summary
 from taskseq.report.tables import COLUMNS
 from taskseq.settings import World
 from taskseq.stages import aggregate
-from taskseq.stages.paths import AggregatePaths
+from taskseq.stages.options import AggregateOptions
 
 SEEDS = (0, 3, 7)
 # per seed: full model's sequence arg and success, Table I prim, noise at 0.3, feedback top-2 all, recipes
@@ -107,7 +107,7 @@ def aggregated(tmp_path, tracker, monkeypatch) -> Path:
     for seed, w in WORLD.items():
         _write_world(tmp_path / "worlds" / str(seed), w)
     out = tmp_path / "out"
-    means = aggregate.run(World(seeds=SEEDS, dev_seed=100), AggregatePaths(worlds=tmp_path / "worlds", output=out),
+    means = aggregate.run(World(seeds=SEEDS, dev_seed=100), AggregateOptions(worlds=tmp_path / "worlds", output=out),
                          tracker)
     assert means == json.loads((out / "crossval_means.json").read_text())
     return out
@@ -319,11 +319,11 @@ def test_a_table_only_some_worlds_lack_stops_the_stage_and_one_every_world_lacks
         _write_world(tmp_path / "worlds" / str(seed), w)
     (tmp_path / "worlds" / "3" / missing).unlink()
     with pytest.raises(FileNotFoundError, match=missing):
-        aggregate.run(World(seeds=SEEDS), AggregatePaths(worlds=tmp_path / "worlds", output=tmp_path / "a"))
+        aggregate.run(World(seeds=SEEDS), AggregateOptions(worlds=tmp_path / "worlds", output=tmp_path / "a"))
     for seed in SEEDS:
         (tmp_path / "worlds" / str(seed) / missing).unlink(missing_ok=True)
     out = tmp_path / "b"
-    aggregate.run(World(seeds=SEEDS), AggregatePaths(worlds=tmp_path / "worlds", output=out))
+    aggregate.run(World(seeds=SEEDS), AggregateOptions(worlds=tmp_path / "worlds", output=out))
     written = {p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file()}
     left_out = {"noise.csv": {"noise.csv", "noise_seeds.csv", "noise.png", "plots/noise.csv"},
                 "feedback.csv": {"feedback.csv", "feedback_seeds.csv", "feedback.png", "plots/feedback.csv"},
@@ -350,7 +350,7 @@ def test_failures_per_environment_and_task_of_each_world(tmp_path, family):
                  "success": int(k == "exact"), "failure": k, "program": ""} for i, k in enumerate(kinds.get(seed, ()))]
         (d / "crossval_sequences.csv").write_text(csv_text(SEQUENCE_COLUMNS, rows))
     aggregate.run(World(seeds=SEEDS, dev_seed=100, family=family),
-                  AggregatePaths(worlds=tmp_path / "worlds", output=tmp_path / "out"))
+                  AggregateOptions(worlds=tmp_path / "worlds", output=tmp_path / "out"))
     text = (tmp_path / "out" / "failures.md").read_text()
     assert ("| env01 | 100.0 (2/2) | 50.0 (1/2), wrong object 1 |" in text) == (family == "paper")
     assert "| stir | 100.0 (2/2) | 50.0 (1/2), wrong object 1 |" in text
@@ -369,7 +369,7 @@ def test_the_results_page_rounds_the_curves_once(tmp_path, tracker):
         (d / "noise.csv").write_text(f"method,rate,sequence_arg,sequence_prim,success\nfull,0.1,{arg:.4f},90,90\n")
         (d / "feedback.csv").write_text(f"method,k,n,sequence_arg,sequence_prim,success\nfull,2,1,{arg:.4f},90,90\n")
     out = tmp_path / "out"
-    aggregate.run(World(seeds=SEEDS, dev_seed=100), AggregatePaths(worlds=tmp_path / "worlds", output=out), tracker)
+    aggregate.run(World(seeds=SEEDS, dev_seed=100), AggregateOptions(worlds=tmp_path / "worlds", output=out), tracker)
     mean, sd = mean_sd([77.0, 79.87, 82.37])
     assert (f"{mean:.2f}", f"{mean:.1f}", f"{sd:.1f}") == ("79.75", "79.7", "2.7")  # where the two roundings part
     assert (out / "noise.csv").read_text().splitlines()[1] == "full,0.1,79.7467,2.6871,90.0000,0.0000,90.0000,0.0000"

@@ -119,11 +119,11 @@ def test_the_choice_cue_method_is_a_labelled_row_of_table1():
 
 
 def test_the_choice_model_is_the_relations_model_plus_the_cue_blocks():
-    from taskseq.learn.mrf import CUE_FAMILY, MRFModel
+    from taskseq.learn.mrf import CUE_FAMILY, StepMRF
 
     state = kitchen()
     ctx = step_context(state, Task.parse("stir(obj08)"), [])
-    choice, relations = MRFModel("choice"), MRFModel("relations")
+    choice, relations = StepMRF("choice"), StepMRF("relations")
     cue = choice.family_of() == CUE_FAMILY
     names = np.array(choice.feature_names())
     at = ctx.object_ids.index
@@ -131,8 +131,8 @@ def test_the_choice_model_is_the_relations_model_plus_the_cue_blocks():
         row = choice.joint_feature(ctx, y)
         np.testing.assert_array_equal(row[~cue], relations.joint_feature(ctx, y))
         marked = set(names[cue & (row != 0)])
-        slot = "cue1[stir,move_close," if y[0] == 0 else "cue1[stir,hold_above,"
+        slot = "cues1[stir,move_close," if y[0] == 0 else "cues1[stir,hold_above,"
         expected = {"shortest_over_container_by_0.02m", "shortest_over_container_by_0.04m", "nearest_of_kind"}
         if y[0] == 4:
-            expected = {"shortest_over_container_by_0m"}  # obj09, and obj07 (cue2) is no cue of a stir step
+            expected = {"shortest_over_container_by_0m"}  # obj09, and obj07 (cues2) is no cue of a stir step
         assert marked == {f"{slot}{c}]" for c in expected}

@@ -249,3 +249,12 @@ def test_the_docs_and_docstrings_hold_no_dated_run_log():
     paths = [README, *DOCS.rglob("*.md"), *(ROOT / "taskseq").rglob("*.py")]
     found = [f"{p.relative_to(ROOT)}: {m.group(0)}" for p in paths for m in _DATED.finditer(p.read_text())]
     assert not found, found
+
+
+def test_the_model_page_names_every_family_and_the_papers_short_name_for_it():
+    from taskseq.learn.mrf import ALIASES, CLIQUE_FAMILIES, EDGE_FAMILIES
+
+    rows = re.findall(r"^\| `(\w+)` \| (\w+) \| (edge|clique) \|", (DOCS / "model.md").read_text(), re.M)
+    assert {family: short for family, short, _ in rows} == ALIASES
+    assert tuple(family for family, _, kind in rows if kind == "edge") == EDGE_FAMILIES
+    assert tuple(family for family, _, kind in rows if kind == "clique") == CLIQUE_FAMILIES

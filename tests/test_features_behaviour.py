@@ -27,7 +27,7 @@ from taskseq.features.context import (
     step_context,
 )
 from taskseq.features.cues import CUE_COLUMNS
-from taskseq.learn.mrf import FEATURE_SETS, MRFModel, StepBatch, rel_row
+from taskseq.learn.mrf import FEATURE_SETS, StepBatch, StepMRF, relations_row
 from taskseq.sim.primitives import ALL_PRIMITIVES, ARITY, Action, execute
 from taskseq.sim.state import INSIDE, ON, WorldState
 from taskseq.sim.tasks import Task
@@ -324,7 +324,7 @@ def all_candidates(x: StepContext) -> list[tuple[int, int, int]]:
 
 @pytest.mark.parametrize("features", sorted(FEATURE_SETS))
 def test_every_score_is_the_weights_dot_the_joint_feature(steps, features):
-    model = MRFModel(features)
+    model = StepMRF(features)
     w = np.random.default_rng(1).normal(size=model.size_joint_feature)
     for x in steps:
         cands = all_candidates(x)
@@ -345,7 +345,7 @@ def test_every_score_is_the_weights_dot_the_joint_feature(steps, features):
 
 @pytest.mark.parametrize("features", sorted(FEATURE_SETS))
 def test_the_batch_methods_equal_the_per_step_ones(steps, features):
-    model = MRFModel(features)
+    model = StepMRF(features)
     w = np.random.default_rng(2).normal(size=model.size_joint_feature)
     golds = [all_candidates(x)[k] for x, k in zip(steps, (0, 5, 3, 40, 20, 1), strict=True)]
     assert model.batch_inference(steps, w) == [model.inference(x, w) for x in steps]
@@ -364,7 +364,7 @@ def test_the_batch_methods_equal_the_per_step_ones(steps, features):
 
 
 def test_ties_go_to_the_first_candidate(steps):
-    model = MRFModel("full")
+    model = StepMRF("full")
     w = np.zeros(model.size_joint_feature)
     x = steps[0]
     assert model.inference(x, w) == (0, 0, -1) and model.batch_inference([x], w) == [(0, 0, -1)]
@@ -377,14 +377,14 @@ def test_ties_go_to_the_first_candidate(steps):
 
 
 def test_hamming_loss():
-    model = MRFModel("edge")
+    model = StepMRF("edge")
     assert model.loss((1, 2, -1), (1, 2, -1)) == 0.0 and model.loss((1, 2, -1), (3, 2, 0)) == 2.0
     assert model.loss((1, 2, -1), (0, 1, 3)) == 3.0 and type(model.loss((1, 2, -1), (1, 2, -1))) is float
     np.testing.assert_array_equal(model.batch_loss([(1, 2, -1), (0, 0, 0)], [(1, 0, -1), (0, 0, 0)]), [1.0, 0.0])
 
 
 def test_the_factor_tables_of_one_step(steps):
-    model = MRFModel("relations")
+    model = StepMRF("relations")
     w = np.random.default_rng(3).normal(size=model.size_joint_feature)
     x = steps[3]
     P, U1, U2, pair = model.tables(x, w)
@@ -392,34 +392,46 @@ def test_the_factor_tables_of_one_step(steps):
     for p, a1, a2 in all_candidates(x):
         s = P[p] + (U1[p, a1] if a1 >= 0 else 0) + (U2[p, a2] + pair[p, a1, a2] if a2 >= 0 else 0)
         assert s == pytest.approx(w @ model.joint_feature(x, (p, a1, a2)), abs=1e-10)
-    P, U1, U2, pair = MRFModel("edge").tables(x, w[: MRFModel("edge").size_joint_feature])
+    P, U1, U2, pair = StepMRF("edge").tables(x, w[: StepMRF("edge").size_joint_feature])
     assert np.array_equal(pair[0], pair[5])  # without the low-rank term the pair table is the same for every p
 
 
 def test_the_model_sizes_and_names():
-    sizes = {f: MRFModel(f).size_joint_feature for f in FEATURE_SETS}
+    sizes = {f: StepMRF(f).size_joint_feature for f in FEATURE_SETS}
     assert sizes == {"full": 1589, "edge": 45, "clique": 1544, "relations": 7829, "choice": 7829 + 2 * 5 * 8 * 20}
-    edge = MRFModel("edge")
+    edge = StepMRF("edge")
     names = edge.feature_names()
-    assert names[:5] == ["ae1[held]", "ae1[distance]", "ae2[held]", "ae2[distance]", "ae_pair[collide]"]
-    assert names[5] == "pt[stir,move_close]" and names[-1] == "pt[throw_away,done]" and len(names) == 45
-    full = MRFModel("full")
+    assert names[:5] == ["argument_environment1[held]", "argument_environment1[distance]",
+                         "argument_environment2[held]", "argument_environment2[distance]",
+                         "argument_environment_pair[collide]"]
+    assert names[5] == "primitive_task[stir,move_close]" and names[-1] == "primitive_task[throw_away,done]"
+    assert len(names) == 45
+    full = StepMRF("full")
     names = full.feature_names()
     assert len(names) == 1589 and len(set(names)) == 1589
-    assert "ppt1[pour,none->grasp]" in names and "ppt2[stir,done->release]" in names
-    assert "aet_obj1[pour_to,empty_hand,volume]" in names and "paae2[done,a2_prev2]" in names
+    assert "primitive_previous_task1[pour,none->grasp]" in names
+    assert "primitive_previous_task2[stir,done->release]" in names
+    assert "argument_environment_task_object1[pour_to,empty_hand,volume]" in names
+    assert "primitive_argument_previous_argument2[done,a2_prev2]" in names
     families = full.family_of()
-    assert len(families) == 1589 and families[0] == "ae" and families[-1] == "paae"
-    assert [f for f, n in zip(families, names, strict=True) if n.startswith("ppt")] == ["ppt"] * (2 * 5 * 9 * 8)
-    assert set(MRFModel("relations").family_of()) == {"ae", "pt", "aet", "pae", "ppt", "paae", "rel"}
+    assert len(families) == 1589
+    assert families[0] == "argument_environment" and families[-1] == "primitive_argument_previous_argument"
+    assert [f for f, n in zip(families, names, strict=True) if n.startswith("primitive_previous_task")] == \
+        ["primitive_previous_task"] * (2 * 5 * 9 * 8)
+    assert set(StepMRF("relations").family_of()) == {
+        "argument_environment", "primitive_task", "argument_environment_task", "primitive_argument_environment",
+        "primitive_previous_task", "primitive_argument_previous_argument", "relations"}
     with pytest.raises(ValueError, match=r"^features must be one of \['choice', 'clique', 'edge', 'full', "
                                          r"'relations'\], got 'nope'$"):
-        MRFModel("nope")
+        StepMRF("nope")
 
 
-@pytest.mark.parametrize(("features", "families"), [("edge", {"ae", "pt"}), ("clique", {"aet", "pae", "ppt", "paae"})])
+@pytest.mark.parametrize(("features", "families"), [
+    ("edge", {"argument_environment", "primitive_task"}),
+    ("clique", {"argument_environment_task", "primitive_argument_environment", "primitive_previous_task",
+                "primitive_argument_previous_argument"})])
 def test_a_feature_set_writes_only_its_families(steps, features, families):
-    full, part = MRFModel("relations"), MRFModel(features)
+    full, part = StepMRF("relations"), StepMRF(features)
     mask = np.isin(full.family_of(), list(families))
     for x in steps:
         for y in all_candidates(x)[::7]:
@@ -429,14 +441,14 @@ def test_a_feature_set_writes_only_its_families(steps, features, families):
 def test_the_relations_model_needs_relations_and_the_others_ignore_them():
     rng = np.random.default_rng(6)
     bare = hand_step(rng, 3, 1, relations_=False)
-    model = MRFModel("relations")
+    model = StepMRF("relations")
     w = np.ones(model.size_joint_feature)
     message = r"^the relations model needs steps with relations \(build them with step_context\)$"
     for call in (lambda: model.joint_feature(bare, (0, 0, -1)), lambda: model.scores(bare, w),
                  lambda: model.batch_inference([bare], w)):
         with pytest.raises(ValueError, match=message):
             call()
-    full = MRFModel("full")
+    full = StepMRF("full")
     with_rel = StepContext(bare.object_ids, bare.objects, bare.task_rel, bare.collide, bare.task, bare.prev_prims,
                            bare.prev_args, None, rng.uniform(size=(3, len(RELATION_COLUMNS))))
     wf = rng.normal(size=full.size_joint_feature)
@@ -449,24 +461,24 @@ def test_a_padded_batch_never_picks_padding(steps):
     assert batch.valid.shape == (6, 5) and batch.valid.sum() == 3 + 4 + 2 + 5 + 4 + 1
     assert np.isneginf(batch.valid_neg[2, 2:]).all() and not batch.valid_neg[2, :2].any()
     assert not batch.pair_valid[0, 1, 1] and batch.pair_valid[0, 0, 1] and not batch.pair_valid[0, 0, 3]
-    np.testing.assert_array_equal(batch.rel_rows[1, :4], rel_row(steps[1].objects, steps[1].task_rel,
-                                                                 steps[1].relations))
-    assert not batch.rel_rows[1, 4:].any()
-    assert StepBatch.of(steps, relations=False).rel_rows.shape == (6, 5, 0)
-    assert StepBatch.of(steps, relations=False).by_task == []
+    np.testing.assert_array_equal(batch.relations_rows[1, :4], relations_row(steps[1].objects, steps[1].task_rel,
+                                                                             steps[1].relations))
+    assert not batch.relations_rows[1, 4:].any()
+    assert StepBatch.of(steps, relations=False).relations_rows.shape == (6, 5, 0)
+    assert StepBatch.of(steps, relations=False).relations_by_task == []
     # the choice cues only when asked for (and only with the relations they are read from)
     for without in (batch, StepBatch.of(steps, relations=True, cues=False), StepBatch.of(steps, False, True)):
-        assert without.cue_rows.shape == (6, 5, 0) and without.cues_by_task == []
+        assert without.cues_rows.shape == (6, 5, 0) and without.cues_by_task == []
     with_cues = StepBatch.of(steps, relations=True, cues=True)
-    assert with_cues.cue_rows.shape == (6, 5, len(CUE_COLUMNS))
-    assert len(with_cues.cues_by_task) == len(batch.by_task) == len({x.task for x in steps})
-    model = MRFModel("relations")
+    assert with_cues.cues_rows.shape == (6, 5, len(CUE_COLUMNS))
+    assert len(with_cues.cues_by_task) == len(batch.relations_by_task) == len({x.task for x in steps})
+    model = StepMRF("relations")
     w = -np.abs(np.random.default_rng(5).normal(size=model.size_joint_feature))  # padding at zero would win
     assert model.batch_inference(steps, w) == [model.inference(x, w) for x in steps]
 
 
 def test_the_batch_of_the_last_steps_is_kept_until_released(steps):
-    model = MRFModel("full")
+    model = StepMRF("full")
     w = np.zeros(model.size_joint_feature)
     model.batch_inference(steps, w)
     first = model._batch_cache[1]
@@ -478,13 +490,13 @@ def test_the_batch_of_the_last_steps_is_kept_until_released(steps):
     assert model._batch_cache is None
 
 
-def test_rel_rows_key_the_state_on_the_task_object_and_its_container():
+def test_relations_rows_key_the_state_on_the_task_object_and_its_container():
     objects = np.arange(2 * len(OBJECT_COLUMNS), dtype=float).reshape(2, -1)
     task_rel = np.array([[1.0, 0, 0, 0], [0, 1.0, 0, 0]])
     rel = np.zeros((2, len(RELATION_COLUMNS)))
     rel[0, RELATION_COLUMNS.index("is_object")] = 1.0
     rel[1, RELATION_COLUMNS.index("is_container")] = 1.0
-    rows = rel_row(objects, task_rel, rel)
+    rows = relations_row(objects, task_rel, rel)
     k = len(STATE_COLUMNS)
     np.testing.assert_array_equal(rows[0], np.concatenate([rel[0], task_rel[0], objects[0, :k], objects[0, :k],
                                                            np.zeros(k)]))
@@ -495,7 +507,7 @@ def test_rel_rows_key_the_state_on_the_task_object_and_its_container():
 @pytest.mark.parametrize("features", sorted(FEATURE_SETS))
 def test_the_oracle_weighs_the_loss_against_close_scores(steps, features):
     """Small weights: the Hamming loss decides between candidates, including the missing arguments of `done`."""
-    model = MRFModel(features)
+    model = StepMRF(features)
     rng = np.random.default_rng(7)
     for trial in range(3):
         w = 0.05 * rng.normal(size=model.size_joint_feature)
@@ -510,46 +522,55 @@ def test_the_oracle_weighs_the_loss_against_close_scores(steps, features):
 
 
 def test_the_pair_features_of_colliding_arguments(steps):
-    model = MRFModel("relations")
+    model = StepMRF("relations")
     x = steps[3]
     pairs = [(p, a1, a2) for p, a1, a2 in all_candidates(x) if a2 >= 0 and x.collide[a1, a2]]
     assert any(a1 == 0 for _, a1, _ in pairs) and any(a2 == 0 for _, _, a2 in pairs)
     rows = model.batch_joint_feature_rows([x] * len(pairs), pairs).toarray()
-    collide = model.feature_names().index("ae_pair[collide]")
+    collide = model.feature_names().index("argument_environment_pair[collide]")
     assert np.all(rows[:, collide] == 1.0)
     np.testing.assert_array_equal(rows, [model.joint_feature(x, y) for y in pairs])
 
 
 def test_the_default_model_is_the_full_one():
-    model = MRFModel()
+    model = StepMRF()
     assert model.features == "full" and model.size_joint_feature == 1589
-    assert MRFModel("edge").features == "edge" and MRFModel("edge").families == ("ae", "pt")
+    assert StepMRF("edge").features == "edge"
+    assert StepMRF("edge").families == ("argument_environment", "primitive_task")
 
 
 def test_the_blocks_of_the_model():
     from taskseq.features.context import HISTORY_ARG_COLUMNS, TASK_REL_COLUMNS
-    from taskseq.learn.mrf import REL_ROW, _blocks
+    from taskseq.learn.mrf import RELATIONS_ROW, _blocks
     from taskseq.sim.tasks import TASKS
 
     prims, prev = ALL_PRIMITIVES, ALL_PRIMITIVES + ("none",)
     hands = ("holding", "empty_hand")
     expected = [
-        ("ae1", "ae", (("held", "distance"),)), ("ae2", "ae", (("held", "distance"),)),
-        ("ae_pair", "ae", (("collide",),)), ("pt", "pt", (TASKS, prims)),
-        ("aet_rel1", "aet", (TASKS, TASK_REL_COLUMNS)), ("aet_obj1", "aet", (TASKS, hands, OBJECT_COLUMNS)),
-        ("aet_rel2", "aet", (TASKS, TASK_REL_COLUMNS)), ("aet_obj2", "aet", (TASKS, hands, OBJECT_COLUMNS)),
-        ("pae1", "pae", (prims, OBJECT_COLUMNS)), ("pae2", "pae", (prims, OBJECT_COLUMNS)),
-        ("ppt1", "ppt", (TASKS, prev, prims)), ("ppt2", "ppt", (TASKS, prev, prims)),
-        ("paae1", "paae", (prims, HISTORY_ARG_COLUMNS)), ("paae2", "paae", (prims, HISTORY_ARG_COLUMNS)),
-        ("rel1", "rel", (TASKS, prims, REL_ROW)), ("rel2", "rel", (TASKS, prims, REL_ROW)),
-        ("rel_pair", "rel", (TASKS, prims, TASK_REL_COLUMNS, TASK_REL_COLUMNS)),
-        ("cue1", "cue", (TASKS, prims, CUE_COLUMNS)), ("cue2", "cue", (TASKS, prims, CUE_COLUMNS)),
+        ("argument_environment1", "argument_environment", (("held", "distance"),)),
+        ("argument_environment2", "argument_environment", (("held", "distance"),)),
+        ("argument_environment_pair", "argument_environment", (("collide",),)),
+        ("primitive_task", "primitive_task", (TASKS, prims)),
+        ("argument_environment_task_relation1", "argument_environment_task", (TASKS, TASK_REL_COLUMNS)),
+        ("argument_environment_task_object1", "argument_environment_task", (TASKS, hands, OBJECT_COLUMNS)),
+        ("argument_environment_task_relation2", "argument_environment_task", (TASKS, TASK_REL_COLUMNS)),
+        ("argument_environment_task_object2", "argument_environment_task", (TASKS, hands, OBJECT_COLUMNS)),
+        ("primitive_argument_environment1", "primitive_argument_environment", (prims, OBJECT_COLUMNS)),
+        ("primitive_argument_environment2", "primitive_argument_environment", (prims, OBJECT_COLUMNS)),
+        ("primitive_previous_task1", "primitive_previous_task", (TASKS, prev, prims)),
+        ("primitive_previous_task2", "primitive_previous_task", (TASKS, prev, prims)),
+        ("primitive_argument_previous_argument1", "primitive_argument_previous_argument", (prims, HISTORY_ARG_COLUMNS)),
+        ("primitive_argument_previous_argument2", "primitive_argument_previous_argument", (prims, HISTORY_ARG_COLUMNS)),
+        ("relations1", "relations", (TASKS, prims, RELATIONS_ROW)),
+        ("relations2", "relations", (TASKS, prims, RELATIONS_ROW)),
+        ("relations_pair", "relations", (TASKS, prims, TASK_REL_COLUMNS, TASK_REL_COLUMNS)),
+        ("cues1", "cues", (TASKS, prims, CUE_COLUMNS)), ("cues2", "cues", (TASKS, prims, CUE_COLUMNS)),
     ]
     blocks = _blocks()
     assert [(b.name, b.family, b.labels) for b in blocks] == expected
     assert all(b.shape == tuple(len(labels) for labels in b.labels) for b in blocks)
     assert [b.size for b in blocks] == [math.prod(len(labels) for labels in e[2]) for e in expected]
-    assert sum(b.size for b in blocks) == MRFModel("choice").size_joint_feature
+    assert sum(b.size for b in blocks) == StepMRF("choice").size_joint_feature
 
 
 def test_a_volume_exactly_twice_the_references_counts_as_twice():
@@ -567,12 +588,12 @@ def test_a_volume_exactly_twice_the_references_counts_as_twice():
 def test_the_oracle_charges_done_nothing_for_the_arguments_a_done_label_lacks():
     """Gold `done`, and `done` scored 2.5 above every other candidate: with its loss 0 against the pairs' 3, the
     most violated labelling is the first pair (2.5 + 0 < 0 + 3); at 3.5 it is `done` itself."""
-    model = MRFModel("edge")
+    model = StepMRF("edge")
     x = hand_step(np.random.default_rng(8), 3, 1)
     w = np.zeros(model.size_joint_feature)
-    w[model.feature_names().index("pt[pick_and_place,done]")] = 2.5
+    w[model.feature_names().index("primitive_task[pick_and_place,done]")] = 2.5
     assert model.inference(x, w) == (7, -1, -1)
     assert model.loss_augmented_inference(x, (7, -1, -1), w) == (3, 0, 1)
     assert model.batch_loss_augmented_inference([x], [(7, -1, -1)], w).tolist() == [[3, 0, 1]]
-    w[model.feature_names().index("pt[pick_and_place,done]")] = 3.5
+    w[model.feature_names().index("primitive_task[pick_and_place,done]")] = 3.5
     assert model.batch_loss_augmented_inference([x], [(7, -1, -1)], w).tolist() == [[7, -1, -1]]

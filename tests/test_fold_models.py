@@ -9,7 +9,7 @@ import pytest
 from taskseq.demonstrations.benchmark import Benchmark
 from taskseq.demonstrations.generate import generate
 from taskseq.demonstrations.ingest import load_logs
-from taskseq.evaluate.methods import MRFMethod
+from taskseq.evaluate.methods import ScorerMethod
 from taskseq.experiments.crossval import cross_validate
 from taskseq.experiments.fold_models import train_fold_models, training_jobs
 from taskseq.experiments.recipes import evaluate_recipes
@@ -93,7 +93,7 @@ def test_each_distinct_model_is_trained_once_and_indexed(store):
 def test_evaluation_stages_load_the_stored_models_without_training(small, store, count_fits):
     records, contexts, meta, scenarios = small
     out, _, _ = store
-    mrf = partial(MRFMethod, **SETTINGS, store=str(out))
+    mrf = partial(ScorerMethod, **SETTINGS, store=str(out))
     methods = {"full": partial(mrf, "full", name="full"), "only_edge": partial(mrf, "edge", name="only_edge")}
     cross_validate(methods, contexts, meta, Benchmark.from_records(records), n_folds=2)
     evaluate_conditions({"full": partial(mrf, "full")}, contexts, meta, scenarios, [NoiseCondition(0.1, 0)],
@@ -108,7 +108,7 @@ def test_evaluation_stages_load_the_stored_models_without_training(small, store,
 def test_other_settings_are_never_served_from_the_store(small, store, count_fits):
     records, contexts, meta, scenarios = small
     out, _, _ = store
-    other = MRFMethod("full", **{**SETTINGS, "n_slacks": 1}, store=str(out))
+    other = ScorerMethod("full", **{**SETTINGS, "n_slacks": 1}, store=str(out))
     train = [i for i, m in enumerate(meta) if m.scenario_id != meta[0].scenario_id]
     other.fit([contexts[i] for i in train], [meta[i] for i in train])
     assert count_fits == [1]

@@ -10,7 +10,7 @@ import pytest
 import taskseq.imitation.dagger as dagger_module
 import taskseq.imitation.starts as starts_module
 from taskseq.demonstrations.benchmark import Benchmark
-from taskseq.evaluate.methods import MRFMethod
+from taskseq.evaluate.methods import ScorerMethod
 from taskseq.experiments.crossval import run_fold, scenario_folds
 from taskseq.features.context import NO_PRIM, candidate_index, step_context
 from taskseq.features.dataset import build_steps
@@ -235,7 +235,7 @@ def test_the_expert_never_sees_a_test_scenario(small, monkeypatch):
     monkeypatch.setattr(starts_module, "_chain", spy_chain)
     monkeypatch.setattr(starts_module, "_CHAINED", {})  # nothing chained by an earlier test
     test = scenario_folds(scenarios, 3, 0, "scenario")[0]
-    make = partial(MRFMethod, "full", **SSVM, chained_starts=True, dagger_rounds=1, name="all")
+    make = partial(ScorerMethod, "full", **SSVM, chained_starts=True, dagger_rounds=1, name="all")
     result = run_fold(make, 0, contexts, meta, scenarios, test, max_steps=20)
     assert result.sequences is not None and asked
     assert not set(asked) & test
@@ -245,7 +245,7 @@ def test_the_expert_never_sees_a_test_scenario(small, monkeypatch):
 def test_augmented_methods_need_the_scenarios(small):
     contexts, meta, _ = small
     with pytest.raises(ValueError, match="training scenarios"):
-        MRFMethod("full", **SSVM, dagger_rounds=1).fit(contexts, meta)
+        ScorerMethod("full", **SSVM, dagger_rounds=1).fit(contexts, meta)
 
 
 def test_dagger_from_a_given_base_equals_dagger_from_scratch(small):

@@ -3,7 +3,7 @@
 Every `import` and `from ... import` of a module counts, at its top and inside
 functions alike (an import inside a function runs too, only later), relative
 ones resolved against the module's package. A name imported from a package
-that is one of its modules (`from . import paths`) is an edge to that module.
+that is one of its modules (`from . import options`) is an edge to that module.
 """
 
 from __future__ import annotations
@@ -111,7 +111,7 @@ def test_the_graph_is_read_from_the_source():
     edges = graph()
     assert "taskseq.sim.state" in edges["taskseq.sim.primitives"]  # from .state import ...
     assert "taskseq.methods.spec" in edges["taskseq.methods"]  # from .spec import ...
-    assert "taskseq.stages.paths" in edges["taskseq.stages"]  # from . import paths as P
+    assert "taskseq.stages.options" in edges["taskseq.stages"]  # from . import options as opts
 
 
 def test_no_module_of_taskseq_is_in_an_import_cycle():

@@ -15,7 +15,7 @@ from threadpoolctl import threadpool_info
 
 from taskseq.features.context import NO_PRIM, OBJECT_COLUMNS, RELATION_COLUMNS, StepContext
 from taskseq.learn.estimator import StepScorer
-from taskseq.learn.mrf import MRFModel
+from taskseq.learn.mrf import StepMRF
 from taskseq.learn.multiclass import MulticlassModel
 from taskseq.learn.persist import save_model
 from taskseq.learn.ssvm import CuttingPlaneSSVM, Iteration, learning_curve
@@ -363,7 +363,7 @@ def test_the_least_settings_are_accepted(steps):
 
 def test_fit_is_the_structural_svm_of_the_mrf_with_these_settings(steps):
     s = StepScorer("edge", **SETTINGS).fit(steps)
-    direct = CuttingPlaneSSVM(MRFModel("edge"), **SETTINGS).fit(steps, [x.gold for x in steps])
+    direct = CuttingPlaneSSVM(StepMRF("edge"), **SETTINGS).fit(steps, [x.gold for x in steps])
     assert s.w_.tobytes() == direct.w_.tobytes() and s.ssvm_.n_iter_ == direct.n_iter_
     assert s.ssvm_.get_params() == {**SETTINGS, "inactive_window": 1} and s.ssvm_.converged_
     assert s.model_.features == "edge" and s.n_steps_ == 6 and s.fit_seconds_ > 0
@@ -388,7 +388,7 @@ def test_fit_takes_given_labels_over_the_demonstrated_ones(steps):
 
 def test_predict_and_top_k_read_the_fitted_weights(steps):
     s = StepScorer("full", **SETTINGS).fit(steps)
-    model = MRFModel("full")
+    model = StepMRF("full")
     assert s.predict(steps) == [model.inference(x, s.w_) for x in steps]
     assert s.model_._batch_cache is None
     assert s.top_k(steps[4], 3) == model.top_k(steps[4], s.w_, 3) and len(s.top_k(steps[4], 3)) == 3
@@ -402,25 +402,25 @@ def test_predict_and_top_k_read_the_fitted_weights(steps):
             unfitted(steps)
 
 
-def test_a_saved_planner_loads_with_its_settings_weights_and_meta(steps, tmp_path):
+def test_a_saved_scorer_loads_with_its_settings_weights_and_meta(steps, tmp_path):
     s = StepScorer("edge", **SETTINGS).fit(steps)
     s.save(tmp_path / "m.npz", method="mrf", seed=3)
     loaded = StepScorer.load(tmp_path / "m.npz")
     assert loaded.get_params() == s.get_params() and loaded.ssvm_ is None
     assert loaded.w_.tobytes() == s.w_.tobytes() and loaded.model_.features == "edge"
-    assert loaded.meta_ == {"format": "taskseq.mrf/1", "features": "edge", **SETTINGS, "method": "mrf", "seed": 3}
+    assert loaded.meta_ == {"format": "taskseq.mrf/2", "features": "edge", **SETTINGS, "method": "mrf", "seed": 3}
     assert loaded.predict(steps) == s.predict(steps)
-    save_model(tmp_path / "bare.npz", MRFModel("clique"), np.ones(MRFModel("clique").size_joint_feature), {})
+    save_model(tmp_path / "bare.npz", StepMRF("clique"), np.ones(StepMRF("clique").size_joint_feature), {})
     bare = StepScorer.load(tmp_path / "bare.npz")  # settings not saved: the defaults
     assert bare.get_params() == {**DEFAULTS, "features": "clique"}
 
 
-def test_a_planner_from_given_weights(steps):
-    d = MRFModel("edge").size_joint_feature
+def test_a_scorer_from_given_weights(steps):
+    d = StepMRF("edge").size_joint_feature
     p = StepScorer.from_weights("edge", np.arange(d), C=2.0)
     assert p.w_.dtype == np.float64 and p.C == 2.0 and p.ssvm_ is None and p.model_.features == "edge"
     assert p.get_params() == {**DEFAULTS, "features": "edge", "C": 2.0}
-    assert p.predict(steps) == MRFModel("edge").batch_inference(steps, np.arange(d, dtype=float))
+    assert p.predict(steps) == StepMRF("edge").batch_inference(steps, np.arange(d, dtype=float))
     with pytest.raises(ValueError, match=rf"^edge weights must have shape \({d},\), got \({d - 1},\)$"):
         StepScorer.from_weights("edge", np.zeros(d - 1))
 

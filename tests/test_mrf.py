@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from taskseq.features.dataset import read_features, write_features
-from taskseq.learn.mrf import CLIQUE_FAMILIES, EDGE_FAMILIES, MRFModel, candidate_index
+from taskseq.learn.mrf import CLIQUE_FAMILIES, EDGE_FAMILIES, StepMRF, candidate_index
 from taskseq.sim.primitives import ALL_PRIMITIVES, ARITY
 
 
@@ -30,7 +30,7 @@ def test_candidates_respect_arity():
 
 @pytest.mark.parametrize("features", ["full", "edge", "clique", "relations"])
 def test_vectorised_scores_equal_the_per_candidate_reference(some_steps, features):
-    model = MRFModel(features)
+    model = StepMRF(features)
     rng = np.random.default_rng(2)
     for x in some_steps[:8]:
         w = rng.normal(size=model.size_joint_feature)
@@ -41,7 +41,7 @@ def test_vectorised_scores_equal_the_per_candidate_reference(some_steps, feature
 
 @pytest.mark.parametrize("features", ["full", "relations"])
 def test_batched_inference_and_joint_features_equal_the_per_step_ones(some_steps, features):
-    model = MRFModel(features)
+    model = StepMRF(features)
     w = np.random.default_rng(3).normal(size=model.size_joint_feature)
     gold = [x.gold for x in some_steps]
     assert model.batch_inference(some_steps, w) == [model.inference(x, w) for x in some_steps]
@@ -60,7 +60,7 @@ def test_batched_inference_and_joint_features_equal_the_per_step_ones(some_steps
 
 
 def test_loss_augmented_inference_maximises_score_plus_hamming(some_steps):
-    model = MRFModel("full")
+    model = StepMRF("full")
     w = np.random.default_rng(4).normal(size=model.size_joint_feature)
     for x in some_steps[:5]:
         (cp, ca1, ca2), scores = model.scores(x, w)
@@ -75,7 +75,7 @@ def test_score_tables_refuse_factors_the_oracle_would_read_past(some_steps):
     when made: a low-rank left factor wider than the right one (as a model without relations would make with a
     width of 1 instead of 0) would otherwise be read past its end."""
     for features in ("full", "relations"):
-        model = MRFModel(features)
+        model = StepMRF(features)
         tables = model.batch_tables(model._batch(some_steps[:4]), np.ones(model.size_joint_feature))
         S, N = tables.collide.shape[:2]
         assert tables.left.shape[:3] == (tables.P.shape[1], S, N)
@@ -89,7 +89,7 @@ def test_score_tables_refuse_factors_the_oracle_would_read_past(some_steps):
 
 
 def test_edge_and_clique_use_exactly_their_families(some_steps):
-    full, edge, clique = MRFModel("full"), MRFModel("edge"), MRFModel("clique")
+    full, edge, clique = StepMRF("full"), StepMRF("edge"), StepMRF("clique")
     assert set(edge.family_of()) == set(EDGE_FAMILIES)
     assert set(clique.family_of()) == set(CLIQUE_FAMILIES)
     assert sorted(edge.feature_names() + clique.feature_names()) == sorted(full.feature_names())
@@ -102,16 +102,18 @@ def test_edge_and_clique_use_exactly_their_families(some_steps):
 
 
 def test_every_weight_has_a_readable_name():
-    names = MRFModel("full").feature_names()
-    assert len(names) == len(set(names)) == MRFModel("full").size_joint_feature
-    for name in ("ppt1[pour,hold_above->follow_traj_pour]", "pae1[grasp,has_load]", "pt[stir,follow_traj_circle]",
-                 "aet_rel1[pick_and_place,is_task_arg1]", "ae_pair[collide]", "paae2[hold_above,a1_prev1]"):
+    names = StepMRF("full").feature_names()
+    assert len(names) == len(set(names)) == StepMRF("full").size_joint_feature
+    for name in ("primitive_previous_task1[pour,hold_above->follow_traj_pour]",
+                 "primitive_argument_environment1[grasp,has_load]", "primitive_task[stir,follow_traj_circle]",
+                 "argument_environment_task_relation1[pick_and_place,is_task_arg1]",
+                 "argument_environment_pair[collide]", "primitive_argument_previous_argument2[hold_above,a1_prev1]"):
         assert name in names
 
 
 def test_unknown_feature_set_is_refused():
     with pytest.raises(ValueError, match="features must be one of"):
-        MRFModel("nodes")
+        StepMRF("nodes")
 
 
 def test_feature_files_round_trip(benchmark_steps, tmp_path):
@@ -131,10 +133,10 @@ def test_feature_files_round_trip(benchmark_steps, tmp_path):
 def test_the_paper_models_ignore_relations_and_the_relations_model_needs_them(some_steps):
     from dataclasses import replace
 
-    w_full = np.random.default_rng(5).normal(size=MRFModel("full").size_joint_feature)
+    w_full = np.random.default_rng(5).normal(size=StepMRF("full").size_joint_feature)
     stripped = [replace(x, relations=None) for x in some_steps]
-    assert MRFModel("full").batch_inference(stripped, w_full) == MRFModel("full").batch_inference(some_steps, w_full)
-    model = MRFModel("relations")
+    assert StepMRF("full").batch_inference(stripped, w_full) == StepMRF("full").batch_inference(some_steps, w_full)
+    model = StepMRF("relations")
     with pytest.raises(ValueError, match="needs steps with relations"):
         model.batch_inference(stripped, np.zeros(model.size_joint_feature))
 
@@ -152,7 +154,7 @@ def test_steps_include_a_final_done(benchmark_steps):
 @pytest.mark.parametrize("features", ["full", "relations"])
 def test_the_lazy_ranking_is_top_k_of_every_candidate(some_steps, features):
     """A policy walking down `ranked` reads what `top_k` of all candidates gives, ties to the earlier candidate."""
-    model = MRFModel(features)
+    model = StepMRF(features)
     w = np.random.default_rng(5).normal(size=model.size_joint_feature)
     w[::3] = 0.0
     for x in some_steps[:4]:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from taskseq.evaluate.methods import MRFMethod
+from taskseq.evaluate.methods import ScorerMethod
 from taskseq.features.perception import BINARY_COLUMNS, noisy_copies
 from taskseq.learn.persist import describe
 from taskseq.methods import Lineup
@@ -90,16 +90,16 @@ def test_steps_and_meta_of_different_lengths_are_refused(steps):
 
 def test_the_method_trains_on_its_steps_and_their_copies_under_a_key_of_its_own(steps):
     contexts, meta = steps
-    plain = MRFMethod(features="relations", C=1.0, tol=0.05, max_iter=5)
-    noisy = MRFMethod(features="relations", C=1.0, tol=0.05, max_iter=5, noise_rate=0.2, noise_copies=2)
+    plain = ScorerMethod(features="relations", C=1.0, tol=0.05, max_iter=5)
+    noisy = ScorerMethod(features="relations", C=1.0, tol=0.05, max_iter=5, noise_rate=0.2, noise_copies=2)
     assert "noise_copies" not in plain.learner_params()  # the other methods' stored models keep their keys
     assert noisy.learner_params()["noise_copies"] == 2 and noisy.learner_params()["noise_rate"] == 0.2
     assert plain.key(contexts) != noisy.key(contexts)
-    assert noisy.key(contexts) != MRFMethod(features="relations", C=1.0, tol=0.05, max_iter=5, noise_rate=0.1,
+    assert noisy.key(contexts) != ScorerMethod(features="relations", C=1.0, tol=0.05, max_iter=5, noise_rate=0.1,
                                             noise_copies=2).key(contexts)
     assert noisy.fit(contexts, meta).planner_.n_steps_ == 3 * len(contexts)
     assert plain.fit(contexts, meta).planner_.n_steps_ == len(contexts)
-    again = MRFMethod(features="relations", C=1.0, tol=0.05, max_iter=5, noise_rate=0.2, noise_copies=2)
+    again = ScorerMethod(features="relations", C=1.0, tol=0.05, max_iter=5, noise_rate=0.2, noise_copies=2)
     np.testing.assert_array_equal(again.fit(contexts, meta).planner_.w_, noisy.planner_.w_)  # the same bytes
 
 

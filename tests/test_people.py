@@ -20,7 +20,7 @@ from taskseq.sim.tasks import Task
 from taskseq.stages import people as people_stage
 from taskseq.stages import teach as teach_stage
 from taskseq.stages import train as train_stage
-from taskseq.stages.paths import PeoplePaths, TeachPaths, TrainPaths
+from taskseq.stages.options import PeopleOptions, TeachOptions, TrainOptions
 
 LEARNER = Learner(tol=1e-2, max_iter=300)  # C: untuned, no selection file
 TAUGHT = [Task("pour", ("obj27",)), Task("throw_away", ("obj43",))]  # in env01
@@ -61,7 +61,7 @@ def test_people_records_are_counted_with_their_participants_and_corrections(taug
 def test_the_people_stage_with_no_demonstrations_trains_nothing(tmp_path, features):
     (tmp_path / "people").mkdir()
     result = people_stage.run(people_stage.Settings(People(logs=str(tmp_path / "people")), LEARNER, 20),
-                              PeoplePaths(features=features, output=tmp_path / "out"))
+                              PeopleOptions(features=features, output=tmp_path / "out"))
     assert result == {"environments": [], "success_before": None, "success_after": None}
     assert json.loads((tmp_path / "out" / "dataset.json").read_text())["sequences"] == 0
     assert "No people's demonstrations yet" in (tmp_path / "out" / "before_after.md").read_text()
@@ -69,7 +69,7 @@ def test_the_people_stage_with_no_demonstrations_trains_nothing(tmp_path, featur
 
 def test_the_people_stage_judges_the_tasks_people_did_not_demonstrate(taught, tmp_path, features):
     result = people_stage.run(people_stage.Settings(People(logs=str(taught)), LEARNER, 20),
-                              PeoplePaths(features=features, output=tmp_path / "out"))
+                              PeopleOptions(features=features, output=tmp_path / "out"))
     [row] = result["environments"]
     assert row["env_id"] == "w0-env01" and row["demonstrations"] == 2
     doable = [str(t) for t, _ in doable_tasks(world_environment(0, "env01").state)]
@@ -82,9 +82,9 @@ def test_the_people_stage_judges_the_tasks_people_did_not_demonstrate(taught, tm
 def test_the_train_switch_adds_people_steps_and_off_leaves_the_metrics_as_they_were(taught, tmp_path, features):
     train = Train(tol=1e-2, max_iter=300, method="full")  # C: untuned, no selection file
     without = train_stage.run(train_stage.Settings(train, None, Methods()),
-                              TrainPaths(features=features, model=tmp_path / "a.npz"))
+                              TrainOptions(features=features, model=tmp_path / "a.npz"))
     with_people = train_stage.run(train_stage.Settings(train, taught, Methods()),
-                                  TrainPaths(features=features, model=tmp_path / "b.npz"))
+                                  TrainOptions(features=features, model=tmp_path / "b.npz"))
     assert "people_sequences" not in without and with_people["people_sequences"] == 2
     assert (tmp_path / "a.npz").read_bytes() != (tmp_path / "b.npz").read_bytes()
 
@@ -92,7 +92,7 @@ def test_the_train_switch_adds_people_steps_and_off_leaves_the_metrics_as_they_w
 def test_the_teach_stage_tests_the_same_tasks_for_every_k(benchmark_tables, tmp_path, capsys):
     write_tables(benchmark_tables[0], tmp_path / "worlds" / "0" / "processed")
     settings = teach_stage.Settings(World(seeds=(0,)), Teach(environments=("env13",), k=(0, 2), seed=0), LEARNER, 20)
-    table = teach_stage.run(settings, TeachPaths(worlds=tmp_path / "worlds", output=tmp_path / "out"))
+    table = teach_stage.run(settings, TeachOptions(worlds=tmp_path / "worlds", output=tmp_path / "out"))
     assert [r["k"] for r in table] == [0, 2] and all(0 <= r["success_mean"] <= 100 for r in table)
     out = capsys.readouterr().out
     held_out = {line.split("/")[1].split()[0] for line in out.splitlines() if "held-out" in line}
@@ -100,4 +100,4 @@ def test_the_teach_stage_tests_the_same_tasks_for_every_k(benchmark_tables, tmp_
     assert "| 2 |" in (tmp_path / "out" / "teach.md").read_text() and (tmp_path / "out" / "teach.png").exists()
     with pytest.raises(ValueError, match="unknown environments"):
         teach_stage.run(teach_stage.Settings(World(seeds=(0,)), Teach(environments=("env99",)), LEARNER, 20),
-                        TeachPaths(worlds=tmp_path / "worlds", output=tmp_path / "out2"))
+                        TeachOptions(worlds=tmp_path / "worlds", output=tmp_path / "out2"))

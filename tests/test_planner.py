@@ -10,7 +10,8 @@ from taskseq.cli import main
 from taskseq.demonstrations.records import parse_record, state_from_dict
 from taskseq.features.dataset import build_steps
 from taskseq.learn.estimator import StepScorer
-from taskseq.learn.persist import load_model
+from taskseq.learn.mrf import StepMRF
+from taskseq.learn.persist import FORMAT, FORMAT_1, FORMAT_1_BLOCKS, load_model
 from taskseq.plan.planner import DONE, plan
 
 
@@ -123,6 +124,29 @@ def test_load_refuses_other_files(tmp_path):
         load_model(bad)
     with pytest.raises(FileNotFoundError, match="no such model"):
         load_model(tmp_path / "missing.npz")
+
+
+def _write(path: Path, w: np.ndarray, names: list[str], meta: dict) -> Path:
+    np.savez(path, w=w, feature_names=np.array(names), meta=np.array(json.dumps(meta)))
+    return path
+
+
+def test_a_model_file_of_format_1_loads_under_the_long_family_names(tmp_path):
+    """Format 1 named the weights by the paper's short family names, in the order format 2 has them."""
+    model = StepMRF("choice")
+    w = np.arange(model.size_joint_feature, dtype=float)
+    short = {long: old for old, long in FORMAT_1_BLOCKS.items()}
+    old = [short[n.partition("[")[0]] + "[" + n.partition("[")[2] for n in model.feature_names()]
+    assert "ppt1[pour,hold_above->follow_traj_pour]" in old and "ae_pair[collide]" in old and "cue2" in old[-1]
+    meta = {"format": FORMAT_1, "features": "choice", "C": 2.0}
+    loaded, weights, back = load_model(_write(tmp_path / "old.npz", w, old, meta))
+    assert loaded.features == "choice" and back == meta
+    np.testing.assert_array_equal(weights, w)
+    assert StepScorer.load(tmp_path / "old.npz").C == 2.0
+    with pytest.raises(ValueError, match="feature names do not match"):
+        load_model(_write(tmp_path / "fewer.npz", w[:-1], old[:-1], meta))
+    with pytest.raises(ValueError, match=rf"format 'taskseq.mrf/0', expected '{FORMAT}' \(or the older '{FORMAT_1}'\)"):
+        load_model(_write(tmp_path / "other.npz", w, old, {**meta, "format": "taskseq.mrf/0"}))
 
 
 @pytest.fixture

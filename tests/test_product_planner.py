@@ -17,7 +17,7 @@ from taskseq.cli import main
 from taskseq.demonstrations.records import spec_to_dict, state_to_dict
 from taskseq.features.context import step_context
 from taskseq.learn.estimator import StepScorer
-from taskseq.learn.mrf import MRFModel
+from taskseq.learn.mrf import StepMRF
 from taskseq.plan.planner import DONE, POLICIES, Abstain, learned_policy
 from taskseq.product import recorded_policy, runnable_first
 from taskseq.sim.primitives import Action, execute, try_execute
@@ -52,7 +52,7 @@ def test_the_first_proposal_always_runs_in_the_simulator(scenarios, policy, tmp_
     refused_raw = 0  # steps where the same policy without the filter proposes first a refused step
     for seed in (0, 1):
         path = tmp_path / f"{policy}{seed}.npz"
-        weights = np.random.default_rng(seed).normal(size=MRFModel("full").size_joint_feature)
+        weights = np.random.default_rng(seed).normal(size=StepMRF("full").size_joint_feature)
         StepScorer.from_weights("full", weights).save(path, policy=policy)
         planner = StepScorer.load(path)
         policy_for = recorded_policy(planner, path, 3)
@@ -80,7 +80,7 @@ def test_the_first_proposal_always_runs_in_the_simulator(scenarios, policy, tmp_
 
 def test_taskseq_plan_never_stops_before_the_goal_in_a_hand_written_room(scenarios, tmp_path, capsys):
     """A model that scores `done` above everything: `taskseq plan` takes the best step that runs instead."""
-    model = MRFModel("full")
+    model = StepMRF("full")
     scenario = scenarios[0]
     ctx = step_context(scenario.initial, scenario.task, [])
     done = ctx.encode(Action("done"))

@@ -4,7 +4,7 @@ import numpy as np
 
 from taskseq.experiments.recipes import RECIPES, evaluate_recipes
 from taskseq.learn.estimator import StepScorer
-from taskseq.learn.mrf import MRFModel
+from taskseq.learn.mrf import StepMRF
 from taskseq.sim.catalog import ENVIRONMENTS_BY_ID, build_environment
 from taskseq.sim.demonstrator import demonstrate
 from taskseq.sim.primitives import execute
@@ -38,7 +38,7 @@ class Fake:
 
     def fit(self, contexts, meta, scenarios=None):
         Fake.seen.append({m.scenario_id.split("/")[0] for m in meta})
-        self.planner_ = StepScorer.from_weights("full", np.zeros(MRFModel("full").size_joint_feature))
+        self.planner_ = StepScorer.from_weights("full", np.zeros(StepMRF("full").size_joint_feature))
         return self
 
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from taskseq.demonstrations.benchmark import Benchmark
-from taskseq.evaluate.methods import MRFMethod
+from taskseq.evaluate.methods import ScorerMethod
 from taskseq.experiments.robustness import observer
 from taskseq.features.context import step_context
 from taskseq.features.perception import BINARY_COLUMNS, flip_masks, noisy_perception
@@ -16,7 +16,7 @@ from taskseq.sim.primitives import Action
 def fitted(benchmark_steps, benchmark_tables):
     contexts, meta = benchmark_steps
     keep = [i for i, m in enumerate(meta) if m.sequence_id.startswith(("env01/", "env02/", "env03/"))]
-    method = MRFMethod(C=5.0, tol=1e-3, max_iter=300).fit([contexts[i] for i in keep], [meta[i] for i in keep])
+    method = ScorerMethod(C=5.0, tol=1e-3, max_iter=300).fit([contexts[i] for i in keep], [meta[i] for i in keep])
     scenarios = Benchmark.from_records([i.record for i in benchmark_tables[1]]).scenarios
     return method, [s for sid, s in sorted(scenarios.items()) if sid.startswith(("env01/", "env02/", "env03/"))]
 

@@ -11,7 +11,7 @@ import math
 import pytest
 
 from taskseq.demonstrations.benchmark import Benchmark
-from taskseq.evaluate.methods import MRFMethod
+from taskseq.evaluate.methods import ScorerMethod
 from taskseq.experiments import selection
 from taskseq.experiments.crossval import FoldResult, SequenceOutcome
 from taskseq.experiments.selection import (
@@ -28,7 +28,7 @@ from taskseq.sim.primitives import ALL_PRIMITIVES
 from taskseq.stages import fold_models as fold_models_stage
 from taskseq.stages import train as train_stage
 from taskseq.stages.command import load_params
-from taskseq.stages.paths import TrainPaths
+from taskseq.stages.options import TrainOptions
 
 GRASP = ALL_PRIMITIVES.index("grasp")
 # per C: sequences right (of 4), successes (of 4), steps with the right arguments (of 2)
@@ -194,7 +194,7 @@ def test_the_method_ranked_first_is_read_back_or_the_file_says_what_is_missing(t
     path = tmp_path / "selection.json"
     path.write_text(json.dumps({"C": 3, "method": "choice_lookahead", "settings": {}}))
     assert read_selection(path).method == "choice_lookahead"
-    paths = TrainPaths(selection=path, model=tmp_path / "m.npz")
+    paths = TrainOptions(selection=path, model=tmp_path / "m.npz")
     assert train_stage.shipped_method(Params().train, paths)[0] == "choice_lookahead"
     for data in ({"C": 3}, {"C": 3, "method": ""}, {"C": 3, "method": 7}):
         path.write_text(json.dumps({**data, "settings": {}}))
@@ -268,7 +268,7 @@ def test_every_stage_builds_each_mrf_method_with_its_own_c(tmp_path):
 
 def test_an_unknown_policy_is_refused():
     with pytest.raises(ValueError, match="method full: unknown policy 'cautious'; known: greedy, feasible"):
-        MRFMethod(policy="cautious")
+        ScorerMethod(policy="cautious")
 
 
 def test_the_development_worlds_size_is_checked_where_params_are_read():

@@ -19,7 +19,7 @@ from werkzeug.serving import make_server
 
 from taskseq.cli import main
 from taskseq.learn.estimator import StepScorer
-from taskseq.learn.mrf import MRFModel
+from taskseq.learn.mrf import StepMRF
 from taskseq.serve.app import create_app
 from taskseq.serve.environments import world_environment
 from taskseq.serve.load import Client, LoadResult, run_load, scripted_tasks
@@ -57,7 +57,7 @@ def data(tmp_path) -> Path:
 def zero_model(tmp_path) -> Path:
     """A planner whose scores all tie: its best proposal is the first candidate, never a demonstrated step."""
     path = tmp_path / "zero.npz"
-    StepScorer.from_weights("full", np.zeros(MRFModel("full").size_joint_feature)).save(path)
+    StepScorer.from_weights("full", np.zeros(StepMRF("full").size_joint_feature)).save(path)
     return path
 
 
@@ -361,7 +361,7 @@ def test_assist_accepting_a_proposal_is_no_correction(client, data):
 def test_assist_ranks_with_the_policy_the_model_file_records_and_proposes_only_steps_that_run(data, tmp_path):
     """Whatever policy the model file records, the page proposes only steps it would take; recorded as greedy, the
     weights' best scores among those are the feasible policy's proposals, as `taskseq plan` runs them."""
-    weights = np.random.default_rng(0).normal(size=MRFModel("full").size_joint_feature)
+    weights = np.random.default_rng(0).normal(size=StepMRF("full").size_joint_feature)
     proposals = {}
     for policy in ("greedy", "feasible", "lookahead"):
         path = tmp_path / f"{policy}.npz"
@@ -389,7 +389,7 @@ def test_assist_says_why_each_proposal_is_where_it_is(data, tmp_path):
     """Under the lookahead a step can stand above a better-scored one: the upper row says it moved up and why,
     the lower one what its imagined plan would break; every row speaks in names, never ids or None."""
     path = tmp_path / "lookahead.npz"
-    weights = np.random.default_rng(0).normal(size=MRFModel("full").size_joint_feature)
+    weights = np.random.default_rng(0).normal(size=StepMRF("full").size_joint_feature)
     StepScorer.from_weights("full", weights).save(path, policy="lookahead")
     client = create_app(data, path).test_client()
     start(client, Task("pour_to", ("obj27", "obj14")), mode="assist")
@@ -410,7 +410,7 @@ def test_assist_says_why_each_proposal_is_where_it_is(data, tmp_path):
 
 def test_assist_names_a_policy_this_version_does_not_plan_with(data, tmp_path):
     path = tmp_path / "odd.npz"
-    StepScorer.from_weights("full", np.zeros(MRFModel("full").size_joint_feature)).save(path, policy="cautious")
+    StepScorer.from_weights("full", np.zeros(StepMRF("full").size_joint_feature)).save(path, policy="cautious")
     client = create_app(data, path).test_client()
     page = client.get(start(client, mode="assist").headers["Location"])
     assert "the planner cannot be loaded" in message(page) and "policy 'cautious'" in message(page)

@@ -113,6 +113,6 @@ def test_dvc_params_are_exactly_the_settings_a_stage_reads(stage):
 def test_stage_commands_carry_paths_and_the_world_seed_only(stage):
     cmd = dvc_stage(stage)["cmd"]
     options = re.findall(r"--([a-z-]+)", cmd)
-    allowed = {f.name.replace("_", "-") for f in fields(STAGES[stage].paths)} | {"world-seed"}
+    allowed = {f.name.replace("_", "-") for f in fields(STAGES[stage].options)} | {"world-seed"}
     assert set(options) <= allowed, f"{stage} passes {sorted(set(options) - allowed)}"
     assert "${" not in cmd.replace("${item}", "").replace("${world.seeds[0]}", ""), cmd

@@ -27,7 +27,7 @@ from taskseq.sim.primitives import Action
 from taskseq.sim.scenarios import doable_tasks
 from taskseq.sim.tasks import TASKS, Task
 from taskseq.stages import teach
-from taskseq.stages.paths import TeachPaths
+from taskseq.stages.options import TeachOptions
 
 ENVS = ("env12", "env13")
 KS = (0, 1, 2)
@@ -91,7 +91,7 @@ def spied(tmp_path, monkeypatch, capsys):
     settings = teach.Settings(World(seeds=SEEDS), Teach(environments=ENVS, k=KS, seed=5), LEARNER, 17)
     selection = tmp_path / "selection.json"
     selection.write_text(json.dumps({"settings": {"full": {"C": FULL_C}, "relations": {"C": 0.1}}}))
-    calls.table = teach.run(settings, TeachPaths(worlds=tmp_path / "worlds", output=tmp_path / "out",
+    calls.table = teach.run(settings, TeachOptions(worlds=tmp_path / "worlds", output=tmp_path / "out",
                                                  selection=selection), tracker)
     calls.out = tmp_path / "out"
     calls.worlds = tmp_path / "worlds"
@@ -207,7 +207,7 @@ def test_one_world_has_an_sd_of_zero(tmp_path, monkeypatch):
     monkeypatch.setattr(teach, "success_on", lambda planner, env_id, state, tasks, max_steps: outcome(0, 2, env_id))
     monkeypatch.setattr(teach, "line_plot_png", lambda *a, **kw: None)
     settings = teach.Settings(World(seeds=(3,)), Teach(environments=("env13",), k=(1,), seed=0), LEARNER, 20)
-    [row] = teach.run(settings, TeachPaths(worlds=tmp_path, output=tmp_path / "out"))
+    [row] = teach.run(settings, TeachOptions(worlds=tmp_path, output=tmp_path / "out"))
     assert row["success_sd"] == 0.0 and row["n_seeds"] == 1 and row["success_mean"] == 100.0
 
 
@@ -216,7 +216,7 @@ def test_one_world_has_an_sd_of_zero(tmp_path, monkeypatch):
 def test_an_environment_outside_env01_to_env13_is_refused_before_anything_is_read(tmp_path, envs, unknown):
     settings = teach.Settings(World(seeds=(0,)), Teach(environments=envs), LEARNER, 20)
     with pytest.raises(ValueError, match=rf"^teach.environments: unknown environments {re.escape(unknown)}$"):
-        teach.run(settings, TeachPaths(worlds=tmp_path / "none", output=tmp_path / "out"))
+        teach.run(settings, TeachOptions(worlds=tmp_path / "none", output=tmp_path / "out"))
     assert not (tmp_path / "out").exists()
 
 
@@ -229,7 +229,7 @@ def test_the_first_and_last_environments_are_known(tmp_path, monkeypatch):
     monkeypatch.setattr(teach, "success_on", lambda planner, env_id, state, tasks, max_steps: outcome(0, 0, env_id))
     monkeypatch.setattr(teach, "line_plot_png", lambda *a, **kw: None)
     settings = teach.Settings(World(seeds=(0,)), Teach(environments=("env01", "env13"), k=(0,)), LEARNER, 20)
-    teach.run(settings, TeachPaths(worlds=tmp_path, output=tmp_path / "out"))
+    teach.run(settings, TeachOptions(worlds=tmp_path, output=tmp_path / "out"))
     assert len(seen) == 1
 
 

@@ -115,11 +115,12 @@ class MulticlassMethod:
 
 
 @dataclass
-class MRFMethod:
-    """The paper's model with a choice of feature families, and optional training data beyond the logs.
+class ScorerMethod:
+    """A Table I method built around a `StepScorer`: the scorer's feature set and learner settings, the
+    training data it is fitted on, and the policy its programs pick steps with.
 
     `chained_starts` adds, per training scenario, a demonstration that starts
-    where it ended (`imitation.starts`); `dagger_rounds` rolls the planner out
+    where it ended (`imitation.starts`); `dagger_rounds` rolls the scorer out
     on the training scenarios that many times and adds the demonstrator's
     answers in the states it reached (`imitation.dagger`). Both need the
     training scenarios at `fit`. `noise_copies` adds that many copies of the
@@ -159,14 +160,15 @@ class MRFMethod:
         return training_key(self.features, self.learner_params(), contexts)
 
     def estimator(self) -> StepScorer:
-        """The unfitted planner with this method's feature set and learner settings."""
+        """The unfitted scorer with this method's feature set and learner settings."""
         return StepScorer(self.features, C=self.C, tol=self.tol, max_iter=self.max_iter, n_slacks=self.n_slacks)
 
     def fit(self, contexts: list[StepContext], meta: list[StepMeta],
-            scenarios: Mapping[str, Scenario] | None = None, base: StepScorer | None = None) -> MRFMethod:
-        """Sets `planner_`: loaded from the store when it holds these steps and settings, else fitted.
+            scenarios: Mapping[str, Scenario] | None = None, base: StepScorer | None = None) -> ScorerMethod:
+        """Sets `planner_`, the fitted `StepScorer`: loaded from the store when it holds these steps and settings,
+        else fitted.
 
-        `base` is this method's planner without DAgger, fitted on the same
+        `base` is this method's scorer without DAgger, fitted on the same
         steps, when the caller has it: DAgger starts from it.
         """
         stored = ModelStore(self.store).load(self.key(contexts)) if self.store else None
@@ -259,7 +261,7 @@ class SymbolicMethod:
 def method_params(name: str, method: Method) -> dict[str, Any]:
     """What tells one method's run from another's in MLflow: name, feature set, C and the options it has."""
     out: dict[str, Any] = {"method": name}
-    if isinstance(method, MRFMethod):
+    if isinstance(method, ScorerMethod):
         out.update(feature_set=method.features, C=method.C, chained_starts=method.chained_starts,
                    dagger_rounds=method.dagger_rounds, policy=method.policy)
     elif isinstance(method, MulticlassMethod):

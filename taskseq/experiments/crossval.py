@@ -10,7 +10,7 @@ from threadpoolctl import threadpool_limits
 from ..demonstrations.benchmark import Benchmark
 from ..evaluate.failures import classify
 from ..evaluate.folds import grouped_folds
-from ..evaluate.methods import Method, MRFMethod, MulticlassMethod, SymbolicMethod
+from ..evaluate.methods import Method, MulticlassMethod, ScorerMethod, SymbolicMethod
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
 from ..plan.planner import Program
@@ -147,7 +147,7 @@ def _fold_job_cost(method: Method) -> float:
     """
     if isinstance(method, SymbolicMethod):
         return 4.0
-    if isinstance(method, MRFMethod):
+    if isinstance(method, ScorerMethod):
         return 1.0 if method.store else 2.0 + method.C / 10.0
     if isinstance(method, MulticlassMethod):
         return 2.0

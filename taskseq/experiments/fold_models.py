@@ -15,7 +15,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from ..evaluate.methods import MRFMethod
+from ..evaluate.methods import ScorerMethod
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
 from ..learn.ssvm import learning_curve
@@ -26,7 +26,7 @@ from ..sim.scenarios import Scenario
 from .crossval import scenario_folds, training_index
 from .recipes import recipe_training_sets
 
-MakeMRF = Callable[[], MRFMethod]
+MakeScorerMethod = Callable[[], ScorerMethod]
 
 
 @dataclass(frozen=True)
@@ -36,7 +36,7 @@ class TrainingJob:
     index: tuple[int, ...]  # training steps
 
 
-def training_jobs(methods: Mapping[str, MakeMRF], meta: list[StepMeta], scenarios: dict[str, Scenario],
+def training_jobs(methods: Mapping[str, MakeScorerMethod], meta: list[StepMeta], scenarios: dict[str, Scenario],
                   n_folds: int, seed: int, group_by: str,
                   recipe_methods: Sequence[str] = ()) -> list[TrainingJob]:
     """The MRF fits of crossval (every method x folds) and recipes (each of `recipe_methods` per kind)."""
@@ -51,29 +51,29 @@ def training_jobs(methods: Mapping[str, MakeMRF], meta: list[StepMeta], scenario
     return jobs
 
 
-def _fit(makes: tuple[MakeMRF, ...], contexts: list[StepContext], meta: list[StepMeta],
-         scenarios: dict[str, Scenario], index: tuple[int, ...]) -> list[MRFMethod]:
+def _fit(makes: tuple[MakeScorerMethod, ...], contexts: list[StepContext], meta: list[StepMeta],
+         scenarios: dict[str, Scenario], index: tuple[int, ...]) -> list[ScorerMethod]:
     """Fit the methods on the same steps, the first one first: the DAgger ones after it start from it."""
     steps, steps_meta = [contexts[i] for i in index], [meta[i] for i in index]
-    fitted: list[MRFMethod] = []
+    fitted: list[ScorerMethod] = []
     for make in makes:
         fitted.append(make().fit(steps, steps_meta, scenarios, base=fitted[0].planner_ if fitted else None))
     return fitted
 
 
-def _expected_cost(method: MRFMethod, n_steps: int) -> float:
+def _expected_cost(method: ScorerMethod, n_steps: int) -> float:
     """A fit's time against an edge-only fit of as many steps (medians of `folds.json`): long ones start first."""
     cost = {"edge": 1.0, "clique": 1.5, "full": 1.5}.get(method.features, 2.5) * n_steps
     return (cost * (2.0 if method.chained_starts else 1.0) * (2.0 if method.dagger_rounds else 1.0)
             * (1 + method.noise_copies))
 
 
-def train_fold_models(methods: Mapping[str, MakeMRF], contexts: list[StepContext], meta: list[StepMeta],
+def train_fold_models(methods: Mapping[str, MakeScorerMethod], contexts: list[StepContext], meta: list[StepMeta],
                       scenarios: dict[str, Scenario], jobs: list[TrainingJob], output: Path | str, n_jobs: int = 1,
                       verbose: int = 0) -> list[dict[str, Any]]:
     """Fit every job's model once and write the store to `output` (replaced as a whole, atomically).
 
-    `methods[name]()` builds the job's unfitted `MRFMethod` (without a store);
+    `methods[name]()` builds the job's unfitted `ScorerMethod` (without a store);
     `scenarios` are the benchmark's, which methods that consult the
     demonstrator read (only those of a job's training steps). A DAgger model
     starts from the model of the same steps and settings without DAgger: when

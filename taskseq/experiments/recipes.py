@@ -15,7 +15,7 @@ from typing import Any
 
 from threadpoolctl import threadpool_limits
 
-from ..evaluate.methods import MRFMethod
+from ..evaluate.methods import ScorerMethod
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
 from ..plan.planner import learned_policy, run_loop
@@ -94,7 +94,7 @@ class RecipeOutcome:
     programs: list[tuple[str, str, bool]]  # task, status, program success
 
 
-def run_recipe(method: MRFMethod, recipe: Recipe, feedback: bool, max_steps: int = 20,
+def run_recipe(method: ScorerMethod, recipe: Recipe, feedback: bool, max_steps: int = 20,
                observer_k: int = Recipes.observer_k) -> RecipeOutcome:
     """Each program from where the last one left the world, its steps picked by the method's policy; with
     `feedback`, the observer picks the demonstrator's step among the planner's `observer_k` best at the start
@@ -129,7 +129,7 @@ def recipe_training_sets(meta: list[StepMeta]) -> dict[str, list[int]]:
     return out
 
 
-def evaluate_recipes(make: Callable[[], MRFMethod], contexts: list[StepContext], meta: list[StepMeta],
+def evaluate_recipes(make: Callable[[], ScorerMethod], contexts: list[StepContext], meta: list[StepMeta],
                      scenarios: Mapping[str, Scenario], max_steps: int = 20,
                      observer_k: int = Recipes.observer_k) -> list[RecipeOutcome]:
     """Train (or load) once per recipe kind, without the kind's three environments, and run each recipe.

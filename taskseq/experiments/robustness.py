@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ..evaluate.methods import MRFMethod
+from ..evaluate.methods import ScorerMethod
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
 from ..features.perception import flip_masks, noisy_perception
@@ -70,7 +70,7 @@ def _fold(make, contexts, meta, scenarios, test, conditions, max_steps, seed):
 
 def _replay(make, contexts, meta, scenarios, test, conditions, max_steps, seed):
     train = training_index(meta, test)
-    method: MRFMethod = make().fit([contexts[i] for i in train], [meta[i] for i in train], scenarios)
+    method: ScorerMethod = make().fit([contexts[i] for i in train], [meta[i] for i in train], scenarios)
     order = sorted(scenarios)
     outcome = {}
     for sid in sorted(test):
@@ -97,7 +97,7 @@ def _replay(make, contexts, meta, scenarios, test, conditions, max_steps, seed):
     return [(c, outcome[c, sid]) for c in conditions for sid in sorted(test)]
 
 
-def evaluate_conditions(makes: Mapping[str, Callable[[], MRFMethod]], contexts: list[StepContext],
+def evaluate_conditions(makes: Mapping[str, Callable[[], ScorerMethod]], contexts: list[StepContext],
                         meta: list[StepMeta], scenarios: dict[str, Scenario], conditions: list[Condition],
                         folds: Folds, max_steps: int, seed: int = 0,
                         n_jobs: int = 1) -> dict[str, list[tuple[Condition, SequenceOutcome]]]:

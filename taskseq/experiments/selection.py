@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from ..demonstrations.benchmark import Benchmark
-from ..evaluate.methods import MRFMethod
+from ..evaluate.methods import ScorerMethod
 from ..evaluate.metrics import summarize
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
@@ -89,7 +89,7 @@ def _choice(tried: Mapping[float, Mapping[str, float]]) -> float:
     return best_candidate(_rows(tried))["C"]
 
 
-def _named(make: Callable[[], MRFMethod], name: str, store: str | None) -> MRFMethod:
+def _named(make: Callable[[], ScorerMethod], name: str, store: str | None) -> ScorerMethod:
     """An unfitted method under another name (a method at one C of several), loading its fits from `store`."""
     return replace(make(), name=name, store=store)
 
@@ -106,7 +106,7 @@ class DevData:
 
 
 def cross_validate_settings(pending: dict[str, tuple[float, ...]],
-                            make: Callable[[str, float], Callable[[], MRFMethod]], data: DevData, store: Path,
+                            make: Callable[[str, float], Callable[[], ScorerMethod]], data: DevData, store: Path,
                             n_jobs: int = 1, verbose: int = 0) -> dict[str, dict[float, dict[str, float]]]:
     """Each method at each of its values of C (`make(method, C)`: its unfitted method at that C), cross-validated
     on the same folds: every distinct model is fitted

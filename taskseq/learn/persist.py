@@ -7,6 +7,11 @@ Table I it was trained as, that method's settings and the policy its
 programs pick steps with; files written before the method or the policy was
 recorded load as they did, and say so (`describe`): such a file plans with
 the greedy policy, the only one they were ever planned with.
+
+Format 2 names the weights by their families' long names
+(`primitive_previous_task1[pour,hold_above->follow_traj_pour]`); format 1 used
+the paper's short names (`ppt1[...]`) for the same weights in the same order,
+and a file of format 1 still loads: its names are read through `FORMAT_1_BLOCKS`.
 """
 
 from __future__ import annotations
@@ -19,19 +24,31 @@ from typing import Any
 import numpy as np
 
 from ..runtime.atomic import write_arrays
-from .mrf import MRFModel
+from .mrf import StepMRF
 
-FORMAT = "taskseq.mrf/1"
+FORMAT = "taskseq.mrf/2"
+FORMAT_1 = "taskseq.mrf/1"
+# the block names of format 1 (the paper's short family names) and those that replaced them
+FORMAT_1_BLOCKS = {
+    "ae1": "argument_environment1", "ae2": "argument_environment2", "ae_pair": "argument_environment_pair",
+    "pt": "primitive_task",
+    "aet_rel1": "argument_environment_task_relation1", "aet_obj1": "argument_environment_task_object1",
+    "aet_rel2": "argument_environment_task_relation2", "aet_obj2": "argument_environment_task_object2",
+    "pae1": "primitive_argument_environment1", "pae2": "primitive_argument_environment2",
+    "ppt1": "primitive_previous_task1", "ppt2": "primitive_previous_task2",
+    "paae1": "primitive_argument_previous_argument1", "paae2": "primitive_argument_previous_argument2",
+    "rel1": "relations1", "rel2": "relations2", "rel_pair": "relations_pair",
+    "cue1": "cues1", "cue2": "cues2",
+}
 
 
-def save_model(path: Path | str, model: MRFModel, w: np.ndarray, params: dict[str, Any]) -> None:
+def save_model(path: Path | str, model: StepMRF, w: np.ndarray, params: dict[str, Any]) -> None:
     meta = {"format": FORMAT, "features": model.features, **params}
     write_arrays(path, {"w": np.asarray(w, dtype=np.float64), "feature_names": np.array(model.feature_names()),
                         "meta": np.array(json.dumps(meta, sort_keys=True))})
 
 
-
-def load_model(path: Path | str) -> tuple[MRFModel, np.ndarray, dict[str, Any]]:
+def load_model(path: Path | str) -> tuple[StepMRF, np.ndarray, dict[str, Any]]:
     """The model, its weights and the parameters it was trained with."""
     path = Path(path)
     if not path.exists():
@@ -44,12 +61,20 @@ def load_model(path: Path | str) -> tuple[MRFModel, np.ndarray, dict[str, Any]]:
         raise ValueError(f"{path}: not a taskseq model file (missing {err.args[0]})") from None
     except (OSError, ValueError, zipfile.BadZipFile, EOFError) as err:
         raise ValueError(f"{path}: not a readable taskseq model file ({err})") from None
-    if meta.get("format") != FORMAT:
-        raise ValueError(f"{path}: format {meta.get('format')!r}, expected {FORMAT!r}")
-    model = MRFModel(meta["features"])
+    if meta.get("format") == FORMAT_1:
+        names = [_format_1_name(n) for n in names]
+    elif meta.get("format") != FORMAT:
+        raise ValueError(f"{path}: format {meta.get('format')!r}, expected {FORMAT!r} (or the older {FORMAT_1!r})")
+    model = StepMRF(meta["features"])
     if names != model.feature_names():
         raise ValueError(f"{path}: its feature names do not match this version's {meta['features']!r} model")
     return model, w, meta
+
+
+def _format_1_name(name: str) -> str:
+    """A weight's name in format 2 from its name in format 1 (`ppt1[...]` -> `primitive_previous_task1[...]`)."""
+    block, bracket, labels = name.partition("[")
+    return FORMAT_1_BLOCKS.get(block, block) + bracket + labels
 
 
 DEFAULT_POLICY = "greedy"  # the policy of a file that records none: every file before policies were recorded

@@ -49,5 +49,5 @@ class ModelStore:
         path = self.path(key)
         return StepScorer.load(path) if path.exists() else None
 
-    def save(self, key: str, planner: StepScorer, meta: dict[str, Any]) -> None:
-        planner.save(self.path(key), **meta)
+    def save(self, key: str, scorer: StepScorer, meta: dict[str, Any]) -> None:
+        scorer.save(self.path(key), **meta)

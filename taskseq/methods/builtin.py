@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..evaluate.methods import ChanceMethod, MRFMethod, MulticlassMethod, SymbolicMethod
+from ..evaluate.methods import ChanceMethod, MulticlassMethod, ScorerMethod, SymbolicMethod
 from .spec import Build, MethodSpec, register
 
 # the paper's rows of Table I; every other method is an addition beside them. Its baselines come first.
@@ -45,7 +45,7 @@ register(MethodSpec("chained", "ours + relations + chained starts",
                     lambda b: b.mrf("relations", chained_starts=True)))
 
 
-def _dagger(b: Build) -> MRFMethod:
+def _dagger(b: Build) -> ScorerMethod:
     return b.mrf("relations", dagger_rounds=b.settings.dagger_rounds)
 
 

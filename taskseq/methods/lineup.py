@@ -11,7 +11,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from functools import partial
 
-from ..evaluate.methods import Method, MRFMethod
+from ..evaluate.methods import Method, ScorerMethod
 from ..selection import Selection
 from ..settings import Crossval, Learner, Methods, Pddl, parse_section
 from .spec import Build, MethodSpec, specs
@@ -65,17 +65,17 @@ class Lineup:
             raise ValueError(f"unknown methods {unknown}; known: {', '.join(every)}")
         return {name: self.factory(name) for name in (every if names is None else names)}
 
-    def mrf(self, names: Sequence[str] | None = None) -> dict[str, Callable[[], MRFMethod]]:
+    def mrf(self, names: Sequence[str] | None = None) -> dict[str, Callable[[], ScorerMethod]]:
         """The MRF methods (those the `fold_models` stage trains), or those of `names`, which must all be."""
         makes = self.factories(names)
         if names is None:
-            return {n: m for n, m in makes.items() if specs()[n].C_from is not None and isinstance(m(), MRFMethod)}
-        wrong = [n for n, m in makes.items() if not isinstance(m(), MRFMethod)]
+            return {n: m for n, m in makes.items() if specs()[n].C_from is not None and isinstance(m(), ScorerMethod)}
+        wrong = [n for n, m in makes.items() if not isinstance(m(), ScorerMethod)]
         if wrong:
             raise ValueError(f"{', '.join(wrong)}: not MRF methods (only those have fold models)")
         return makes
 
-    def running(self, experiment: str) -> dict[str, Callable[[], MRFMethod]]:
+    def running(self, experiment: str) -> dict[str, Callable[[], ScorerMethod]]:
         """The MRF methods `experiment` runs, in params.yaml's order."""
         return self.mrf(self.names(experiment))
 

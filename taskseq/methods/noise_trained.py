@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from taskseq.evaluate.methods import MRFMethod
+from taskseq.evaluate.methods import ScorerMethod
 from taskseq.methods.spec import Build, MethodSpec, register
 
 
@@ -36,7 +36,7 @@ class NoiseTraining:
             raise ValueError(f"noise_copies must be at least 0, got {self.noise_copies}")
 
 
-def make(b: Build) -> MRFMethod:
+def make(b: Build) -> ScorerMethod:
     return b.mrf("relations", noise_rate=b.settings.noise_rate, noise_copies=b.settings.noise_copies)
 
 

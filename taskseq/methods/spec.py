@@ -12,7 +12,7 @@ from collections.abc import Callable
 from dataclasses import MISSING, dataclass, fields, is_dataclass
 from typing import Any
 
-from ..evaluate.methods import Method, MRFMethod
+from ..evaluate.methods import Method, ScorerMethod
 from ..plan.planner import POLICIES
 from ..settings import Crossval, Learner
 
@@ -37,11 +37,11 @@ class Build:
     store: str | None  # folder of fold models (`fold_models` stage); an MRF method loads its models from it
     settings: Any  # its own settings: an instance of the spec's `settings` class, as params.yaml sets them
 
-    def mrf(self, features: str, **options: Any) -> MRFMethod:
-        """The paper's model with these features, and `options` (`MRFMethod`'s fields) as the method has them."""
+    def mrf(self, features: str, **options: Any) -> ScorerMethod:
+        """The paper's model with these features, and `options` (`ScorerMethod`'s fields) as the method has them."""
         if self.C is None:
             raise ValueError(f"method {self.name}: an MRF method needs a C (its spec's C_from is None)")
-        return MRFMethod(features=features, C=self.C, tol=self.learner.tol, max_iter=self.learner.max_iter,
+        return ScorerMethod(features=features, C=self.C, tol=self.learner.tol, max_iter=self.learner.max_iter,
                          n_slacks=self.learner.n_slacks, name=self.name, store=self.store, policy=self.policy,
                          **options)
 

@@ -32,7 +32,7 @@ from ..report.tables import to_latex, to_markdown
 from ..runtime.atomic import write_json_atomic, write_text_atomic
 from ..settings import Params, World
 from ..track.mlflow_runs import NO_RUN, Tracker
-from .paths import AggregatePaths
+from .options import AggregateOptions
 
 RATES = ("sequence_arg", "sequence_prim", "success")
 
@@ -41,9 +41,9 @@ def settings(params: Params, world_seed: int | None = None) -> World:
     return params.world
 
 
-def run(settings: World, paths: AggregatePaths, tracker: Tracker = NO_RUN) -> dict[str, Any]:
-    world, out = settings, paths.output
-    dirs = world_dirs(paths.worlds, world.seeds)
+def run(settings: World, options: AggregateOptions, tracker: Tracker = NO_RUN) -> dict[str, Any]:
+    world, out = settings, options.output
+    dirs = world_dirs(options.worlds, world.seeds)
     per_seed, table = table1_over_seeds(dirs)
     write_text_atomic(out / "table1_seeds.csv", csv_text(["world_seed", "method", "column", "prim", "arg"], per_seed,
                                                          {"prim": 2, "arg": 2}))

@@ -1,6 +1,6 @@
-"""A stage as a command: its options built from its `Paths`, its settings from `params.yaml`, one run.
+"""A stage as a command: its options built from its `Options` class, its settings from `params.yaml`, one run.
 
-Every stage takes the same few options besides its paths: `--params` (the
+Every stage takes the same few options besides its own: `--params` (the
 settings file), `--set section.key=value` (one setting overridden, as
 `dvc exp run -S` writes it), `--world-seed` for stages on one world's data,
 and `--n-jobs` for stages that run work in parallel. So the command DVC runs
@@ -29,11 +29,11 @@ def positive(value: str) -> int:
 
 
 def add_parser(sub: Any, name: str) -> None:
-    """The stage's subcommand: an option per field of its paths, then the options every stage shares."""
+    """The stage's subcommand: an option per field of its `Options` class, then the options every stage shares."""
     stage = STAGES[name]
     p = sub.add_parser(name, help=stage.help, description=f"{stage.help}. Settings are read from params.yaml "
                        "(the keys this stage's `params` list in dvc.yaml names); --set overrides one.")
-    for f in fields(stage.paths):
+    for f in fields(stage.options):
         if f.metadata["kind"] is bool:  # a switch, off unless given
             p.add_argument("--" + f.name.replace("_", "-"), dest=f.name, action="store_true", help=f.metadata["help"])
             continue
@@ -66,24 +66,24 @@ def load_params(args: argparse.Namespace) -> Params:
 
 
 def prepare(args: argparse.Namespace) -> tuple[Any, Any, Any, dict[str, Any]]:
-    """The stage's module, settings and paths from the parsed options, and what its run records."""
+    """The stage's module, settings and options from the parsed command line, and what its run records."""
     stage = STAGES[args.command]
     module = importlib.import_module(f"{__package__}.{args.command}")
-    paths = stage.paths(**{f.name: getattr(args, f.name) for f in fields(stage.paths)})
+    options = stage.options(**{f.name: getattr(args, f.name) for f in fields(stage.options)})
     params = load_params(args)
     world_seed = getattr(args, "world_seed", None)
     settings = module.settings(params, world_seed)
-    record = {**params.flat(), **{f"cli.{f.name}": getattr(paths, f.name) for f in fields(paths)}}
+    record = {**params.flat(), **{f"cli.{f.name}": getattr(options, f.name) for f in fields(options)}}
     if world_seed is not None:
         record["cli.world_seed"] = world_seed
-    return module, settings, paths, record
+    return module, settings, options, record
 
 
-def execute(args: argparse.Namespace, module: Any, settings: Any, paths: Any, tracker: Any) -> int:
+def execute(args: argparse.Namespace, module: Any, settings: Any, options: Any, tracker: Any) -> int:
     """Run the stage; its exit code (0: every output written)."""
     if STAGES[args.command].parallel:
-        module.run(settings, paths, tracker, args.n_jobs or default_jobs())
+        module.run(settings, options, tracker, args.n_jobs or default_jobs())
     else:
-        module.run(settings, paths, tracker)
+        module.run(settings, options, tracker)
     return 0
 

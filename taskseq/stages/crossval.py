@@ -27,7 +27,7 @@ from ..selection import read_selection
 from ..settings import Crossval, Learner, Methods, Params
 from ..track.mlflow_runs import NO_RUN, Tracker
 from ..track.recordings import record_program, spread
-from .paths import CrossvalPaths
+from .options import CrossvalOptions
 
 
 @dataclass(frozen=True)
@@ -42,20 +42,20 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
     return Settings(params.crossval, params.train.learner, params.pddl.horizon, params.methods)
 
 
-def run(settings: Settings, paths: CrossvalPaths, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> dict[str, Any]:
-    crossval, methods, output = settings.crossval, paths.methods, paths.output
-    lineup = Lineup(settings.methods, read_selection(paths.selection), settings.learner, crossval, settings.horizon,
-                    paths.store)
+def run(settings: Settings, options: CrossvalOptions, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> dict[str, Any]:
+    crossval, methods, output = settings.crossval, options.methods, options.output
+    lineup = Lineup(settings.methods, read_selection(options.selection), settings.learner, crossval, settings.horizon,
+                    options.store)
     every = lineup.names()
     unknown = set(methods or []) - set(every)
     if unknown:
         raise ValueError(f"unknown methods {sorted(unknown)}; known: {', '.join(every)}")
     factories = lineup.factories([name for name in every if methods is None or name in methods])
-    contexts, meta = read_features(paths.features)
-    bench = load_benchmark(paths.processed)
+    contexts, meta = read_features(options.features)
+    bench = load_benchmark(options.processed)
     print(f"cross-validating {', '.join(factories)} over {crossval.folds} folds grouped by {crossval.group_by} "
           f"({len(bench.scenarios)} scenarios, {len(contexts)} steps, {n_jobs} jobs)")
-    recorded = spread(list(bench.scenarios), paths.recordings)
+    recorded = spread(list(bench.scenarios), options.recordings)
     results = cross_validate(factories, contexts, meta, bench, n_folds=crossval.folds, seed=crossval.seed,
                              group_by=crossval.group_by, max_steps=crossval.max_steps, n_jobs=n_jobs, verbose=5,
                              keep_programs={"full": recorded})
@@ -89,7 +89,7 @@ def run(settings: Settings, paths: CrossvalPaths, tracker: Tracker = NO_RUN, n_j
                       "full model, teacher-forced, cross-validated")
     for r in results:
         for sid, program in r.programs.items():
-            path = Path(paths.recordings_dir or out / "recordings") / f"{file_stem(sid)}.rrd"
+            path = Path(options.recordings_dir or out / "recordings") / f"{file_stem(sid)}.rrd"
             record_program(path, sid, program, bench.scenarios[sid].demonstrations[0])
             tracker.artifact(path, "recordings")
     for f in ("table1.csv", "table1.md", "table1.tex", "metrics.json", "confusion.png"):

@@ -7,15 +7,15 @@ from ..features.context import candidate_index
 from ..features.dataset import build_steps, write_features
 from ..settings import Params
 from ..track.mlflow_runs import NO_RUN, Tracker
-from .paths import FeaturesPaths
+from .options import FeaturesOptions
 
 
 def settings(params: Params, world_seed: int | None = None) -> None:
     """The features read no setting: every candidate of every step is built."""
 
 
-def run(settings: None, paths: FeaturesPaths, tracker: Tracker = NO_RUN) -> int:
-    input_dir, output = paths.input, paths.output
+def run(settings: None, options: FeaturesOptions, tracker: Tracker = NO_RUN) -> int:
+    input_dir, output = options.input, options.output
     records = records_from_tables(read_tables(input_dir))
     contexts, meta = build_steps(records)
     write_features(contexts, meta, output)

@@ -22,7 +22,7 @@ from ..runtime.atomic import write_text_atomic
 from ..selection import read_selection
 from ..settings import Feedback, Methods, Params, Replay
 from ..track.mlflow_runs import NO_RUN, Tracker
-from .paths import EvaluationPaths
+from .options import EvaluationOptions
 
 DECIMALS = dict.fromkeys(("sequence_arg", "sequence_prim", "success"), RATE_DECIMALS)
 
@@ -38,13 +38,14 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
     return Settings(params.feedback, Replay.of(params), params.methods)
 
 
-def run(settings: Settings, paths: EvaluationPaths, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> list[dict[str, Any]]:
+def run(settings: Settings, options: EvaluationOptions, tracker: Tracker = NO_RUN,
+        n_jobs: int = 1) -> list[dict[str, Any]]:
     feedback = settings.feedback
     replay = settings.replay
-    lineup = Lineup(settings.methods, read_selection(paths.selection), replay.learner, store=paths.store)
+    lineup = Lineup(settings.methods, read_selection(options.selection), replay.learner, store=options.store)
     methods = lineup.running("feedback")
-    contexts, meta = read_features(paths.features)
-    bench = load_benchmark(paths.processed)
+    contexts, meta = read_features(options.features)
+    bench = load_benchmark(options.processed)
     ns = feedback_steps(feedback, replay.max_steps)
     conditions = [FeedbackCondition(k, n) for k in feedback.k for n in ns]
     label = dict(zip(ns, feedback.n, strict=True))  # steps -> as the settings write them ("all")
@@ -54,7 +55,7 @@ def run(settings: Settings, paths: EvaluationPaths, tracker: Tracker = NO_RUN, n
     for name, results in outcomes.items():
         rows += [{"method": name, **r} for r in feedback_rows(feedback, replay.max_steps, results)]
         sequences += [{"method": name, "k": c.k, "n": label[c.n], **outcome_row(o)} for c, o in results]
-    out = paths.output
+    out = options.output
     text = csv_text(["method", "k", "n", "sequence_arg", "sequence_prim", "success"], rows, DECIMALS)
     write_text_atomic(out / "feedback.csv", text)
     write_text_atomic(out / "feedback_sequences.csv", csv_text(["method", "k", "n", *OUTCOME_COLUMNS], sequences))

@@ -19,7 +19,7 @@ from ..runtime.atomic import write_json_atomic
 from ..selection import read_selection
 from ..settings import Folds, Learner, Methods, Params
 from ..track.mlflow_runs import NO_RUN, Tracker
-from .paths import FoldModelsPaths
+from .options import FoldModelsOptions
 
 
 @dataclass(frozen=True)
@@ -34,13 +34,13 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
     return Settings(params.crossval.fold_settings, params.train.learner, params.methods)
 
 
-def run(settings: Settings, paths: FoldModelsPaths, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> dict[str, Any]:
-    folds, output = settings.folds, paths.output
-    lineup = Lineup(settings.methods, read_selection(paths.selection), settings.learner)
+def run(settings: Settings, options: FoldModelsOptions, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> dict[str, Any]:
+    folds, output = settings.folds, options.output
+    lineup = Lineup(settings.methods, read_selection(options.selection), settings.learner)
     methods = lineup.mrf()  # a method without its C stops here, before minutes of work
     recipe_methods = lineup.names("recipes") if settings.recipes else []
-    contexts, meta = read_features(paths.features)
-    bench = load_benchmark(paths.processed)
+    contexts, meta = read_features(options.features)
+    bench = load_benchmark(options.processed)
     jobs = training_jobs(methods, meta, bench.scenarios, folds.folds, folds.seed, folds.group_by, recipe_methods)
     recipes = ", recipes" if recipe_methods else ""
     print(f"training {len(jobs)} fold models ({folds.folds} folds grouped by {folds.group_by}{recipes}) "
@@ -50,8 +50,8 @@ def run(settings: Settings, paths: FoldModelsPaths, tracker: Tracker = NO_RUN, n
     wall = time.perf_counter() - start
     out = {"models": len(records), "iterations": sum(r["iterations"] for r in records),
            "all_converged": all(r["converged"] for r in records)}
-    if paths.metrics:  # what the fits computed, the same bytes on every run; their times go to MLflow only
-        write_json_atomic(paths.metrics, {**out, "per_model": [
+    if options.metrics:  # what the fits computed, the same bytes on every run; their times go to MLflow only
+        write_json_atomic(options.metrics, {**out, "per_model": [
             {k: r[k] for k in ("features", "uses", "steps", "fitted_steps", "iterations", "converged",
                                "primal_objective", "dual_objective")} for r in records]})
     times = {"wall_seconds": wall, "fit_seconds": sum(r["seconds"] for r in records)}

@@ -6,7 +6,7 @@ from ..demonstrations.generate import generate
 from ..runtime.atomic import write_json_atomic
 from ..settings import Generate, Params
 from ..track.mlflow_runs import NO_RUN, Tracker
-from .paths import GeneratePaths
+from .options import GenerateOptions
 
 
 def settings(params: Params, world_seed: int | None = None) -> Generate:
@@ -16,13 +16,13 @@ def settings(params: Params, world_seed: int | None = None) -> Generate:
     return Generate(world_seed, params.world.family, params.procedural)
 
 
-def run(settings: Generate, paths: GeneratePaths, tracker: Tracker = NO_RUN) -> dict[str, int]:
-    output = paths.output
+def run(settings: Generate, options: GenerateOptions, tracker: Tracker = NO_RUN) -> dict[str, int]:
+    output = options.output
     counts, report = generate(settings, output)
     tracker.metrics({"demonstrations": sum(counts.values()), "files": len(counts),
                      "redraws": sum(report.redraws.values())})
-    if paths.metrics is not None:
-        write_json_atomic(paths.metrics, {"family": settings.family, "seed": settings.seed, **report.as_dict(),
+    if options.metrics is not None:
+        write_json_atomic(options.metrics, {"family": settings.family, "seed": settings.seed, **report.as_dict(),
                                           "demonstrations": sum(counts.values())})
     redrawn = f" ({sum(report.redraws.values())} rooms redrawn)" if report.redraws else ""
     print(f"wrote {sum(counts.values())} demonstrations in {len(counts)} files to {output}{redrawn}")

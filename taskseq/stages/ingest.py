@@ -10,22 +10,22 @@ from ..demonstrations.validate import LogError
 from ..runtime.atomic import write_json_atomic
 from ..settings import Params
 from ..track.mlflow_runs import NO_RUN, Tracker, flatten
-from .paths import IngestPaths
+from .options import IngestOptions
 
 
 def settings(params: Params, world_seed: int | None = None) -> None:
     """Ingesting reads no setting: the logs are taken as they are."""
 
 
-def run(settings: None, paths: IngestPaths, tracker: Tracker = NO_RUN) -> dict[str, Any]:
+def run(settings: None, options: IngestOptions, tracker: Tracker = NO_RUN) -> dict[str, Any]:
     """Raises `LogError` (file, record, field) or `FileNotFoundError` before anything is written.
 
     A folder of people's demonstrations (`--people`, or records `taskseq serve` wrote and none of the scripted
     demonstrator's, `demonstrations.ingest.people_folder`): a file with a problem is named on stderr and left
     out, and the others are ingested; it raises only when no file is usable. The benchmark's logs fail at their
     first problem."""
-    input_dir, output, metrics = paths.input, paths.output, paths.metrics
-    people = paths.people
+    input_dir, output, metrics = options.input, options.output, options.metrics
+    people = options.people
     if not people and people_folder(input_dir):
         people = True
         print(f"{input_dir}: records written by taskseq serve; ingested as a folder of people's demonstrations "

@@ -23,7 +23,7 @@ from ..runtime.atomic import write_text_atomic
 from ..selection import read_selection
 from ..settings import Methods, Noise, Params, Replay
 from ..track.mlflow_runs import NO_RUN, Tracker
-from .paths import EvaluationPaths
+from .options import EvaluationOptions
 
 RATE = {"rate": 1, **dict.fromkeys(("sequence_arg", "sequence_arg_std", "sequence_prim", "success"), RATE_DECIMALS)}
 
@@ -39,13 +39,14 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
     return Settings(params.noise, Replay.of(params), params.methods)
 
 
-def run(settings: Settings, paths: EvaluationPaths, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> list[dict[str, Any]]:
+def run(settings: Settings, options: EvaluationOptions, tracker: Tracker = NO_RUN,
+        n_jobs: int = 1) -> list[dict[str, Any]]:
     noise = settings.noise
     replay = settings.replay
-    lineup = Lineup(settings.methods, read_selection(paths.selection), replay.learner, store=paths.store)
+    lineup = Lineup(settings.methods, read_selection(options.selection), replay.learner, store=options.store)
     methods = lineup.running("noise")
-    contexts, meta = read_features(paths.features)
-    bench = load_benchmark(paths.processed)
+    contexts, meta = read_features(options.features)
+    bench = load_benchmark(options.processed)
     conditions = [NoiseCondition(r, s) for r in noise.rates for s in range(noise.draws)]
     runs, curve, sequences = [], [], []
     outcomes = evaluate_conditions(methods, contexts, meta, bench.scenarios, conditions, replay.folds,
@@ -55,7 +56,7 @@ def run(settings: Settings, paths: EvaluationPaths, tracker: Tracker = NO_RUN, n
         runs += [{"method": name, **r} for r in mine]
         curve += [{"method": name, **r} for r in noise_curve(noise, mine)]
         sequences += [{"method": name, "rate": c.rate, "draw": c.draw, **outcome_row(o)} for c, o in results]
-    out = paths.output
+    out = options.output
     write_text_atomic(out / "noise_runs.csv", csv_text(["method", "rate", "seed", "sequence_arg", "sequence_prim",
                                                         "success"], runs, RATE))
     write_text_atomic(out / "noise_sequences.csv", csv_text(["method", "rate", "draw", *OUTCOME_COLUMNS],

@@ -8,15 +8,15 @@ from ..demonstrations.benchmark import load_benchmark
 from ..plan.symbolic.files import write_pddl
 from ..settings import Params, Pddl
 from ..track.mlflow_runs import NO_RUN, Tracker
-from .paths import PddlPaths
+from .options import PddlOptions
 
 
 def settings(params: Params, world_seed: int | None = None) -> Pddl:
     return Pddl(params.pddl.horizon)
 
 
-def run(settings: Pddl, paths: PddlPaths, tracker: Tracker = NO_RUN) -> dict[str, int]:
-    processed, output = paths.processed, paths.output
+def run(settings: Pddl, options: PddlOptions, tracker: Tracker = NO_RUN) -> dict[str, int]:
+    processed, output = options.processed, options.output
     counts = write_pddl(load_benchmark(processed).scenarios, output, horizon=settings.horizon)
     tracker.metrics(counts)
     tracker.artifact(Path(output) / "domain.pddl")

@@ -21,7 +21,7 @@ from ..selection import read_selection
 from ..settings import Learner, Params, People
 from ..sim.scenarios import doable_tasks
 from ..track.mlflow_runs import NO_RUN, Tracker
-from .paths import PeoplePaths
+from .options import PeopleOptions
 
 
 @dataclass(frozen=True)
@@ -37,13 +37,13 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
                     params.crossval.max_steps)
 
 
-def run(settings: Settings, paths: PeoplePaths, tracker: Tracker = NO_RUN) -> dict[str, Any]:
-    learner, max_steps, output = settings.learner, settings.max_steps, paths.output
+def run(settings: Settings, options: PeopleOptions, tracker: Tracker = NO_RUN) -> dict[str, Any]:
+    learner, max_steps, output = settings.learner, settings.max_steps, options.output
     records, summary = people_records(settings.people.logs)
     result: dict[str, Any] = {"environments": [], "success_before": None, "success_after": None}
     if records:
-        base, _ = read_features(paths.features)
-        C = read_selection(paths.selection).of("full")
+        base, _ = read_features(options.features)
+        C = read_selection(options.selection).of("full")
         before = fit(base, C, learner)
         after = fit(base + build_steps(records)[0], C, learner)
         rows, outcomes = [], {"before": [], "after": []}

@@ -22,7 +22,7 @@ from ..runtime.atomic import write_json_atomic, write_text_atomic
 from ..selection import read_selection
 from ..settings import Learner, Methods, Params, Recipes
 from ..track.mlflow_runs import NO_RUN, Tracker
-from .paths import EvaluationPaths
+from .options import EvaluationOptions
 
 
 @dataclass(frozen=True)
@@ -37,11 +37,11 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
     return Settings(params.recipes, params.crossval.max_steps, params.train.learner, params.methods)
 
 
-def run(settings: Settings, paths: EvaluationPaths, tracker: Tracker = NO_RUN) -> dict[str, Any]:
-    lineup = Lineup(settings.methods, read_selection(paths.selection), settings.learner, store=paths.store)
+def run(settings: Settings, options: EvaluationOptions, tracker: Tracker = NO_RUN) -> dict[str, Any]:
+    lineup = Lineup(settings.methods, read_selection(options.selection), settings.learner, store=options.store)
     methods = lineup.running("recipes")
-    contexts, meta = read_features(paths.features)
-    scenarios = load_benchmark(paths.processed).scenarios
+    contexts, meta = read_features(options.features)
+    scenarios = load_benchmark(options.processed).scenarios
     reports, programs = {}, []
     for method in methods:
         outcomes = evaluate_recipes(methods[method], contexts, meta, scenarios, max_steps=settings.max_steps,
@@ -65,7 +65,7 @@ def run(settings: Settings, paths: EvaluationPaths, tracker: Tracker = NO_RUN) -
                   + " -> ".join(f"{t} [{st}]" for t, st, _ in o.programs))
         print(f"success: {totals['no_feedback']}/{len(RECIPES)} without feedback, "
               f"{totals['feedback_first_step']}/{len(RECIPES)} with one feedback at the start of each program")
-    write_json_atomic(paths.output / "recipes.json", {"methods": reports})
-    write_text_atomic(paths.output / "recipes_programs.csv", csv_text(["method", *PROGRAM_COLUMNS], programs))
-    tracker.artifact(paths.output / "recipes.json")
+    write_json_atomic(options.output / "recipes.json", {"methods": reports})
+    write_text_atomic(options.output / "recipes_programs.csv", csv_text(["method", *PROGRAM_COLUMNS], programs))
+    tracker.artifact(options.output / "recipes.json")
     return reports

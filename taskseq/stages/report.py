@@ -11,16 +11,16 @@ from ..report.summary import build_summary
 from ..runtime.atomic import write_text_atomic
 from ..settings import Params
 from ..track.mlflow_runs import NO_RUN, Tracker
-from .paths import ReportPaths
+from .options import ReportOptions
 
 
 def settings(params: Params, world_seed: int | None = None) -> None:
     """The summary reads no setting: it reports what the other stages wrote."""
 
 
-def run(settings: None, paths: ReportPaths, tracker: Tracker = NO_RUN) -> str:
-    output, plots_template = paths.output, paths.plots_template
-    text = build_summary(paths.reports, method_labels())
+def run(settings: None, options: ReportOptions, tracker: Tracker = NO_RUN) -> str:
+    output, plots_template = options.output, options.plots_template
+    text = build_summary(options.reports, method_labels())
     write_text_atomic(output, text + "\n")
     tracker.artifact(output)
     print(f"wrote {output}")

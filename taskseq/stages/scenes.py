@@ -28,15 +28,15 @@ from ..selection import read_selection
 from ..settings import Crossval, Folds, Generate, Learner, Methods, Params, Replay, World
 from ..track.mlflow_runs import NO_RUN, Tracker
 from . import aggregate, crossval, features, feedback, fold_models, generate, ingest, noise
-from .paths import (
-    AggregatePaths,
-    CrossvalPaths,
-    EvaluationPaths,
-    FeaturesPaths,
-    FoldModelsPaths,
-    GeneratePaths,
-    IngestPaths,
-    ScenesPaths,
+from .options import (
+    AggregateOptions,
+    CrossvalOptions,
+    EvaluationOptions,
+    FeaturesOptions,
+    FoldModelsOptions,
+    GenerateOptions,
+    IngestOptions,
+    ScenesOptions,
 )
 
 TRANSFER = ("sequence_arg", "sequence_prim", "success", "goal_reached")
@@ -77,18 +77,19 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
     )
 
 
-def run(settings: Settings, paths: ScenesPaths, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> dict[str, Any]:
-    _transferred(settings, paths)  # a wrong entry or a missing C stops here, before minutes of work
-    data, out = Path(paths.data), Path(paths.output)
+def run(settings: Settings, options: ScenesOptions, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> dict[str, Any]:
+    _transferred(settings, options)  # a wrong entry or a missing C stops here, before minutes of work
+    data, out = Path(options.data), Path(options.output)
     for seed in settings.seeds:
         with tracker.child(f"world={seed}", {"world_seed": seed}) as child:
             print(f"world seed {seed}: the paper-shaped rooms, each held out in turn")
-            _held_out_rooms(settings, paths, Path(paths.paper) / str(seed), data / "paper" / str(seed), child, n_jobs)
+            _held_out_rooms(settings, options, Path(options.paper) / str(seed), data / "paper" / str(seed), child,
+                            n_jobs)
             print(f"world seed {seed}: {settings.world.procedural.environments} drawn rooms")
-            _drawn_world(settings, paths, seed, data / "drawn" / str(seed), child, n_jobs)
+            _drawn_world(settings, options, seed, data / "drawn" / str(seed), child, n_jobs)
     world = World(seeds=settings.seeds)
-    aggregate.run(world, AggregatePaths(worlds=data / "paper", output=out / "paper"), tracker)
-    aggregate.run(replace(world, family="procedural"), AggregatePaths(worlds=data / "drawn", output=out / "drawn"),
+    aggregate.run(world, AggregateOptions(worlds=data / "paper", output=out / "paper"), tracker)
+    aggregate.run(replace(world, family="procedural"), AggregateOptions(worlds=data / "drawn", output=out / "drawn"),
                   tracker)
     dirs = world_dirs(data / "drawn", settings.seeds)
     draws = json_over_seeds(dirs, "world.json")
@@ -108,34 +109,34 @@ def run(settings: Settings, paths: ScenesPaths, tracker: Tracker = NO_RUN, n_job
     return {"transfer": over_seeds}
 
 
-def _held_out_rooms(settings: Settings, paths: ScenesPaths, world: Path, here: Path, tracker: Tracker,
-                    n_jobs: int) -> EvaluationPaths:
+def _held_out_rooms(settings: Settings, options: ScenesOptions, world: Path, here: Path, tracker: Tracker,
+                    n_jobs: int) -> EvaluationOptions:
     """Fold models and Table I of one world's data (`world`: its features and tables), whole rooms held out, into
     `here`; the paths under which further evaluations of that world find its data and fold models."""
-    data = {"features": world / "features", "processed": world / "processed", "selection": paths.selection}
-    fold_models.run(settings.fold_models, FoldModelsPaths(**data, output=here / "folds"), tracker, n_jobs)
-    evaluation = EvaluationPaths(**data, model_store=here / "folds", output=here)
-    crossval.run(settings.crossval, CrossvalPaths(**vars(evaluation), recordings=0), tracker, n_jobs)
+    data = {"features": world / "features", "processed": world / "processed", "selection": options.selection}
+    fold_models.run(settings.fold_models, FoldModelsOptions(**data, output=here / "folds"), tracker, n_jobs)
+    evaluation = EvaluationOptions(**data, model_store=here / "folds", output=here)
+    crossval.run(settings.crossval, CrossvalOptions(**vars(evaluation), recordings=0), tracker, n_jobs)
     return evaluation
 
 
-def _drawn_world(settings: Settings, paths: ScenesPaths, seed: int, here: Path, tracker: Tracker,
+def _drawn_world(settings: Settings, options: ScenesOptions, seed: int, here: Path, tracker: Tracker,
                  n_jobs: int) -> None:
     """The per-world stages on the drawn world `seed`, into `here`, then the transfer from the paper-shaped one
     (when the reported worlds are paper-shaped)."""
     raw, processed, feats = here / "raw", here / "processed", here / "features"
-    generate.run(replace(settings.world, seed=seed), GeneratePaths(output=raw, metrics=here / "world.json"), tracker)
-    ingest.run(None, IngestPaths(input=raw, output=processed, metrics=here / "dataset.json"), tracker)
-    features.run(None, FeaturesPaths(input=processed, output=feats), tracker)
-    evaluation = _held_out_rooms(settings, paths, here, here, tracker, n_jobs)
+    generate.run(replace(settings.world, seed=seed), GenerateOptions(output=raw, metrics=here / "world.json"), tracker)
+    ingest.run(None, IngestOptions(input=raw, output=processed, metrics=here / "dataset.json"), tracker)
+    features.run(None, FeaturesOptions(input=processed, output=feats), tracker)
+    evaluation = _held_out_rooms(settings, options, here, here, tracker, n_jobs)
     noise.run(settings.noise, evaluation, tracker, n_jobs)
     feedback.run(settings.feedback, evaluation, tracker, n_jobs)
     if not settings.paper_shaped:
         return
-    paper = Path(paths.paper) / str(seed)
+    paper = Path(options.paper) / str(seed)
     train = (*read_features(paper / "features"), load_benchmark(paper / "processed"))
     test = (*read_features(feats), load_benchmark(processed))
-    methods = _transferred(settings, paths)
+    methods = _transferred(settings, options)
     print(f"training {', '.join(methods)} on the paper-shaped world {seed} ({len(train[0])} steps) and running them "
           f"on the drawn one ({len(test[2].scenarios)} scenarios)")
     results, contexts = transfer(methods, train, test, settings.crossval.crossval.max_steps, n_jobs)
@@ -146,9 +147,9 @@ def _drawn_world(settings: Settings, paths: ScenesPaths, seed: int, here: Path, 
     tracker.metrics({f"transfer.{r['method']}.{k}": r[k] for r in rows for k in TRANSFER})
 
 
-def _transferred(settings: Settings, paths: ScenesPaths) -> dict[str, Any]:
+def _transferred(settings: Settings, options: ScenesOptions) -> dict[str, Any]:
     """The MRF methods the transfer experiment runs, by name, as factories of unfitted methods."""
-    return Lineup(settings.methods, read_selection(paths.selection), settings.learner).running("transfer")
+    return Lineup(settings.methods, read_selection(options.selection), settings.learner).running("transfer")
 
 
 def transfer_markdown(rows: list[dict[str, Any]], n_seeds: int) -> str:

@@ -23,7 +23,7 @@ from ..methods import PAPER_MODEL, Lineup
 from ..runtime.atomic import write_json_atomic
 from ..settings import Folds, Generate, Learner, Methods, Params, Procedural, Select, World
 from ..track.mlflow_runs import NO_RUN, Tracker
-from .paths import SelectPaths
+from .options import SelectOptions
 
 
 @dataclass(frozen=True)
@@ -43,7 +43,7 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
                     c.max_steps, params.methods)
 
 
-def run(settings: Settings, paths: SelectPaths, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> dict[str, Any]:
+def run(settings: Settings, options: SelectOptions, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> dict[str, Any]:
     world, select, folds = settings.world, settings.select, settings.folds
     if world.dev_seed in world.seeds:
         raise ValueError(f"params.yaml: world.dev_seed {world.dev_seed} is also a reported seed; settings must "
@@ -54,7 +54,7 @@ def run(settings: Settings, paths: SelectPaths, tracker: Tracker = NO_RUN, n_job
         raise ValueError(f"params.yaml: methods.{PAPER_MODEL}.experiments must include select: its C is also the "
                          "paper's ablations' (only_edge, only_clique) and the teach and people stages'")
     lineup.mrf(names)
-    data, output = paths.data, paths.output
+    data, output = options.data, options.output
     rooms = replace(settings.procedural, environments=select.environments)  # the development world's own size
     generate(Generate(world.dev_seed, world.family, rooms), data / "raw")
     tables, records = load_logs(data / "raw")

@@ -27,7 +27,7 @@ from ..report.stats_tables import (
 from ..runtime.atomic import write_text_atomic
 from ..settings import Params, Stats, World
 from ..track.mlflow_runs import NO_RUN, Tracker
-from .paths import StatsPaths
+from .options import StatsOptions
 
 
 @dataclass(frozen=True)
@@ -40,10 +40,10 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
     return Settings(params.world, params.stats)
 
 
-def run(settings: Settings, paths: StatsPaths, tracker: Tracker = NO_RUN) -> dict[str, str]:
-    stats, out = settings.stats, paths.output
+def run(settings: Settings, options: StatsOptions, tracker: Tracker = NO_RUN) -> dict[str, str]:
+    stats, out = settings.stats, options.output
     worlds = [world_outcomes(read_csv_rows(d / "crossval_sequences.csv"), read_csv_rows(d / "crossval_steps.csv"),
-                             f"{d}") for d in world_dirs(paths.worlds, settings.world.seeds).values()]
+                             f"{d}") for d in world_dirs(options.worlds, settings.world.seeds).values()]
     labels = method_labels()
     text = bootstrap_text(stats.resamples, stats.seed, stats.confidence, len(worlds))
     intervals = confidence_intervals(worlds, stats.resamples, stats.seed, stats.confidence)

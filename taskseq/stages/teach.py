@@ -33,7 +33,7 @@ from ..settings import Learner, Params, Teach, World
 from ..sim.scenarios import doable_tasks
 from ..sim.tasks import TASKS
 from ..track.mlflow_runs import NO_RUN, Tracker
-from .paths import TeachPaths
+from .options import TeachOptions
 
 SCRIPTED = "scripted"  # the participant id of the scripted person's records
 
@@ -63,10 +63,10 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
                     params.crossval.max_steps)
 
 
-def run(settings: Settings, paths: TeachPaths, tracker: Tracker = NO_RUN) -> list[dict[str, Any]]:
+def run(settings: Settings, options: TeachOptions, tracker: Tracker = NO_RUN) -> list[dict[str, Any]]:
     world, teach, learner, max_steps = settings.world, settings.teach, settings.learner, settings.max_steps
-    worlds, output = paths.worlds, paths.output
-    C = read_selection(paths.selection).of("full")
+    worlds, output = options.worlds, options.output
+    C = read_selection(options.selection).of("full")
     unknown = sorted(set(teach.environments) - {f"env{i:02d}" for i in range(1, 14)})
     if unknown:
         raise ValueError(f"teach.environments: unknown environments {unknown}")

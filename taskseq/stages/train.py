@@ -26,7 +26,7 @@ from ..runtime.atomic import write_json_atomic, write_text_atomic
 from ..selection import read_selection
 from ..settings import Methods, Params, Train
 from ..track.mlflow_runs import NO_RUN, Tracker
-from .paths import TrainPaths
+from .options import TrainOptions
 
 
 @dataclass(frozen=True)
@@ -43,27 +43,27 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
                     logs if use else None, params.methods)
 
 
-def shipped_method(settings: Train, paths: TrainPaths) -> tuple[str, str]:
+def shipped_method(settings: Train, options: TrainOptions) -> tuple[str, str]:
     """The method to train and why: named in the settings, or the one the development world ranked first."""
     if settings.method != "best":
         return settings.method, "train.method"
-    if paths.selection is None:
+    if options.selection is None:
         raise ValueError("train.method is 'best', the method the development world ranks first: give the file "
                          "`taskseq select` wrote with --selection, or name a method with --set train.method=NAME")
-    method = read_selection(paths.selection).method
+    method = read_selection(options.selection).method
     if method is None:
-        raise ValueError(f"{paths.selection}: no field 'method' (the method ranked first); the file predates the "
+        raise ValueError(f"{options.selection}: no field 'method' (the method ranked first); the file predates the "
                          "ranking of methods: run `taskseq select` again, or name the method with "
                          "--set train.method=NAME")
-    return method, f"ranked first on the development world ({paths.selection})"
+    return method, f"ranked first on the development world ({options.selection})"
 
 
-def run(settings: Settings, paths: TrainPaths, tracker: Tracker = NO_RUN) -> dict[str, Any]:
+def run(settings: Settings, options: TrainOptions, tracker: Tracker = NO_RUN) -> dict[str, Any]:
     """With `people.train`, people's demonstrations (`taskseq serve`) are added to the training steps."""
     train = settings.train
-    features, model, metrics, curve = paths.features, paths.model, paths.metrics, paths.curve
-    name, chosen_by = shipped_method(train, paths)
-    method = Lineup(settings.methods, read_selection(paths.selection), train.learner).mrf([name])[name]()
+    features, model, metrics, curve = options.features, options.model, options.metrics, options.curve
+    name, chosen_by = shipped_method(train, options)
+    method = Lineup(settings.methods, read_selection(options.selection), train.learner).mrf([name])[name]()
     contexts, meta = read_features(features)
     people = people_records(settings.people_logs)[0] if settings.people_logs is not None else []
     if people:
@@ -71,10 +71,10 @@ def run(settings: Settings, paths: TrainPaths, tracker: Tracker = NO_RUN) -> dic
         contexts, meta = contexts + extra, meta + extra_meta
     scenarios = None
     if method.chained_starts or method.dagger_rounds:
-        if paths.processed is None:
+        if options.processed is None:
             raise ValueError(f"method {name} adds chained starts or DAgger rounds to the logs: it needs the "
                              "training scenarios, from the Parquet tables (--processed)")
-        scenarios = {**load_benchmark(paths.processed).scenarios, **Benchmark.from_records(people).scenarios}
+        scenarios = {**load_benchmark(options.processed).scenarios, **Benchmark.from_records(people).scenarios}
     planner = method.fit(contexts, meta, scenarios).planner_
     label = method_labels().get(name, name)
     planner.save(model, n_steps=len(contexts), method=name, label=label, chosen_by=chosen_by,

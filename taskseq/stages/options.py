@@ -1,6 +1,8 @@
-"""What each stage reads and writes, as given on its command line (`dvc.yaml` passes these and nothing else).
+"""Each stage's command-line options (`dvc.yaml` passes these and nothing else): what it reads and writes, and
+the few choices of one run that are not settings of `params.yaml` (the methods to run, the recordings to make,
+whether a folder holds people's demonstrations).
 
-One frozen dataclass per stage; `taskseq` turns each field into an option
+One frozen dataclass per stage, `<Stage>Options`; `taskseq` turns each field into an option
 (`model_store` into `--model-store`), with the field's help and default. A
 field without a default is a required option. Fields marked `input` are
 hashed into the stage's MLflow run (`data.hash`), so two runs can be told
@@ -35,20 +37,20 @@ def _store() -> Any:
 
 
 @dataclass(frozen=True, kw_only=True)
-class SelectPaths:
+class SelectOptions:
     data: Path = option("folder for the development world's logs, tables and features (replaced)")
     output: Path = option("the choice (JSON)")
 
 
 @dataclass(frozen=True, kw_only=True)
-class GeneratePaths:
+class GenerateOptions:
     output: Path = option("folder of *.jsonl logs (replaced)")
     metrics: Path | None = option("what drawing the world cost: rooms, redraws by reason (JSON; default: not "
                                   "written)", None)
 
 
 @dataclass(frozen=True, kw_only=True)
-class IngestPaths:
+class IngestOptions:
     input: Path = option("folder of *.jsonl logs", WORLD / "raw", input=True)
     output: Path = option("folder of Parquet tables (replaced)")
     metrics: Path | None = option("dataset counts as JSON (default: not written)", None)
@@ -58,13 +60,13 @@ class IngestPaths:
 
 
 @dataclass(frozen=True, kw_only=True)
-class FeaturesPaths:
+class FeaturesOptions:
     input: Path = option("folder of Parquet tables", WORLD / "processed", input=True)
     output: Path = option("feature folder (replaced)")
 
 
 @dataclass(frozen=True, kw_only=True)
-class TrainPaths:
+class TrainOptions:
     features: Path = option("feature folder", WORLD / "features", input=True)
     processed: Path | None = option("folder of Parquet tables: the training scenarios, which methods with chained "
                                     "starts or DAgger need (default: not read)", None, input=True)
@@ -77,13 +79,13 @@ class TrainPaths:
 
 
 @dataclass(frozen=True, kw_only=True)
-class PddlPaths:
+class PddlOptions:
     processed: Path = option("folder of Parquet tables", WORLD / "processed", input=True)
     output: Path = option("folder to write (replaced)")
 
 
 @dataclass(frozen=True, kw_only=True)
-class WorldPaths:
+class WorldOptions:
     """The data of one world, and the choice of C: what every evaluation stage reads."""
 
     features: Path = option("feature folder", WORLD / "features", input=True)
@@ -92,24 +94,24 @@ class WorldPaths:
 
 
 @dataclass(frozen=True, kw_only=True)
-class FoldModelsPaths(WorldPaths):
+class FoldModelsOptions(WorldOptions):
     output: Path = option("model store folder to write (replaced)")
     metrics: Path | None = option("training times and objectives (JSON; default: not written)", None)
 
 
 @dataclass(frozen=True, kw_only=True)
-class EvaluationPaths(WorldPaths):
+class EvaluationOptions(WorldOptions):
     model_store: Path | None = _store()
     output: Path = option("folder for the results")
 
     @property
     def store(self) -> str | None:
-        """The model store as the methods take it (`MRFMethod.store`), or None to train."""
+        """The model store as the methods take it (`ScorerMethod.store`), or None to train."""
         return None if self.model_store is None else str(self.model_store)
 
 
 @dataclass(frozen=True, kw_only=True)
-class CrossvalPaths(EvaluationPaths):
+class CrossvalOptions(EvaluationOptions):
     methods: tuple[str, ...] | None = option("run only these methods (default: every method of Table I)", None,
                                              kind=str, nargs="+")
     recordings: int = option("Rerun recordings of the full model's programs, spread over the scenarios; changes no "
@@ -118,7 +120,7 @@ class CrossvalPaths(EvaluationPaths):
 
 
 @dataclass(frozen=True, kw_only=True)
-class ScenesPaths:
+class ScenesOptions:
     selection: Path | None = _selection()
     paper: Path = option("folder of the paper-shaped worlds' data, one subfolder per seed with its features and "
                          "processed tables (the transfer's training data)", Path("data/worlds"), input=True)
@@ -128,7 +130,7 @@ class ScenesPaths:
 
 
 @dataclass(frozen=True, kw_only=True)
-class PeoplePaths:
+class PeopleOptions:
     features: Path = option("the steps the planner is trained on before people's demonstrations", WORLD / "features",
                             input=True)
     selection: Path | None = _selection()
@@ -136,7 +138,7 @@ class PeoplePaths:
 
 
 @dataclass(frozen=True, kw_only=True)
-class TeachPaths:
+class TeachOptions:
     worlds: Path = option("folder of the worlds' data, one subfolder per seed with its processed tables",
                           Path("data/worlds"), input=True)
     selection: Path | None = _selection()
@@ -144,27 +146,27 @@ class TeachPaths:
 
 
 @dataclass(frozen=True, kw_only=True)
-class AggregatePaths:
+class AggregateOptions:
     worlds: Path = option("folder of the per-world results, one subfolder per seed", Path("reports/worlds"),
                           input=True)
     output: Path = option("folder for the tables over seeds")
 
 
 @dataclass(frozen=True, kw_only=True)
-class StatsPaths:
+class StatsOptions:
     worlds: Path = option("folder of the per-world results, one subfolder per seed (their crossval_sequences.csv "
                           "and crossval_steps.csv)", Path("reports/worlds"), input=True)
     output: Path = option("folder for the intervals and comparisons")
 
 
 @dataclass(frozen=True, kw_only=True)
-class ReportPaths:
+class ReportOptions:
     reports: Path = option("folder of the stages' results", Path("reports"), input=True)
     output: Path = option("Markdown file to write")
     plots_template: Path | None = option("also write the offline page template of `dvc plots show` here "
                                          "(default: not written)", None)
 
 
-def inputs(paths: Any) -> list[Path]:
+def inputs(options: Any) -> list[Path]:
     """The inputs the stage was given, for the hash of what it read."""
-    return [getattr(paths, f.name) for f in fields(paths) if f.metadata["input"] and getattr(paths, f.name)]
+    return [getattr(options, f.name) for f in fields(options) if f.metadata["input"] and getattr(options, f.name)]
