@@ -27,7 +27,7 @@ from taskseq.veil.evaluate import (
 from taskseq.veil.experiment import Settings, run_experiment
 from taskseq.veil.features import Vocabulary
 from taskseq.veil.grounding import Step
-from taskseq.veil.methods import MRFMethod
+from taskseq.veil.methods import DomainScorer
 from taskseq.veil.release import read_release
 from taskseq.veil.replay import replay_release
 
@@ -105,7 +105,7 @@ def test_a_learned_mrf_reaches_the_goal_in_kitchens_it_never_saw_and_feasible_ne
     release, reps = replays
     train, test = split(reps, frozenset({4}))
     objectives = sorted({r.point.objective for r in reps})
-    method = MRFMethod("mrf", Vocabulary.of(release.catalog, objectives, categories=True), C=10.0).fit(train)
+    method = DomainScorer("mrf", Vocabulary.of(release.catalog, objectives, categories=True), C=10.0).fit(train)
     goals = derive_goals(train)
     executor = Executor(release)
     for r in test:

@@ -149,13 +149,13 @@ def test_the_lookahead_keeps_the_models_order_where_imagination_sees_no_differen
 def test_the_lookahead_row_shares_its_base_rows_fit_and_C_and_the_planner_row_prints_no_next_step(
         release_dir: Path, monkeypatch) -> None:  # noqa: F811
     fits: list[str] = []
-    real = experiment.MRFMethod.fit
+    real = experiment.DomainScorer.fit
 
     def spy(self, train):
         fits.append(self.name)
         return real(self, train)
 
-    monkeypatch.setattr(experiment.MRFMethod, "fit", spy)
+    monkeypatch.setattr(experiment.DomainScorer, "fit", spy)
     goals_from: list[set[int]] = []
     real_goals = GoalLookahead.with_goals
 
@@ -238,13 +238,13 @@ def test_rows_that_make_the_same_fits_share_them(release_dir: Path, monkeypatch)
     """Rows of one feature set and row content differ only in how they choose C or run the model: each fold fits
     each C once on its inner split and each chosen C once on its training environments, for all three rows."""
     fits: list[tuple[float, int]] = []
-    real = experiment.MRFMethod.fit
+    real = experiment.DomainScorer.fit
 
     def spy(self, train):
         fits.append((self.C, len(train)))
         return real(self, train)
 
-    monkeypatch.setattr(experiment.MRFMethod, "fit", spy)
+    monkeypatch.setattr(experiment.DomainScorer, "fit", spy)
     rows = ("mrf_categories", "mrf_categories_goal", "mrf_categories_lookahead")
     assert experiment.fit_groups(("chance", *rows)) == [("chance",), rows]
     report = run_experiment(release_dir, Settings(folds=2, C_grid=(1.0, 10.0), max_steps=8, resamples=50,

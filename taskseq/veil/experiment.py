@@ -37,7 +37,7 @@ from .evaluate import (
 )
 from .features import Vocabulary
 from .lookahead import LOOKAHEAD, GoalLookahead, planner
-from .methods import MRFMethod, VeilMethod
+from .methods import DomainScorer, VeilMethod
 from .metrics import bootstrap_by_group, paired_sign_flip
 from .persist import TrainedModel
 from .recordings import record_run
@@ -128,7 +128,8 @@ def make_method(name: str, release: Release, objectives: Sequence[str], settings
     if "base" in row:
         raise ValueError(f"{name} runs another row's fitted model: `fold_job` builds it around that model")
     vocabulary = Vocabulary.of(release.catalog, objectives, row["categories"])
-    return MRFMethod(name, vocabulary, row["features"], C=C if C is not None else settings.C_grid[0], tol=settings.tol)
+    return DomainScorer(name, vocabulary, row["features"], C=C if C is not None else settings.C_grid[0],
+                        tol=settings.tol)
 
 
 def both_accuracy(method: VeilMethod, test: Sequence[Replay]) -> float:
@@ -171,7 +172,7 @@ class Fits:
     def add(self, name: str, C: float, replays: Sequence[Replay], weights: np.ndarray) -> None:
         """The weights of a fit made elsewhere (another process) of row `name` at C on `replays`."""
         method = make_method(name, self.release, self.objectives, self.settings, C)
-        assert isinstance(method, MRFMethod)
+        assert isinstance(method, DomainScorer)
         method.w_ = weights
         self._fits[self._key(name, C, replays)] = method
 
@@ -464,7 +465,7 @@ def inner_fit(name: str, C: float, data: tuple[Release, list[Replay]], held_out:
     fit_on, check_on = split(replays, held_out)
     objectives = sorted({r.point.objective for r in replays})
     method = make_method(name, release, objectives, settings, C).fit(fit_on)
-    assert isinstance(method, MRFMethod)
+    assert isinstance(method, DomainScorer)
     return both_accuracy(method, check_on), method.w_
 
 
@@ -501,7 +502,7 @@ def train_model(release_root: Path | str, settings: Settings, n_jobs: int = 1) -
     name, C, fits = choose_model(release, replays, settings, n_jobs)
     objectives = sorted({r.point.objective for r in replays})
     method = make_method(name, release, objectives, settings, C)
-    assert isinstance(method, MRFMethod)
+    assert isinstance(method, DomainScorer)
     width = choose_width(name, C, release, objectives, replays, settings, fits)
     return TrainedModel(method.fit(replays), derive_goals(replays), sorted({r.point.env_id for r in replays}), width)
 

@@ -43,7 +43,7 @@ class GoalLookahead:
     """`methods.VeilMethod`: an MRF's ranking reordered by imagined progress toward the goal."""
 
     name: str
-    base: VeilMethod  # an `MRFMethod`
+    base: VeilMethod  # an `DomainScorer`
     executor: Executor
     width: int = LOOKAHEAD_WIDTH
     depth: int = LOOKAHEAD_DEPTH

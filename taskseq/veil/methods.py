@@ -48,7 +48,7 @@ def training_steps(replays: Sequence[Replay]) -> Iterator[tuple[State, list[Step
 
 
 @dataclass
-class MRFMethod:
+class DomainScorer:
     """The unrolled MRF's weights from the structural SVM (`DomainMRF`, `CuttingPlaneSSVM`).
 
     The vocabulary fixes what an object's row holds (`features.Vocabulary`; with categories or, as the paper's
@@ -74,7 +74,7 @@ class MRFMethod:
             Y.append(label_of(s, state))
         return X, Y
 
-    def fit(self, train: Sequence[Replay]) -> MRFMethod:
+    def fit(self, train: Sequence[Replay]) -> DomainScorer:
         X, Y = self.inputs(train)
         learner = CuttingPlaneSSVM(self.model_, C=self.C, tol=self.tol, max_iter=self.max_iter, n_slacks=0)
         self.w_ = learner.fit(X, Y).w_

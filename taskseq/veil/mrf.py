@@ -19,6 +19,12 @@ r(a1, a2) the relations between the two arguments. The `crossed` feature set
 adds tpae_s[g, v] . x_as: which attributes an argument has, for this verb, for
 this objective (the objectives of a release ask for particular things).
 
+The formula uses the paper's short names; in code the families have long ones, as the paper
+world's (`taskseq.learn.mrf.ALIASES`): pt is `primitive_task`, ppt `primitive_previous_task`,
+aet `argument_environment_task`, pae `primitive_argument_environment`, paae
+`primitive_argument_previous_argument`, pair `primitive_argument_pair` and tpae
+`task_primitive_argument_environment`.
+
 A candidate is a labelling (verb, a1, a2) with -1 for an empty slot; verbs
 have a fixed arity (0, 1 or 2) and two arguments are always different
 objects. The loss is Hamming over the three parts, as the paper world's.
@@ -42,8 +48,9 @@ from ..learn.products import matmul
 
 Label = tuple[int, int, int]
 HISTORY = ("a1_prev1", "a2_prev1", "a1_prev2", "a2_prev2")
-PAPER_FAMILIES = ("pt", "ppt", "aet", "pae", "paae", "pair")
-FEATURE_SETS = {"full": PAPER_FAMILIES, "crossed": PAPER_FAMILIES + ("tpae",)}
+PAPER_FAMILIES = ("primitive_task", "primitive_previous_task", "argument_environment_task",
+                  "primitive_argument_environment", "primitive_argument_previous_argument", "primitive_argument_pair")
+FEATURE_SETS = {"full": PAPER_FAMILIES, "crossed": PAPER_FAMILIES + ("task_primitive_argument_environment",)}
 
 
 @dataclass(frozen=True)
@@ -161,10 +168,18 @@ class DomainMRF:
         self.features = features
         self.families = FEATURE_SETS[features]
         V, T, K = self.n_verbs, n_tasks, n_row
-        shapes = {"pt": [("pt", (T, V))], "ppt": [("ppt1", (T, V + 1, V)), ("ppt2", (T, V + 1, V))],
-                  "aet": [("aet1", (T, 2, K)), ("aet2", (T, 2, K))], "pae": [("pae1", (V, K)), ("pae2", (V, K))],
-                  "paae": [("paae1", (V, 4)), ("paae2", (V, 4))], "pair": [("pair", (V, n_pair))],
-                  "tpae": [("tpae1", (T, V, K)), ("tpae2", (T, V, K))]}
+        shapes = {"primitive_task": [("primitive_task", (T, V))],
+                  "primitive_previous_task": [("primitive_previous_task1", (T, V + 1, V)),
+                                              ("primitive_previous_task2", (T, V + 1, V))],
+                  "argument_environment_task": [("argument_environment_task1", (T, 2, K)),
+                                                ("argument_environment_task2", (T, 2, K))],
+                  "primitive_argument_environment": [("primitive_argument_environment1", (V, K)),
+                                                     ("primitive_argument_environment2", (V, K))],
+                  "primitive_argument_previous_argument": [("primitive_argument_previous_argument1", (V, 4)),
+                                                           ("primitive_argument_previous_argument2", (V, 4))],
+                  "primitive_argument_pair": [("primitive_argument_pair", (V, n_pair))],
+                  "task_primitive_argument_environment": [("task_primitive_argument_environment1", (T, V, K)),
+                                                          ("task_primitive_argument_environment2", (T, V, K))]}
         self.blocks = [Block(name, shape) for family in self.families for name, shape in shapes[family]]
         self.offsets: dict[str, int] = {}
         offset = 0
@@ -191,24 +206,24 @@ class DomainMRF:
         S, N, V = b.valid.shape[0], b.valid.shape[1], self.n_verbs
         rows, hist, valid, task, prev, empty = b.rows, b.history, b.valid, b.task, b.prev, b.empty
         P = np.zeros((S, V))
-        if (wt := self._w(w, "pt")) is not None:
+        if (wt := self._w(w, "primitive_task")) is not None:
             P += wt[task]
-        for k, name in enumerate(("ppt1", "ppt2")):
+        for k, name in enumerate(("primitive_previous_task1", "primitive_previous_task2")):
             if (wt := self._w(w, name)) is not None:
                 P += wt[task, prev[:, k]]
         U = []
         for slot in (1, 2):
             table = np.zeros((S, N, V))
-            if (wt := self._w(w, f"pae{slot}")) is not None:
+            if (wt := self._w(w, f"primitive_argument_environment{slot}")) is not None:
                 table += matmul(rows, wt.T)
-            if (wt := self._w(w, f"paae{slot}")) is not None:
+            if (wt := self._w(w, f"primitive_argument_previous_argument{slot}")) is not None:
                 table += matmul(hist, wt.T)
-            if (wt := self._w(w, f"aet{slot}")) is not None:
+            if (wt := self._w(w, f"argument_environment_task{slot}")) is not None:
                 table += matmul(rows, wt[task, empty][:, :, None])
-            if (wt := self._w(w, f"tpae{slot}")) is not None:
+            if (wt := self._w(w, f"task_primitive_argument_environment{slot}")) is not None:
                 table += matmul(rows, wt[task].transpose(0, 2, 1))
             U.append(table.transpose(0, 2, 1))
-        pair = Pairs.of(b, self._w(w, "pair"), V)
+        pair = Pairs.of(b, self._w(w, "primitive_argument_pair"), V)
         return P, U[0], U[1], pair, valid
 
     def _batch(self, X: Sequence[StepInput]) -> Batch:
@@ -329,18 +344,18 @@ class DomainMRF:
                 parts.append((np.repeat(where, cols.shape[1]), (self.offsets[name] + cols).ravel(), values.ravel()))
 
         one = np.ones((S, 1))
-        put("pt", steps, (g * V + v)[:, None], one)
-        put("ppt1", steps, ((g * (V + 1) + b.prev[:, 0]) * V + v)[:, None], one)
-        put("ppt2", steps, ((g * (V + 1) + b.prev[:, 1]) * V + v)[:, None], one)
+        put("primitive_task", steps, (g * V + v)[:, None], one)
+        put("primitive_previous_task1", steps, ((g * (V + 1) + b.prev[:, 0]) * V + v)[:, None], one)
+        put("primitive_previous_task2", steps, ((g * (V + 1) + b.prev[:, 1]) * V + v)[:, None], one)
         cols_k, cols_h = np.arange(K)[None, :], np.arange(4)[None, :]
         for slot in (1, 2):
             a = labels[:, slot]
             on = np.flatnonzero(a >= 0)
             row, hist = b.rows[on, a[on]], b.history[on, a[on]]
-            put(f"aet{slot}", on, (g[on] * 2 + e[on])[:, None] * K + cols_k, row)
-            put(f"pae{slot}", on, v[on, None] * K + cols_k, row)
-            put(f"paae{slot}", on, v[on, None] * 4 + cols_h, hist)
-            put(f"tpae{slot}", on, (g[on] * V + v[on])[:, None] * K + cols_k, row)
+            put(f"argument_environment_task{slot}", on, (g[on] * 2 + e[on])[:, None] * K + cols_k, row)
+            put(f"primitive_argument_environment{slot}", on, v[on, None] * K + cols_k, row)
+            put(f"primitive_argument_previous_argument{slot}", on, v[on, None] * 4 + cols_h, hist)
+            put(f"task_primitive_argument_environment{slot}", on, (g[on] * V + v[on])[:, None] * K + cols_k, row)
         if len(b.pair_step):
             N = b.valid.shape[1]
             keys = (b.pair_step * N + b.pair_index[:, 0]) * N + b.pair_index[:, 1]
@@ -350,7 +365,7 @@ class DomainMRF:
             at = np.searchsorted(keys, wanted, sorter=order).clip(max=len(keys) - 1)
             hit = keys[order[at]] == wanted
             m = order[at[hit]]
-            put("pair", both[hit], v[both[hit], None] * R + np.arange(R)[None, :], b.pair_rows[m])
+            put("primitive_argument_pair", both[hit], v[both[hit], None] * R + np.arange(R)[None, :], b.pair_rows[m])
         if parts:
             r, c, d = (np.concatenate(x) for x in zip(*parts, strict=True))
         else:

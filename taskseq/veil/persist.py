@@ -24,7 +24,7 @@ import numpy as np
 
 from ..runtime.atomic import write_arrays
 from .features import Vocabulary
-from .methods import MRFMethod
+from .methods import DomainScorer
 
 FORMAT = "taskseq.veil-mrf/2"
 Goals = dict[str, frozenset[tuple[str, ...]]]
@@ -34,7 +34,7 @@ Goals = dict[str, frozenset[tuple[str, ...]]]
 class TrainedModel:
     """A model for use: the fitted MRF, the goals it was trained toward, its environments, the lookahead's width."""
 
-    method: MRFMethod
+    method: DomainScorer
     goals: Goals
     trained_on: list[str]
     lookahead_width: int
@@ -69,7 +69,7 @@ def load_mrf(path: Path | str) -> tuple[TrainedModel, dict[str, Any]]:
     v = meta["vocabulary"]
     vocabulary = Vocabulary(tuple(v["affordances"]), tuple(v["states"]), tuple(v["categories"]),
                             tuple(v["objectives"]))
-    method = MRFMethod(meta["name"], vocabulary, meta["features"], C=meta["C"], tol=meta["tol"])
+    method = DomainScorer(meta["name"], vocabulary, meta["features"], C=meta["C"], tol=meta["tol"])
     if w.shape != (method.model_.size_joint_feature,):
         raise ValueError(f"{path}: {w.shape[0]} weights, but its vocabulary makes {method.model_.size_joint_feature}")
     method.w_ = w
