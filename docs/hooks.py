@@ -360,7 +360,9 @@ def veil_results() -> str:
         return ("`reports/veil/tables.md` has not been written yet: put the release at `data/veil500` and run "
                 "`dvc repro veil/dvc.yaml`.\n")
     text = path.read_text()
-    return (text.split("\n", 1)[1].lstrip("\n") if text.startswith("# ") else text) + \
+    figure = ("\n![Next step and goal reached per method](results/veil/results.png)\n"
+              if (REPORTS / "veil" / "results.png").is_file() else "")
+    return (text.split("\n", 1)[1].lstrip("\n") if text.startswith("# ") else text) + figure + \
         "\nWritten by `dvc repro veil/dvc.yaml` (stage `evaluate`: `taskseq veil evaluate`).\n"
 
 

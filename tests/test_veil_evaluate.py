@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from taskseq.cli import main
-from taskseq.veil import evaluate, experiment
+from taskseq.veil import evaluate, experiment, ingest
 from taskseq.veil.evaluate import (
     Executor,
     derive_goals,
@@ -186,7 +186,12 @@ def test_the_command_writes_reports_and_gives_the_same_bytes_twice(release_dir: 
     assert set(first["next_step"]) == {"chance", "most_frequent", "nearest_demonstration", "mrf_categories"}
     assert "mrf_categories/feasible" in first["closed_loop"] and "people" in first["closed_loop"]
     assert "| ours - full + categories |" in (outputs[0] / "tables.md").read_text()
-    for f in ("report.json", "tables.md"):
+    # the import's counts, as `taskseq veil import` makes them, with no name of a state; and the figure
+    counts = ingest.summarize(read_release(release_dir), replay_release(read_release(release_dir)))
+    assert first["noisy_steps"] == ingest.counts_without_names(counts)
+    assert f"| kept | {counts['steps_kept']:,} (" in (outputs[0] / "tables.md").read_text()
+    assert (outputs[0] / "results.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    for f in ("report.json", "tables.md", "results.png"):
         assert (outputs[0] / f).read_bytes() == (outputs[1] / f).read_bytes()
     # the command runs its jobs in parallel (one worker per core); one job at a time gives the same report
     settings = experiment.read_settings(params)

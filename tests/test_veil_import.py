@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from taskseq.cli import main
+from taskseq.veil import ingest
 from taskseq.veil.grounding import Step
 from taskseq.veil.ingest import TABLES, import_release, read_tables
 from taskseq.veil.release import read_release
@@ -155,3 +156,16 @@ def test_a_malformed_release_names_file_line_and_element_and_writes_nothing(tmp_
     assert len(lines) == 1 and lines[0].startswith(f"error: {broken / where}:{line}: {element}:")
     assert [p.name for p in keep.iterdir()] == ["mine.txt"]
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+
+
+def test_the_counts_a_report_holds_name_no_state_of_the_release():
+    """Reasons that name a state (`not state S`, `state S`) are counted together; the others stay as they are."""
+    summary = {"sequences": 4, "sequences_imported": 3, "sequences_by_status": {"complete": 3, "no steps": 1},
+               "steps": 20, "steps_kept": 14, "steps_skipped": 6, "environments": 2, "objects": 9,
+               "steps_by_verb": {"grasp": {"kept": 1, "skipped": 0}}, "categories_not_in_objects_xml": ["Kettle"],
+               "skipped_by_reason": {"not near": 2, "not state LidIsOpen": 2, "state Steeped": 1, "hands full": 1}}
+    counts = ingest.counts_without_names(summary)
+    assert counts["skipped_by_reason"] == {"a state the step needs": 3, "not near": 2, "hands full": 1}
+    assert sum(counts["skipped_by_reason"].values()) == counts["steps_skipped"]
+    text = json.dumps(counts)
+    assert all(name not in text for name in ("LidIsOpen", "Steeped", "Kettle", "grasp"))

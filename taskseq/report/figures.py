@@ -14,7 +14,7 @@ from ..runtime.atomic import atomic_file
 from ..sim.primitives import ALL_PRIMITIVES
 
 
-def _save(fig, path: Path | str) -> None:
+def save_png(fig, path: Path | str) -> None:
     """Write the figure atomically, without the software version (same bytes across Matplotlib patches)."""
     import matplotlib.pyplot as plt
 
@@ -47,7 +47,7 @@ def confusion_png(matrix: np.ndarray, path: str, title: str) -> None:
     ax.set_title(title, fontsize=9)
     fig.colorbar(im, ax=ax, fraction=0.046)
     fig.tight_layout()
-    _save(fig, path)
+    save_png(fig, path)
 
 
 def line_plot_png(series: dict[str, tuple[list[float], list[float], list[float] | None]], path: str, title: str,
@@ -73,7 +73,7 @@ def line_plot_png(series: dict[str, tuple[list[float], list[float], list[float] 
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    _save(fig, path)
+    save_png(fig, path)
 
 
 def scaling_png(steps: list[int], stage_seconds: dict[str, tuple[list[int], list[float]]],
@@ -111,4 +111,4 @@ def scaling_png(steps: list[int], stage_seconds: dict[str, tuple[list[int], list
     right.set_title(f"training time per step (full model, gap {tol:g})", fontsize=9)
     right.grid(alpha=0.3, which="both")
     fig.tight_layout()
-    _save(fig, path)
+    save_png(fig, path)

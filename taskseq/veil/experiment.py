@@ -36,6 +36,9 @@ from .evaluate import (
     states_of,
 )
 from .features import Vocabulary
+from .figures import results_png
+from .ingest import counts_without_names
+from .ingest import summarize as import_summary
 from .lookahead import LOOKAHEAD, GoalLookahead, planner
 from .methods import DomainScorer, VeilMethod
 from .metrics import bootstrap_by_group, paired_sign_flip
@@ -340,7 +343,9 @@ def run_experiment(release_root: Path | str, settings: Settings, n_jobs: int = 1
         own = people_runs(test, goals)
         people.extend(own)
         results[k].closed_loop["people"] = _figures(own)
-    return summarize(results, per_sequence, people, settings)
+    report = summarize(results, per_sequence, people, settings)
+    report["noisy_steps"] = counts_without_names(import_summary(release, replays))
+    return report
 
 
 def summarize(results: Sequence[FoldResult], per_sequence: dict[str, list[Run]], people: Sequence[Run],
@@ -388,12 +393,14 @@ def summarize(results: Sequence[FoldResult], per_sequence: dict[str, list[Run]],
 
 
 def write_reports(report: dict, output: Path | str) -> None:
-    """`report.json` and `tables.md` into `output`, replaced whole. The seconds each method took are left out
-    (the command records them in MLflow): they differ from run to run while everything written is the same bytes."""
+    """`report.json`, `tables.md` and `results.png` (`figures.results_png`) into `output`, replaced whole. The
+    seconds each method took are left out (the command records them in MLflow): they differ from run to run while
+    everything written is the same bytes."""
     figures = {k: v for k, v in report.items() if k != "seconds"}
     with atomic_directory(output) as tmp:
         (tmp / "report.json").write_text(json.dumps(figures, indent=2, sort_keys=True) + "\n")
         (tmp / "tables.md").write_text(tables(figures))
+        results_png(figures, LABELS, tmp / "results.png")
 
 
 def goal_sizes(goals: dict[str, frozenset], replays: Sequence[Replay]) -> list[int]:
@@ -409,6 +416,23 @@ def _pm(figure: dict, scale: float = 100.0) -> str:
 
 def _three(value: float | None) -> str:
     return "-" if value is None else f"{value:.3f}"
+
+
+NOISY_STEPS_TITLE = ("Sequences replayed in the domain (`docs/veil.md`, the rule for people's noisy steps: a step "
+                     "the domain refuses is skipped and counted by its reason, no sequence is dropped):")
+
+
+def noisy_steps_table(counts: dict) -> str:
+    """The import's counts (`ingest.counts_without_names`) as a Markdown table."""
+    status = counts["sequences_by_status"]
+    share = 100 * counts["steps_kept"] / counts["steps"] if counts["steps"] else 0.0
+    rows = [("sequences", f"{counts['sequences']:,}"),
+            ("imported (at least one kept step)", f"{counts['sequences_imported']:,}"),
+            *((f"status: {name}", f"{n:,}") for name, n in status.items()),
+            ("steps", f"{counts['steps']:,}"), ("kept", f"{counts['steps_kept']:,} ({share:.1f} %)"),
+            ("skipped", f"{counts['steps_skipped']:,}"),
+            *((f"skipped: {reason}", f"{n:,}") for reason, n in counts["skipped_by_reason"].items())]
+    return "\n".join(["| | count |", "|---|---:|", *(f"| {name} | {n} |" for name, n in rows)])
 
 
 def tables(report: dict) -> str:
@@ -449,6 +473,8 @@ def tables(report: dict) -> str:
             sizes = fold["goal_facts"]
             lines.append(f"| {fold['fold'] + 1} | {sum(n > 0 for n in sizes)} of {len(sizes)} | "
                          f"{', '.join(map(str, sizes))} |")
+    if "noisy_steps" in report:
+        lines += ["", NOISY_STEPS_TITLE, "", noisy_steps_table(report["noisy_steps"])]
     if report["paired_tests"]:
         lines += ["", "Paired sign-flip tests on goal reached, per held-out sequence:", "",
                   "| best MRF row | against | difference (points) | p |", "|---|---|---:|---:|"]
@@ -534,6 +560,7 @@ def evaluate_model(model: TrainedModel, release_root: Path | str, settings: Sett
     fr.closed_loop["people"] = _figures(own)
     fr.seconds[method.name] = 0.0
     report = summarize([fr], per_sequence, own, settings, methods=(method.name,))
+    report["noisy_steps"] = counts_without_names(import_summary(release, replays))
     report["model"] = {"name": method.name, "C": method.C, "lookahead_width": model.lookahead_width,
                        "evaluated_on": str(release_root)}
     return report

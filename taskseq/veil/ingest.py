@@ -134,6 +134,22 @@ def summarize(release: Release, replays: list[Replay]) -> dict[str, Any]:
     }
 
 
+NAMED_STATE = "a state the step needs"  # `not state S` and `state S` together: S is a name of the release's
+
+
+def counts_without_names(summary: dict[str, Any]) -> dict[str, Any]:
+    """The import's counts as a committed report may hold them: sequences by status and steps by reason, the reasons
+    that name one of the release's states (`not state S`, `state S`) counted together, since the release's own names
+    are never redistributed."""
+    reasons: Counter[str] = Counter()
+    for reason, n in summary["skipped_by_reason"].items():
+        reasons[NAMED_STATE if reason.startswith(("state ", "not state ")) else reason] += n
+    kept = ("sequences", "sequences_imported", "sequences_by_status", "steps", "steps_kept", "steps_skipped",
+            "environments", "objects")
+    return {**{k: summary[k] for k in kept},
+            "skipped_by_reason": dict(sorted(reasons.items(), key=lambda kv: (-kv[1], kv[0])))}
+
+
 def import_release(root: Path | str, output: Path | str,
                    progress: Callable[[Iterable[Any]], Iterable[Any]] | None = None) -> dict[str, Any]:
     """Validate, replay and write `output` (replaced whole, or left as it was when anything fails)."""
