@@ -95,7 +95,7 @@ def results_page(files: list[Path]) -> str:
                                                "scenes/transfer.md", "scenes/drawn/failures.md")))
     parts.append("## People's demonstrations (VEIL-500)\n\nThe methods on sequences people demonstrated, with whole "
                  "environments held out (`reports/veil/tables.md`; [People's demonstrations](../veil.md)).\n\n"
-                 + veil_results())
+                 + veil_results(reports=""))
     for seed in _worlds():
         world = f"worlds/{seed}"
         section = [f"## World seed {seed}", f"Table I of this world alone (`reports/{world}/table1.md`)."]
@@ -353,14 +353,15 @@ def package_layout() -> str:
     return "\n".join(parts)
 
 
-def veil_results() -> str:
-    """The people's-demonstrations tables (`reports/veil/tables.md` without its title), or how to make them."""
+def veil_results(reports: str = f"{SITE}/") -> str:
+    """The people's-demonstrations tables (`reports/veil/tables.md` without its title) and figure, or how to make
+    them; `reports` is where the published report files are from the page (the results page is among them)."""
     path = REPORTS / "veil" / "tables.md"
     if not path.is_file():
         return ("`reports/veil/tables.md` has not been written yet: put the release at `data/veil500` and run "
                 "`dvc repro veil/dvc.yaml`.\n")
     text = path.read_text()
-    figure = ("\n![Next step and goal reached per method](results/veil/results.png)\n"
+    figure = (f"\n![Next step and goal reached per method]({reports}veil/results.png)\n"
               if (REPORTS / "veil" / "results.png").is_file() else "")
     return (text.split("\n", 1)[1].lstrip("\n") if text.startswith("# ") else text) + figure + \
         "\nWritten by `dvc repro veil/dvc.yaml` (stage `evaluate`: `taskseq veil evaluate`).\n"
