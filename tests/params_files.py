@@ -23,5 +23,5 @@ def params_with(path: Path, **experiments: str) -> list[str]:
 
 def selection_at(path: Path, C: float) -> Path:
     """A selection file that gives every method the same C, as `select` would write it had it tried only C."""
-    path.write_text(json.dumps({"C": C, "settings": {name: {"C": C} for name in specs()}}))
+    path.write_text(json.dumps({"settings": {name: {"C": C} for name in specs()}}))
     return path

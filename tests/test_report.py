@@ -8,8 +8,8 @@ from taskseq.report.summary import build_summary
 
 def test_summary_sets_our_numbers_beside_the_papers(tmp_path):
     (tmp_path / "dataset.json").write_text(json.dumps({"0": {"steps": 759}, "3": {"steps": 741}}))
-    (tmp_path / "selection.json").write_text(json.dumps({"C": 3.0, "dev_seed": 100, "criterion": "sequence_arg",
-                                                         "candidates": [{"C": 3.0, "sequence_arg": 61.1}]}))
+    (tmp_path / "selection.json").write_text(json.dumps({"dev_seed": 100, "criterion": "sequence_arg", "settings": {
+        "full": {"C": 3.0, "candidates": [{"C": 3.0, "sequence_arg": 61.1}]}}}))
     (tmp_path / "crossval_means.json").write_text(json.dumps({
         "full": {"average_prim": 96.8, "average_prim_sd": 0.4, "average_arg": 88.4, "average_arg_sd": 1.0,
                  "sequence_prim": 69.9, "sequence_prim_sd": 2.0, "sequence_arg": 56.6, "sequence_arg_sd": 7.5,
@@ -27,7 +27,7 @@ def test_summary_sets_our_numbers_beside_the_papers(tmp_path):
     text = build_summary(tmp_path, method_labels())
     assert "| steps | 736 | 759 | 741 |" in text
     assert "Each MRF method's C, chosen by 6-fold cross-validation on the development world (seed 100" in text
-    assert "(sequence arg per C tried: ours - full C = 3 (3: 61.1))" in text  # a file from before per-method C
+    assert "(sequence arg per C tried: ours - full C = 3 (3: 61.1))" in text
     assert ("| ours - full | 96.8 ± 0.4 | 96.7 | 88.4 ± 1.0 | 90.0 | 69.9 ± 2.0 | 91.6 | 56.6 ± 7.5 | 69.7 | "
             "77.0 ± 3.0 |") in text
     assert "| multiclass | 95.0 ± 0.5 | 78.4 | - | - |" in text
@@ -52,7 +52,7 @@ def test_summary_skips_what_was_not_run(tmp_path):
 def test_summary_gives_each_methods_own_c(tmp_path):
     row = {"sequence_arg": 61.1, "success": 80.0, "average_arg": 86.0}
     (tmp_path / "selection.json").write_text(json.dumps({
-        "C": 10.0, "dev_seed": 100, "criterion": "sequence_arg", "method": "relations",
+        "dev_seed": 100, "criterion": "sequence_arg", "method": "relations",
         "settings": {"full": {"C": 10.0, "candidates": [{"C": 3.0, **row, "sequence_arg": 60.2}, {"C": 10.0, **row}]},
                      "relations": {"C": 3.0, "candidates": [{"C": 3.0, **row, "sequence_arg": 82.3}]}},
         "methods": [{"method": "relations", "C": 3.0, **row, "sequence_arg": 82.3},

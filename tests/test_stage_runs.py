@@ -216,8 +216,8 @@ def test_aggregate_and_report_over_worlds(evaluated, tiny):
     recipes = json.loads((out / "recipes.json").read_text())["methods"]
     assert recipes.keys() == {"full", "chained", "choice_chained_lookahead"}
     assert recipes["full"]["per_seed"].keys() == {"0", "5"}
-    (out / "selection.json").write_text(json.dumps({"C": 2.0, "dev_seed": 100, "criterion": "sequence_arg",
-                                                    "candidates": [{"C": 2.0, "sequence_arg": 50.0}]}))
+    (out / "selection.json").write_text(json.dumps({"dev_seed": 100, "criterion": "sequence_arg", "settings": {
+        "full": {"C": 2.0, "candidates": [{"C": 2.0, "sequence_arg": 50.0}]}}}))
     assert main(["stats", "--set", "world.seeds=[0, 5]", "--set", "stats.resamples=200",
                  "--worlds", str(tiny / "worlds"), "--output", str(out)]) == 0
     intervals = list(csv.DictReader((out / "table1_ci.csv").open()))
@@ -289,7 +289,7 @@ def test_select_sees_only_the_development_world(tiny, monkeypatch, tmp_path, cap
         assert choice["extensions"] == 1 and set(tried) - {0.5, 2.0} <= {0.125, 8.0}  # both edges end where they are
         assert choice["C"] == best_candidate(choice["candidates"])["C"]
         assert choice["capped"] == (choice["C"] in (min(tried), max(tried)))
-    assert result["C"] == result["settings"]["full"]["C"]
+    assert "C" not in result  # each method's C is in `settings`, and nowhere else
     assert [r["method"] for r in result["methods"]] in (["full", "relations"], ["relations", "full"])
     first = result["methods"][0]
     assert result["method"] == first["method"] and first["C"] == result["settings"][first["method"]]["C"]

@@ -49,8 +49,7 @@ def build_summary(reports: Path, labels: dict[str, str]) -> str:
         out.append("")
     sel = _load(reports / "selection.json")
     if sel:
-        # a file from before each method had its own C holds the full model's candidates only
-        chosen = sel.get("settings") or {"full": {"C": sel["C"], "candidates": sel["candidates"]}}
+        chosen = sel["settings"]
         tried = "; ".join(f"{labels.get(m, m)} C = {c['C']:g} (" + ", ".join(
             f"{r['C']:g}: {r['sequence_arg']:.1f}" for r in c["candidates"]) + ")" for m, c in chosen.items())
         out += ["## Settings", "", f"Each MRF method's C, chosen by 6-fold cross-validation on the development "

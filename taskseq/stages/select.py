@@ -81,7 +81,7 @@ def run(settings: Settings, options: SelectOptions, tracker: Tracker = NO_RUN, n
 
         chosen = choose_C(names, select.C, evaluate, select.max_extensions)
     ranking = rank_methods(chosen)
-    result = {"C": chosen["full"]["C"], "criterion": CRITERION, "dev_seed": world.dev_seed,
+    result = {"criterion": CRITERION, "dev_seed": world.dev_seed,
               "grid": list(select.C), "max_extensions": select.max_extensions, "settings": chosen,
               "method": ranking[0]["method"], "methods": ranking,
               # the order is now params.yaml's `methods` section's; the words stay, so the file stays the same bytes
@@ -95,7 +95,7 @@ def run(settings: Settings, options: SelectOptions, tracker: Tracker = NO_RUN, n
                   f"step arg {c['average_arg']:5.1f}")
         capped = " (the cap stopped it at an edge)" if choice["capped"] else ""
         print(f"{name:<10} chose C={choice['C']:g} after {choice['extensions']} extensions{capped}")
-    tracker.metrics({"C": result["C"], "seconds": sum(rounds),
+    tracker.metrics({"seconds": sum(rounds),
                      **{f"C.{name}": choice["C"] for name, choice in chosen.items()}})
     for r in ranking:
         print(f"{r['method']:<10} C={r['C']:<8g} sequence arg {r['sequence_arg']:5.1f}  success "
