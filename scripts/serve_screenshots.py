@@ -7,7 +7,10 @@ only `environments/workshop.json`, laid out from `docs/examples/workshop.yaml` a
 Debian's headless Chromium with Playwright, as `tests/test_serve_browser.py` does, 1200 px wide:
 
 - `serve_demonstrate.png`: the demonstrate page of `stir(broth)` in the workshop, participant `walkthrough`, after
-  `move_close(soup_pot)`, `grasp(soup_pot)`, `move_close(paint_stick)`, the steps docs/teach.md demonstrates;
+  `move_close(soup_pot)`, `grasp(soup_pot)`, `move_close(paint_stick)`, the steps docs/teach.md demonstrates, each
+  chosen by clicking its object in the picture, and with the next step being chosen the same way: the
+  `place_above` row highlighted and the workbench clicked (outlined, in the row's list, the line above the
+  picture saying what to do next);
 - `serve_assist.png`: the assist page at the first step of `pour(oil)` in the workshop, with the planner of
   `--model` (the `train` stage's `models/mrf.npz`, which `dvc repro train` writes).
 
@@ -38,6 +41,16 @@ ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-net
         "--disable-component-update", "--no-first-run", "--hide-scrollbars"]
 VIEWPORT = {"width": 1200, "height": 900}
 DEMONSTRATED = [("move_close", "soup_pot"), ("grasp", "soup_pot"), ("move_close", "paint_stick")]
+CLICKED = ("place_above", "workbench")  # chosen in the picture, not taken
+
+
+def click_object(page, primitive: str, obj: str) -> None:
+    """Fill the row of `primitive` as a person does: click the row, then the object's shape in the top view."""
+    page.click(f"tr:has(#step-{primitive}) td.primitive")
+    page.locator(f"#scene g[data-object='{obj}'] > rect").click()
+    chosen = page.locator(f"#step-{primitive} select").last.input_value()
+    if chosen != obj:
+        raise RuntimeError(f"clicking {obj} for {primitive} chose {chosen!r}: {page.inner_text('#pick-message')}")
 
 
 def submit(page, button: str) -> None:
@@ -75,10 +88,11 @@ def screenshots(model: Path, output: Path, chromium: Path = CHROMIUM) -> list[Pa
                 page = browser.new_context(viewport=VIEWPORT).new_page()
                 start_task(page, url, "stir", "broth", "demonstrate", participant="walkthrough")
                 for primitive, obj in DEMONSTRATED:
-                    page.select_option(f"#step-{primitive} select[name=a1]", obj)
+                    click_object(page, primitive, obj)
                     submit(page, f"#step-{primitive} button")
                     if page.locator("#message").count():
                         raise RuntimeError(f"{primitive}({obj}) was refused: {page.inner_text('#message')}")
+                click_object(page, *CLICKED)
                 written.append(output / "serve_demonstrate.png")
                 page.screenshot(path=str(written[-1]), full_page=True)
 

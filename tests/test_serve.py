@@ -192,6 +192,25 @@ def test_the_page_states_the_rules_the_simulator_applies(client):
     assert "<code>follow_traj_pour(a1, a2)</code>: held, held above, liquid inside, container</li>" in rules
 
 
+def test_each_object_of_the_picture_is_a_group_a_click_can_name_titled_with_its_name(client):
+    """The hooks of the page's script: one group per drawn object with its id and name, each liquid's name in its
+    container's label a shape of its own, and what each step list offers in words; the script is the server's."""
+    start(client)
+    text = client.get("/demonstrate").get_data(as_text=True)
+    svg = text.split('<svg id="scene"')[1].split("</svg>")[0]
+    groups = re.findall(r'<g class="object" data-object="(\w+)" data-name="(\w+)"><title>([^<]*)</title>', svg)
+    state = world_environment(0, "env01").state
+    liquids = {o for o in state.specs if state.specs[o].has("liquid")}
+    assert sorted(o for o, _, _ in groups) == sorted(set(state.specs) - liquids - {"obj01"})  # no floor
+    assert all(name == state.specs[o].name and title.startswith(name) for o, name, title in groups)
+    assert ("obj20", "water_bottle", "water_bottle (water)") in groups
+    assert sorted(re.findall(r'<tspan class="object" data-object="(\w+)" data-name="\w+" data-liquid>', svg)) == \
+        sorted(liquids)
+    assert '<select name="a1" aria-label="grasp a1" data-offers="movable things, never a liquid">' in text
+    script = client.get("/static/pick.js")
+    assert script.status_code == 200 and script.mimetype.endswith("javascript")
+
+
 def test_the_checks_the_page_lists_are_the_checks_the_simulator_makes():
     """Every check that refuses a step in some states of env01 is among its primitive's listed checks, and every
     listed check refuses some step there: the list is read from the simulator's code, and matches what it does."""
@@ -294,7 +313,8 @@ def test_names_from_an_environment_file_are_shown_as_text_and_no_file_leaves_the
     page = client.get("/task")
     text = page.get_data(as_text=True)
     assert "&lt;script&gt;alert(1)&lt;/script&gt;" in text and "<script>" not in text
-    assert re.findall(r"<script[^>]*>", text) == ['<script src="/leave.js">']  # the server's own, nothing inline
+    assert sorted(re.findall(r"<script[^>]*>", text)) == [  # the server's own, nothing inline
+        '<script src="/leave.js">', '<script src="/static/pick.js" defer>']
     policy = page.headers["Content-Security-Policy"]
     assert "script-src 'self';" in policy and "unsafe-inline" not in policy.split("script-src")[1].split(";")[0]
     client.post("/task", data={"task": "pour", "arg1": "obj27", "arg2": "", "mode": "demonstrate",

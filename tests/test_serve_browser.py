@@ -1,7 +1,8 @@
 """`taskseq serve` in a real browser: Debian's headless Chromium driven by Playwright, as a person clicks.
 
 A person demonstrates a task (refused an infeasible step on the way) and the
-record ingests; another corrects the learned planner in assist mode; two
+record ingests; another chooses a task and steps by clicking objects in the
+picture; another corrects the learned planner in assist mode; two
 browsers at once write two whole records. Screenshots of each page go to
 the test's temporary folder.
 """
@@ -99,8 +100,9 @@ def click_step(page, action: Action) -> None:
 
 
 def offered(page, primitive: str, field: str) -> list[str]:
-    """The names a primitive's form offers for an argument, as the person sees them."""
-    return page.locator(f"#step-{primitive} select[name={field}] option").all_inner_texts()
+    """The names a primitive's form offers for an argument, as the person sees them (not the empty choice the
+    page's script puts first)."""
+    return page.locator(f"#step-{primitive} select[name={field}] option:not([value=''])").all_inner_texts()
 
 
 def demonstrated(task: Task) -> list[Action]:
@@ -289,3 +291,119 @@ def test_leaving_a_task_with_unsaved_steps_asks_first(server, browser, tmp_path)
     submit(page, "#discard-form button")
     assert "throw_away(obj43)" in page.inner_text("#status") and page.locator("#steps li").count() == 0
     assert not (data / "people").exists()
+
+
+def click_object(page, obj: str) -> None:
+    """Click an object in the top view as a person does: its shape, or a liquid's name in its container's label.
+
+    Playwright clicks the middle of what it is given and fails if something else lies on top there."""
+    shape = page.locator(f"#scene [data-object={obj}]")
+    if shape.evaluate("e => e.tagName") == "g":
+        shape = shape.locator("> rect")
+    shape.click()
+
+
+def test_objects_are_chosen_by_clicking_them_in_the_picture(server, browser, tmp_path):
+    """A click fills the highlighted row's next empty list; an object the row does not offer is not taken and the
+    message says why, by name; a second click unselects; the steps clicked are the steps recorded."""
+    url, data = server
+    page = browser.new_page(viewport={"width": 1200, "height": 900})
+    choose(page, url, Task("pour", ("obj27",)), "demonstrate")
+    message = page.locator("#pick-message")
+    move = page.locator("#step-move_close select[name=a1]")
+    assert move.input_value() == "" and page.locator("tr.picking #step-move_close").count() == 1
+    click_object(page, "obj20")
+    assert move.input_value() == "obj20"
+    assert message.inner_text() == "move_close(water_bottle): click \u201cDo it\u201d in its row"
+    assert page.locator("#scene .picked").evaluate_all("es => es.map(e => e.dataset.object)") == ["obj20"]
+    submit(page, "#step-move_close button")
+    assert page.locator("#steps li").all_inner_texts() == ["move_close(obj20) water_bottle"]
+
+    grasp = page.locator("#step-grasp select[name=a1]")
+    page.click("tr:has(#step-grasp) td.primitive")  # the row to fill
+    page.locator("#scene [data-object=obj02] > text").click()  # the kitchen table's name: the table is under items
+    assert message.inner_text() == "kitchen_table is not offered for grasp: it takes movable things, never a liquid"
+    click_object(page, "obj27")  # the water, in its bottle's label
+    assert message.inner_text() == "water is not offered for grasp: it takes movable things, never a liquid"
+    assert grasp.input_value() == "" and page.locator("#scene .picked").count() == 0
+    click_object(page, "obj20")
+    assert grasp.input_value() == "obj20"
+    click_object(page, "obj20")  # again: unselected
+    assert grasp.input_value() == "" and page.locator("#scene .picked").count() == 0
+    assert message.inner_text() == "water_bottle is unselected: grasp(\u2026)"
+    click_object(page, "obj20")
+    submit(page, "#step-grasp button")
+
+    above = page.locator("#step-hold_above select[name=a2]")
+    page.click("tr:has(#step-hold_above) td.primitive")
+    click_object(page, "obj14")
+    assert above.input_value() == "obj14"
+    assert message.inner_text() == "hold_above(water_bottle, cup): click \u201cDo it\u201d in its row"
+    assert page.get_attribute("#scene [data-object=obj14]", "class") == "object picked"
+    assert page.locator("tr.picking #step-hold_above").count() == 1
+    page.locator("#scene [data-object=obj02] > text").click()  # the row has its object: the table is not taken
+    assert above.input_value() == "obj14"
+    assert message.inner_text() == ("hold_above(water_bottle, cup) has its objects; click one of them to unselect it "
+                                    "first")
+    click_object(page, "obj14")
+    click_object(page, "obj14")
+    page.screenshot(path=str(tmp_path / "clicked.png"), full_page=True)
+    page.screenshot(path="/tmp/serve_clicked.png", full_page=True)
+    submit(page, "#step-hold_above button")
+    page.click("tr:has(#step-follow_traj_pour) td.primitive")
+    click_object(page, "obj14")
+    submit(page, "#step-follow_traj_pour button")
+    assert page.locator("#steps li").all_inner_texts()[2:] == [
+        "hold_above(obj20,obj14) water_bottle, cup", "follow_traj_pour(obj20,obj14) water_bottle, cup"]
+    click_step(page, Action("done"))
+    record = json.loads((data / "people" / "w0-env01.jsonl").read_text())
+    assert [(s["primitive"], s["args"]) for s in record["steps"]] == [
+        ("move_close", ["obj20"]), ("grasp", ["obj20"]), ("hold_above", ["obj20", "obj14"]),
+        ("follow_traj_pour", ["obj20", "obj14"])]
+
+
+def test_a_task_and_a_step_of_assist_mode_are_chosen_in_the_picture(server, browser, tmp_path):
+    """The task form: a liquid task takes the liquid (its name in the bottle's label), not the bottle; a
+    one-object task takes no second; the assist page's own rows fill as the demonstrate page's."""
+    url, _ = server
+    page = browser.new_page(viewport={"width": 1200, "height": 900})
+    page.goto(url + "/")
+    page.select_option("#world-form select[name=env_id]", "env01")
+    submit(page, "#world-form button")
+    message = page.locator("#pick-message")
+    first, second = page.locator("#task-form select[name=arg1]"), page.locator("#task-form select[name=arg2]")
+    assert page.locator("#pick-hint").is_visible() and first.input_value() == ""
+    page.select_option("#task-form select[name=task]", "pour")
+    click_object(page, "obj20")
+    assert first.input_value() == ""
+    assert message.inner_text() == "pour takes a liquid, not water_bottle: click water in its label"
+    click_object(page, "obj27")
+    assert first.input_value() == "obj27" and message.inner_text().startswith("pour(water): start it")
+    click_object(page, "obj14")  # pour takes one object
+    assert second.input_value() == "" and message.inner_text().startswith("pour(water) has its objects")
+    page.select_option("#task-form select[name=task]", "pour_to")
+    click_object(page, "obj14")
+    assert (first.input_value(), second.input_value()) == ("obj27", "obj14")
+    assert message.inner_text() == "pour_to(water, cup): start it with a button above the picture"
+    page.screenshot(path=str(tmp_path / "task.png"), full_page=True)
+    submit(page, "#task-form button[value=assist]")
+    assert "pour_to(obj27,obj14)" in page.inner_text("#status") and "obj14 is the cup" in page.inner_text("#status")
+    move = page.locator("#step-move_close select[name=a1]")
+    click_object(page, "obj20")
+    assert move.input_value() == "obj20"
+    submit(page, "#step-move_close button")
+    assert page.locator("#steps li").first.inner_text().startswith("move_close(obj20) water_bottle")
+
+
+def test_without_the_script_the_lists_work_as_before(server, browser):
+    """No empty first choice and no hint: the lists alone choose, and the picture is only a picture."""
+    url, _ = server
+    page = browser.new_context(java_script_enabled=False).new_page()
+    choose(page, url, Task("pour", ("obj27",)), "demonstrate")
+    assert page.locator("#step-move_close select[name=a1]").input_value() != ""
+    assert page.locator("#step-move_close option[value='']").count() == 0
+    assert not page.locator("#pick-hint").is_visible()
+    page.locator("#scene [data-object=obj14] > rect").click()
+    assert page.locator("#scene .picked").count() == 0 and page.inner_text("#pick-message") == ""
+    click_step(page, Action("move_close", ("obj20",)))
+    assert page.locator("#steps li").count() == 1

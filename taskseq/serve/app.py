@@ -35,8 +35,8 @@ from .writer import RecordWriter, WriterClosed, person_record
 
 COOKIE = "taskseq_session"
 MAX_UPLOAD = 2 * 1024 * 1024  # bytes of an uploaded environment file
-# the only script is the server's own /leave.js, never one inline, whatever an environment file holds; forms post
-# only here
+# the only scripts are the server's own (/leave.js, /static/pick.js), never one inline, whatever an environment
+# file holds; forms post only here
 POLICY = ("default-src 'none'; script-src 'self'; style-src 'unsafe-inline'; img-src 'self'; form-action 'self'; "
           "frame-ancestors 'none'")
 # Asks before a page with unsaved steps is left (closed, reloaded, another address): the browser's own

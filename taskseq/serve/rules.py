@@ -102,11 +102,13 @@ def unsafe_reason(state: WorldState, action: Action) -> str | None:
 @dataclass(frozen=True)
 class Choices:
     """What the step form offers for one primitive: the held object where the primitive works on it (or why it
-    cannot be chosen now), and the objects offered for each other argument."""
+    cannot be chosen now), and the objects offered for each other argument, with what they are in words (which the
+    page says when an object clicked in the picture is not among them)."""
 
     held: str | None  # a1, fixed: the primitive works on what the gripper holds
     lists: tuple[tuple[str, ...], ...]  # the objects offered per remaining argument, by id
     unavailable: str | None = None  # why the primitive cannot be chosen now, in words
+    offers: tuple[str, ...] = ()  # per list, what it offers: "movable things, never a liquid"
 
 
 def argument_choices(state: WorldState) -> dict[str, Choices]:
@@ -127,9 +129,11 @@ def argument_choices(state: WorldState) -> dict[str, Choices]:
     floor = {o for o in specs if specs[o].category == "floor"}
     held = state.held
     out = {
-        "move_close": Choices(None, (ordered(o for o in specs if o != held and o not in floor),)),
+        "move_close": Choices(None, (ordered(o for o in specs if o != held and o not in floor),), None,
+                              ("any object but the floor" + ("" if held is None else " and the held one"),)),
         "grasp": Choices(None, (ordered(o for o in specs if specs[o].has("movable") and o not in liquid),),
-                         None if held is None else f"the gripper holds {specs[held].name}; release it first"),
+                         None if held is None else f"the gripper holds {specs[held].name}; release it first",
+                         ("movable things, never a liquid",)),
         "done": Choices(None, ()),
     }
     if held is None:
@@ -138,12 +142,15 @@ def argument_choices(state: WorldState) -> dict[str, Choices]:
         return out
     carried = {held, *state.descendants(held)}
     targets = ordered(o for o in specs if o not in carried and o not in liquid)
+    name = specs[held].name
+    targets_are = f"anything but a liquid, {name} and what rests on or in it"
     out.update({
         "release": Choices(held, ()),
-        "place_above": Choices(held, (targets,)),
-        "hold_above": Choices(held, (targets,)),
+        "place_above": Choices(held, (targets,), None, (targets_are,)),
+        "hold_above": Choices(held, (targets,), None, (targets_are,)),
         "follow_traj_circle": Choices(held, ()),
         "follow_traj_pour": Choices(held, (ordered(o for o in specs if o not in carried
-                                                   and specs[o].has("container")),)),
+                                                   and specs[o].has("container")),), None,
+                                    (f"a container other than {name} and what it carries",)),
     })
     return out

@@ -20,7 +20,8 @@ LABEL_GAP = 13.0  # pixels between the starts of two slanted labels
 
 @dataclass(frozen=True)
 class Shape:
-    """One object's footprint in pixels, with its label."""
+    """One object's footprint in pixels, with its label (its name, the liquids inside and its shelf level: the
+    page draws each liquid's name as a shape of its own, which a click chooses)."""
 
     id: str
     x: float
@@ -31,6 +32,9 @@ class Shape:
     label: str
     full: bool  # holds a liquid
     anchor: float  # x where its slanted label starts
+    name: str = ""
+    liquids: tuple[tuple[str, str], ...] = ()  # (id, name) of each liquid inside
+    level: int | None = None  # shelf level it stands on
 
 
 @dataclass(frozen=True)
@@ -101,8 +105,9 @@ def top_view(state: WorldState) -> TopView:
         while kind in ("vessel", "item") and any(abs(anchor - a) < LABEL_GAP for a in anchors):
             anchor += LABEL_GAP
         anchors.append(anchor)
-        shapes.append(Shape(o, ax, ay, round(w, 1), round(h, 1), kind, label, bool(state.liquids_in(o)),
-                            round(anchor, 1)))
+        liquids = tuple((li, state.specs[li].name) for li in state.liquids_in(o))
+        shapes.append(Shape(o, ax, ay, round(w, 1), round(h, 1), kind, label, bool(liquids), round(anchor, 1),
+                            spec.name, liquids, level))
     rx, ry = px(*state.robot)
     held = None
     if state.held is not None:
