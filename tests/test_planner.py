@@ -138,6 +138,22 @@ def test_a_model_file_of_format_1_loads_under_the_long_family_names(tmp_path):
     short = {long: old for old, long in FORMAT_1_BLOCKS.items()}
     old = [short[n.partition("[")[0]] + "[" + n.partition("[")[2] for n in model.feature_names()]
     assert "ppt1[pour,hold_above->follow_traj_pour]" in old and "ae_pair[collide]" in old and "cue2" in old[-1]
+    # the blocks of the last format-1 file `dvc repro` shipped (models/mrf.npz, the choice model), in its order, with
+    # the name of each block's first weight and its size: the table read backwards must give the same
+    blocks: dict[str, list] = {}
+    for name in old:
+        blocks.setdefault(name.partition("[")[0], [name, 0])[1] += 1
+    assert [(first, n) for first, n in blocks.values()] == [
+        ("ae1[held]", 2), ("ae2[held]", 2), ("ae_pair[collide]", 1), ("pt[stir,move_close]", 40),
+        ("aet_rel1[stir,is_task_arg1]", 20), ("aet_obj1[stir,holding,held]", 200),
+        ("aet_rel2[stir,is_task_arg1]", 20), ("aet_obj2[stir,holding,held]", 200),
+        ("pae1[move_close,held]", 160), ("pae2[move_close,held]", 160),
+        ("ppt1[stir,move_close->move_close]", 360), ("ppt2[stir,move_close->move_close]", 360),
+        ("paae1[move_close,a1_prev1]", 32), ("paae2[move_close,a1_prev1]", 32),
+        ("rel1[stir,move_close,is_object]", 2800), ("rel2[stir,move_close,is_object]", 2800),
+        ("rel_pair[stir,move_close,is_task_arg1,is_task_arg1]", 640),
+        ("cue1[stir,move_close,smallest_empty_ge_1x_object]", 800),
+        ("cue2[stir,move_close,smallest_empty_ge_1x_object]", 800)]
     meta = {"format": FORMAT_1, "features": "choice", "C": 2.0}
     loaded, weights, back = load_model(_write(tmp_path / "old.npz", w, old, meta))
     assert loaded.features == "choice" and back == meta

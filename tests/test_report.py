@@ -2,6 +2,8 @@
 
 import json
 
+import pytest
+
 from taskseq.methods import method_labels
 from taskseq.report.summary import build_summary
 
@@ -78,3 +80,10 @@ def test_the_transfer_column_shows_what_transfer_md_shows(tmp_path):
     line = next(line for line in text.splitlines() if line.startswith("| ours + relations + dagger |"))
     assert line.endswith("| 80.5 ± 4.7 (93.5) | - | 65.3 ± 2.3 (80.1) |")
     assert "| 65.3 ± 2.3 | 74.5 ± 1.4 | 80.1 ± 2.8 |" in transfer_markdown([row], 3)
+
+
+def test_a_selection_file_without_each_methods_c_is_refused_with_its_name(tmp_path):
+    (tmp_path / "selection.json").write_text(json.dumps({"C": 3.0, "dev_seed": 100, "criterion": "sequence_arg",
+                                                         "candidates": [{"C": 3.0, "sequence_arg": 61.1}]}))
+    with pytest.raises(ValueError, match=r"selection\.json: no `settings`.*run `taskseq select` again"):
+        build_summary(tmp_path, method_labels())

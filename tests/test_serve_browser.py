@@ -348,7 +348,6 @@ def test_objects_are_chosen_by_clicking_them_in_the_picture(server, browser, tmp
     click_object(page, "obj14")
     click_object(page, "obj14")
     page.screenshot(path=str(tmp_path / "clicked.png"), full_page=True)
-    page.screenshot(path="/tmp/serve_clicked.png", full_page=True)
     submit(page, "#step-hold_above button")
     page.click("tr:has(#step-follow_traj_pour) td.primitive")
     click_object(page, "obj14")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import pickle
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -82,3 +83,5 @@ def test_rows_of_one_world_share_its_fixed_part_and_never_a_states(release) -> N
             assert kept.shape == made.shape and (kept == made).all()
     grasped = shared.rows(states[0])[0][0, shared.columns.index("grasped")]
     assert (grasped, shared.rows(states[1])[0][0, shared.columns.index("grasped")]) == (1, 0)
+    copy = pickle.loads(pickle.dumps(shared))  # the rows kept per world stay in their process
+    assert copy == shared and copy._worlds == {} and (copy.rows(states[0])[0] == shared.rows(states[0])[0]).all()

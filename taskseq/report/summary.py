@@ -49,6 +49,9 @@ def build_summary(reports: Path, labels: dict[str, str]) -> str:
         out.append("")
     sel = _load(reports / "selection.json")
     if sel:
+        if "settings" not in sel:
+            raise ValueError(f"{reports / 'selection.json'}: no `settings` (each method's C): a file of an older "
+                             "format; run `taskseq select` again")
         chosen = sel["settings"]
         tried = "; ".join(f"{labels.get(m, m)} C = {c['C']:g} (" + ", ".join(
             f"{r['C']:g}: {r['sequence_arg']:.1f}" for r in c["candidates"]) + ")" for m, c in chosen.items())

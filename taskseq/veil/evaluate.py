@@ -129,7 +129,8 @@ class Executor:
     A step's grounding depends on its environment's names only, never on the state, so it is made once per
     (environment, step) and kept: searches and lookaheads try the same steps in many states. Its outcome depends
     on the state's facts too; lookaheads try the same step in the same state again and again (about three times
-    in five), so the last `KEPT_OUTCOMES` outcomes are kept as well (a state holds about ten facts)."""
+    in five), so outcomes are kept as well, up to `KEPT_OUTCOMES` of them, then dropped all at once and kept
+    anew (a state holds about ten facts). A kept outcome is returned in the asking state's world."""
 
     KEPT_OUTCOMES = 200_000
 
@@ -153,7 +154,8 @@ class Executor:
         """The state after `s`, or None when the domain refuses it."""
         key = (state.world.env_id, state.facts, s)
         if key in self._outcomes:
-            return self._outcomes[key]
+            kept = self._outcomes[key]
+            return kept if kept is None or kept.world is state.world else State(state.world, kept.facts)
         g = self.grounded(state.world, s)
         result = None if g is None else step(state, g.action, g.args)
         if len(self._outcomes) >= self.KEPT_OUTCOMES:  # dropped whole: the outcomes are the same either way

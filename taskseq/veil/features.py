@@ -47,6 +47,10 @@ class Vocabulary:
     _worlds: dict[int, tuple[World, np.ndarray, dict]] = field(default_factory=dict, init=False, repr=False,
                                                               compare=False, hash=False)
 
+    def __getstate__(self) -> dict:
+        """Pickled without the rows kept per world: they are keyed by the worlds' ids in this process."""
+        return {k: v for k, v in self.__dict__.items() if k != "_worlds"} | {"_worlds": {}}
+
     @classmethod
     def of(cls, catalog: Catalog, objectives: Sequence[str], categories: bool) -> Vocabulary:
         cats = catalog.categories.values()
@@ -94,7 +98,7 @@ class Vocabulary:
         """What an environment's every state shares: the rows' affordance and category columns, and the pairs
         of the same category. Made once per world (a run asks for thousands of its states)."""
         kept = self._worlds.get(id(world))
-        if kept is not None:
+        if kept is not None and kept[0] is world:
             return kept[1], kept[2]
         index = {n: i for i, n in enumerate(world.objects)}
         rows = np.zeros((len(index), len(self.columns)))

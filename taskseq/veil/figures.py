@@ -45,8 +45,10 @@ def results_png(report: dict, labels: dict[str, str], path: Path | str, policy: 
     left.set_xlabel("next step, verb and arguments right (%)")
     rows = range(len(loop))
     means = [100 * m for _, m, _ in loop]
-    low = [m - 100 * iv["low"] if iv else 0.0 for m, (_, _, iv) in zip(means, loop, strict=True)]
-    high = [100 * iv["high"] - m if iv else 0.0 for m, (_, _, iv) in zip(means, loop, strict=True)]
+    # the interval resamples environments, the bar is the mean over folds: with folds of unequal size the mean may
+    # lie outside the interval, where the whisker on that side is drawn empty
+    low = [max(0.0, m - 100 * iv["low"]) if iv else 0.0 for m, (_, _, iv) in zip(means, loop, strict=True)]
+    high = [max(0.0, 100 * iv["high"] - m) if iv else 0.0 for m, (_, _, iv) in zip(means, loop, strict=True)]
     right.barh(rows, means, xerr=[low, high], color="tab:green", capsize=3)
     right.set_yticks(rows, [_label(n, labels) for n, _, _ in loop], fontsize=7)
     if people is not None:
