@@ -57,7 +57,7 @@ def _plan_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--env", type=Path, required=True,
                    help="environment: a JSON file with 'objects' and 'state', or a .jsonl log; or a VEIL-500 "
                         "environment file (.xml, with a model of `taskseq veil train`; the task is then an objective "
-                        "such as 'Boiling Water', docs/veil.md)")
+                        "the release names, docs/veil.md)")
     p.add_argument("--record", type=int, default=1, help="with a .jsonl log: which record (line) to take, from 1")
     p.add_argument("--task", required=True, help='the task, e.g. "pour(obj27)" or "pick_and_place(obj40,obj04)"')
     p.add_argument("--max-steps", type=int, default=Crossval.max_steps,
