@@ -356,3 +356,31 @@ def test_a_worlds_key_tells_apart_every_field_a_primitive_changes(room):
         other = room.copy()
         change(other)
         assert other.key() != room.key(), field
+
+
+def test_methods_run_one_after_another_on_a_scenario_share_its_worlds_and_change_no_program(rollouts, monkeypatch):
+    """A Table I method's programs read the worlds and contexts earlier methods met on the same scenario object
+    (`evaluate.methods._worlds_met`): each program is the one it makes on its own, whatever ran before it."""
+    from taskseq.evaluate import methods
+    from taskseq.sim.scenarios import Scenario
+
+    starts, planners = rollouts
+    scenarios = [Scenario(f"s{n}", task, state, ()) for n, (state, task) in enumerate(starts)]
+    runners = []
+    for policy in ("greedy", "feasible", "lookahead"):
+        for planner in planners:
+            runner = methods.ScorerMethod(features="relations", policy=policy, name=policy)
+            runner.planner_ = planner
+            runners.append(runner)
+    shared = [[_steps(r.run(sc, 12)) for sc in scenarios] for r in runners]
+    assert all(len(methods._worlds_met(sc)) > 1 for sc in scenarios)  # the worlds met were kept and read back
+    alone = []
+    for r in runners:
+        monkeypatch.setattr(methods, "_WORLDS_MET", {})
+        alone.append([_steps(r.run(sc, 12)) for sc in scenarios])
+    assert shared == alone
+    monkeypatch.setattr(methods, "_KEPT_SCENARIOS", 2)
+    monkeypatch.setattr(methods, "_WORLDS_MET", {})
+    for sc in scenarios[:3]:
+        methods._worlds_met(sc)
+    assert len(methods._WORLDS_MET) <= 2

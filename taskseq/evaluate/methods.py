@@ -20,7 +20,7 @@ from ..features.perception import noisy_copies
 from ..imitation.dagger import fit_imitation
 from ..learn.estimator import StepScorer
 from ..learn.store import ModelStore, training_key
-from ..plan.planner import POLICIES, Program, learned_policy, run_loop
+from ..plan.planner import POLICIES, Memo, Program, learned_policy, run_loop
 from ..plan.symbolic.executor import SymbolicPolicy, first_action
 from ..plan.symbolic.roles import ROLE_OF_TASK, RoleRanker, demonstrated_roles
 from ..settings import Crossval, Pddl
@@ -193,7 +193,26 @@ class ScorerMethod:
 
     def run(self, scenario: Scenario, max_steps: int) -> Program:
         policy = learned_policy(self.policy, self.planner_, scenario.task)
-        return run_loop(policy, scenario.initial, scenario.task, max_steps)
+        return run_loop(policy, scenario.initial, scenario.task, max_steps, memo=Memo(worlds=_worlds_met(scenario)))
+
+
+# The worlds and step contexts the programs of a scenario met, by history, kept per process across methods: the
+# methods of a grid run one after another on the same scenario objects (`runtime.jobs.Shared`), and a world and
+# its context at a history are the same whichever policy reached it (`plan.planner.Memo`), so a later method reads
+# them back instead of stepping the simulator and building the context again (7 of 10 contexts of a world's
+# cross-validation). Each entry keeps its scenario, so no id is reused while it is kept; past `_KEPT_SCENARIOS`
+# (a fold's test scenarios of the largest world measured) all are dropped at once.
+_WORLDS_MET: dict[int, tuple[Scenario, dict]] = {}
+_KEPT_SCENARIOS = 300
+
+
+def _worlds_met(scenario: Scenario) -> dict:
+    kept = _WORLDS_MET.get(id(scenario))
+    if kept is None or kept[0] is not scenario:
+        if len(_WORLDS_MET) >= _KEPT_SCENARIOS:
+            _WORLDS_MET.clear()
+        kept = _WORLDS_MET[id(scenario)] = (scenario, {})
+    return kept[1]
 
 
 def _role_candidates(x: StepContext) -> tuple[np.ndarray, list[str]]:
