@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -69,8 +71,8 @@ def test_best_first_is_the_stable_descending_order_however_far_it_is_read(seed: 
     values = rng.integers(0, 1 + 4 * seed, size=int(rng.integers(1, 900))).astype(float)
     whole = np.argsort(-values, kind="stable").tolist()
     for first in (1, 2, 5, 16, 1000):
-        assert list(best_first(values, first)) == whole
-        read = best_first(values, first)
+        assert np.concatenate(list(best_first(values, first))).tolist() == whole
+        read = itertools.chain.from_iterable(best_first(values, first))
         length = int(rng.integers(0, len(values) + 1))
         assert [next(read) for _ in range(length)] == whole[:length]
 

@@ -84,5 +84,6 @@ class DomainScorer:
         x = self.vocabulary.step_input(state, history, objective)
         values = self.model_.candidate_scores(x, self.w_)
         names = list(state.world.objects)  # once per ranking, not per candidate
-        for index in best_first(values):  # sorted only as far as the caller reads
-            yield step_of(self.model_.labels(np.array([index]), x.n)[0], names)
+        for chunk in best_first(values):  # sorted only as far as the caller reads
+            for label in self.model_.labels(chunk, x.n).tolist():
+                yield step_of(label, names)

@@ -70,18 +70,19 @@ class StepInput:
         return self.rows.shape[0]
 
 
-def best_first(values: np.ndarray, first: int = 16) -> Iterator[int]:
-    """Indices of `values`, largest first, ties in index order: `np.argsort(-values, kind="stable")`, sorted only as
-    far as the caller reads. Most callers read a handful of tens of thousands of candidates, so a prefix is sorted
-    (the values at or above the `first`-th largest, then `first` grown sixteenfold), then the whole."""
+def best_first(values: np.ndarray, first: int = 16) -> Iterator[np.ndarray]:
+    """The indices of `values` largest first, ties in index order (`np.argsort(-values, kind="stable")`), in
+    successive slices, each sorted only when the caller reads on. Most callers read a handful of tens of thousands
+    of candidates, so the first slice is the values at or above the `first`-th largest, the next those down to the
+    sixteenfold `first`-th, and so on, then the rest."""
     neg = -values
     shown = 0
     while first < neg.size:
         cut = np.partition(neg, first - 1)[first - 1]
         prefix = np.flatnonzero(neg <= cut)  # every value at or above the cut: ties at the cut keep index order
-        yield from prefix[np.argsort(neg[prefix], kind="stable")][shown:].tolist()
+        yield prefix[np.argsort(neg[prefix], kind="stable")][shown:]
         shown, first = prefix.size, first * 16
-    yield from np.argsort(neg, kind="stable")[shown:].tolist()
+    yield np.argsort(neg, kind="stable")[shown:]
 
 
 @dataclass(frozen=True)
