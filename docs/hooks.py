@@ -375,9 +375,8 @@ def veil_timing() -> str:
     timing = _json("veil_timing.json")
     if timing is None:
         return _missing("veil_timing.json", f"dvc repro veil/dvc.yaml` then `{VEIL_TIMING_COMMAND}")
-    order = ("import", "evaluate", "train")  # the pipeline's order (the file's keys are sorted by name)
-    stages = [[name, f"{timing['stages'][name]:.0f}"] for name in sorted(timing["stages"], key=(order + tuple(
-        timing["stages"])).index)]
+    order = [n for n in ("import", "evaluate", "train") if n in timing["stages"]]  # the file's keys are sorted
+    stages = [[name, f"{timing['stages'][name]:.0f}"] for name in order]
     methods = sorted(timing["evaluate_methods"].items(), key=lambda kv: -kv[1])
     return (f"`{timing['command']}`, then `{VEIL_TIMING_COMMAND}`, on {_machine(timing)}: "
             f"{timing['total']:.0f} s ({timing['total'] / 60:.1f} min) in the stages' own runs.\n\n"

@@ -12,10 +12,9 @@ parallel, so they add up to more than the stage's wall time. The docs render the
 from __future__ import annotations
 
 import argparse
-import os
-import platform
 from pathlib import Path
 
+from taskseq.bench.machine import machine
 from taskseq.runtime.atomic import write_json_atomic
 
 STAGES = ("veil-import", "veil-evaluate", "veil-train")
@@ -43,8 +42,7 @@ def timing(tracking_uri: str) -> dict:
             methods = {c.info.run_name: c.data.metrics["seconds"] for c in children if "seconds" in c.data.metrics}
     return {"command": "dvc repro veil/dvc.yaml", "stages": stages, "total": sum(stages.values()),
             "evaluate_methods": dict(sorted(methods.items(), key=lambda kv: -kv[1])),
-            "machine": {"python": platform.python_version(), "processor": platform.machine(),
-                        "cpus": len(os.sched_getaffinity(0))}}
+            "machine": machine()}
 
 
 def main() -> int:

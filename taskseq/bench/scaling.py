@@ -21,7 +21,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import platform
 import resource
 import shutil
 import statistics
@@ -33,6 +32,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
+
+from .machine import machine
 
 PREPARE = ("generate", "ingest", "features")  # always run: the timed fit reads the features
 EVALUATE = ("fold_models", "crossval", "noise", "feedback")  # the per-world stages after them, in dvc.yaml's order
@@ -275,10 +276,6 @@ def growth(sizes: list[dict[str, Any]]) -> dict[str, Any]:
     return out
 
 
-def _machine() -> dict[str, Any]:
-    return {"python": platform.python_version(), "processor": platform.machine(), "cpus": os.cpu_count() or 1}
-
-
 def run_scaling(plan: Plan, keep: Path | None = None, say: Callable[[str], None] = print,
                 update: Callable[[dict[str, Any]], None] = lambda result: None) -> dict[str, Any]:
     """Every size of the plan, smallest first; each world in a temporary folder, or kept under `keep`.
@@ -289,7 +286,7 @@ def run_scaling(plan: Plan, keep: Path | None = None, say: Callable[[str], None]
     settings = asdict(plan)
     for key in ("params", "selection"):
         settings[key] = None if settings[key] is None else str(settings[key])
-    result: dict[str, Any] = {"machine": _machine(), "settings": settings, "sizes": [], "growth": {}}
+    result: dict[str, Any] = {"machine": machine(), "settings": settings, "sizes": [], "growth": {}}
 
     def done(entry: dict[str, Any]) -> None:
         sizes = [s for s in result["sizes"] if s["rooms"] != entry["rooms"]] + [entry]

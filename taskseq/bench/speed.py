@@ -5,8 +5,6 @@ Timings are measurements, not tests: they go to reports/bench.json and docs/spee
 
 from __future__ import annotations
 
-import os
-import platform
 import resource
 import statistics
 import tempfile
@@ -24,6 +22,7 @@ from ..sim.catalog import OBJECTS
 from ..sim.objects import ObjectSpec
 from ..sim.state import ON, WorldState
 from ..sim.tasks import Task
+from .machine import machine
 
 SIZES = (10, 15, 25, 50, 100)
 
@@ -123,7 +122,7 @@ def run_bench(records: list[dict[str, Any]], C: float, tol: float, max_iter: int
             "step_ms": 1000 * statistics.median(step),
         }
     return {
-        "machine": {"python": platform.python_version(), "processor": platform.machine(), "cpus": _cpus()},
+        "machine": machine(),
         "train": {"steps": len(contexts), "C": C, "runs": rows, "lower_bound": bound,
                   "reference": {k: reference[k] for k in ("tol", "n_slacks", "seconds", "iterations",
                                                           "primal_objective", "dual_objective")},
@@ -131,10 +130,6 @@ def run_bench(records: list[dict[str, Any]], C: float, tol: float, max_iter: int
         "latency": latency,
         "features_peak_mib": peak / 2**20,
     }
-
-
-def _cpus() -> int:
-    return os.cpu_count() or 1
 
 
 def format_bench(b: dict[str, Any]) -> str:
