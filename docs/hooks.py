@@ -78,6 +78,22 @@ def _table(name: str) -> str:
     return path.read_text()
 
 
+def _shipped_comparisons(name: str) -> str:
+    """The rows of a comparisons table (`taskseq stats`) that pair a method with the shipped planner, under the
+    table's own header and test paragraph."""
+    path = REPORTS / name
+    if not path.is_file():
+        return _table(name)
+    lines = path.read_text().splitlines()
+    header = next(i for i, line in enumerate(lines) if line.startswith("| method |"))
+    rows = [line for line in lines[header + 2:] if "(the shipped planner)" in line]
+    if not rows:
+        return ""
+    return ("Paired with the shipped planner, program by program, in drawn rooms held out (every comparison: "
+            f"`reports/{name}`). " + " ".join(lines[2:header]).strip() + "\n\n"
+            + "\n".join([*lines[header:header + 2], *rows]) + "\n")
+
+
 def results_page(files: list[Path]) -> str:
     """The Markdown of the Results page."""
     # the site's navigation is hidden on this page: its tables are wide (Table I per primitive has 19 columns)
@@ -92,7 +108,8 @@ def results_page(files: list[Path]) -> str:
                  "(`reports/scenes/transfer.md`) and why programs fail in drawn rooms "
                  "(`reports/scenes/drawn/failures.md`).\n\n" + "\n".join(
                      _table(name) for name in ("scenes/paper/table1.md", "scenes/drawn/table1.md",
-                                               "scenes/transfer.md", "scenes/drawn/failures.md")))
+                                               "scenes/transfer.md", "scenes/drawn/failures.md"))
+                 + "\n" + _shipped_comparisons("scenes/drawn/comparisons.md"))
     parts.append("## People's demonstrations (VEIL-500)\n\nThe methods on sequences people demonstrated, with whole "
                  "environments held out (`reports/veil/tables.md`; [People's demonstrations](../veil.md)).\n\n"
                  + veil_results(reports=""))
@@ -386,6 +403,25 @@ def veil_timing() -> str:
             + _rows(["method", "seconds"], "lr", [[name, f"{seconds:.0f}"] for name, seconds in methods]))
 
 
+DRAWN_ROOMS_COMMAND = "python scripts/drawn_rooms.py --rooms 13 26 52 104 --output reports/drawn_rooms_choice.json"
+
+
+def drawn_rooms_choice() -> str:
+    """How many drawn rooms the `drawn_rooms` method trains on, as `scripts/drawn_rooms.py` ranked them on the
+    development world's drawn rooms held out (`reports/drawn_rooms_choice.json`)."""
+    choice = _json("drawn_rooms_choice.json")
+    if choice is None:
+        return _missing("drawn_rooms_choice.json", DRAWN_ROOMS_COMMAND)
+    rows = [[f"**{r['rooms']} (chosen)**" if r["rooms"] == choice["chosen"] else r["rooms"],
+             f"{r['sequence_arg']:.1f}", f"{r['success']:.1f}"] for r in choice["ranked"]]
+    rows += [["none (`choice_lookahead`)", f"{r['sequence_arg']:.1f}", f"{r['success']:.1f}"]
+             for r in choice["without"]]
+    return (f"`{DRAWN_ROOMS_COMMAND}`: the drawn development world {choice['dev_seed']}, 6 folds holding out whole "
+            f"rooms, C = {choice['C']:g} (the choice-cue planner's), training rooms drawn with seed "
+            f"{choice['rooms_seed']}; % of programs.\n\n"
+            + _rows(["drawn rooms added", "sequence arg", "success"], "rrr", rows))
+
+
 TEACH_COMMAND = "dvc repro teach"
 
 
@@ -427,6 +463,7 @@ GENERATED = {
     "package-layout": package_layout,
     "veil-results": veil_results,
     "veil-timing": veil_timing,
+    "drawn-rooms-choice": drawn_rooms_choice,
 }
 
 

@@ -139,7 +139,8 @@ def test_crossval_writes_table1_with_every_method_and_classified_programs(evalua
     summary = json.loads((evaluated / "crossval.json").read_text())
     assert set(summary) == {"chance", "multiclass", "symb_plan_svm", "symb_plan_manual", "only_edge",
                             "only_clique", "full", "relations", "chained", "dagger", "choice", "feasible",
-                            "choice_feasible", "choice_lookahead", "choice_chained_lookahead", "noise_trained"}
+                            "choice_feasible", "choice_lookahead", "choice_chained_lookahead", "noise_trained",
+                            "drawn_rooms"}
     rows = list(csv.DictReader((evaluated / "crossval_sequences.csv").open()))
     full = [r for r in rows if r["method"] == "full"]
     assert len(full) == summary["full"]["n_scenarios"]

@@ -16,6 +16,7 @@ import numpy as np
 from ..demonstrations.benchmark import Benchmark
 from ..features.context import N_PRIM, OBJECT_COLUMNS, StepContext, candidate_index, step_context
 from ..features.dataset import StepMeta
+from ..features.drawn_rooms import drawn_room_steps
 from ..features.perception import noisy_copies
 from ..imitation.dagger import fit_imitation
 from ..learn.estimator import StepScorer
@@ -23,7 +24,7 @@ from ..learn.store import ModelStore, training_key
 from ..plan.planner import POLICIES, Memo, Program, learned_policy, run_loop
 from ..plan.symbolic.executor import SymbolicPolicy, first_action
 from ..plan.symbolic.roles import ROLE_OF_TASK, RoleRanker, demonstrated_roles
-from ..settings import Crossval, Pddl
+from ..settings import Crossval, Pddl, Procedural
 from ..sim.primitives import Action
 from ..sim.scenarios import Scenario
 from ..sim.state import WorldState
@@ -125,7 +126,10 @@ class ScorerMethod:
     answers in the states it reached (`imitation.dagger`). Both need the
     training scenarios at `fit`. `noise_copies` adds that many copies of the
     training steps seen with each binary attribute flipped with probability
-    `noise_rate` (`features.perception.noisy_copies`). `policy` is how its programs pick a step
+    `noise_rate` (`features.perception.noisy_copies`). `training_rooms` adds
+    the demonstrated steps of that many rooms drawn from `rooms_from` with
+    `rooms_seed` (`features.drawn_rooms`): rooms no world reports.
+    `policy` is how its programs pick a step
     (`plan.planner.POLICIES`); it changes no weight, so it is not part of a
     stored model's key. With a `store` folder (written by the `fold_models`
     stage), a model already trained on the same steps with the same settings
@@ -141,6 +145,9 @@ class ScorerMethod:
     dagger_rounds: int = 0
     noise_rate: float = 0.0
     noise_copies: int = 0
+    training_rooms: int = 0
+    rooms_seed: int = 0
+    rooms_from: Procedural = Procedural()
     name: str = "full"
     predicts_args: bool = True
     store: str | None = None
@@ -154,7 +161,9 @@ class ScorerMethod:
         """The settings that change the weights (and so address a stored model)."""
         return {"C": self.C, "tol": self.tol, "max_iter": self.max_iter, "n_slacks": self.n_slacks,
                 "chained_starts": self.chained_starts, "dagger_rounds": self.dagger_rounds,
-                **({"noise_rate": self.noise_rate, "noise_copies": self.noise_copies} if self.noise_copies else {})}
+                **({"noise_rate": self.noise_rate, "noise_copies": self.noise_copies} if self.noise_copies else {}),
+                **({"training_rooms": self.training_rooms, "rooms_seed": self.rooms_seed,
+                    "rooms_from": repr(self.rooms_from)} if self.training_rooms else {})}
 
     def key(self, contexts: list[StepContext]) -> str:
         return training_key(self.features, self.learner_params(), contexts)
@@ -176,6 +185,8 @@ class ScorerMethod:
             self.planner_ = stored
             return self
         steps = contexts + noisy_copies(contexts, meta, self.noise_rate, self.noise_copies)[0]
+        if self.training_rooms:
+            steps += drawn_room_steps(self.training_rooms, self.rooms_seed, self.rooms_from)
         if self.chained_starts or self.dagger_rounds:
             if scenarios is None:
                 raise ValueError(f"method {self.name}: chained starts and DAgger need the training scenarios")

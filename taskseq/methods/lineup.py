@@ -13,7 +13,7 @@ from functools import partial
 
 from ..evaluate.methods import Method, ScorerMethod
 from ..selection import Selection
-from ..settings import Crossval, Learner, Methods, Pddl, parse_section
+from ..settings import Crossval, Learner, Methods, Pddl, Procedural, parse_section
 from .spec import Build, MethodSpec, specs
 
 
@@ -28,6 +28,7 @@ class Lineup:
     crossval: Crossval = Crossval()
     horizon: int = Pddl.horizon
     store: str | None = None  # the model store the MRF methods load their fold models from
+    procedural: Procedural = Procedural()  # params.yaml's `procedural`: where a method draws training rooms from
 
     def __post_init__(self) -> None:
         known = specs()
@@ -54,7 +55,7 @@ class Lineup:
         spec: MethodSpec = specs()[name]
         C = None if spec.tuned_as is None else self.selection.of(spec.tuned_as)
         build = Build(name, spec.policy, C, self.learner, self.crossval, self.horizon, self.store,
-                      self.settings_of(name))
+                      self.settings_of(name), self.procedural)
         return partial(spec.make, build)
 
     def factories(self, names: Sequence[str] | None = None) -> dict[str, Callable[[], Method]]:

@@ -14,7 +14,7 @@ from typing import Any
 
 from ..evaluate.methods import Method, ScorerMethod
 from ..plan.planner import POLICIES
-from ..settings import Crossval, Learner
+from ..settings import Crossval, Learner, Procedural
 
 OWN = ""  # `MethodSpec.C_from` for a method whose C is its own entry of selection.json
 
@@ -36,6 +36,7 @@ class Build:
     horizon: int  # longest plan of symbolic planners
     store: str | None  # folder of fold models (`fold_models` stage); an MRF method loads its models from it
     settings: Any  # its own settings: an instance of the spec's `settings` class, as params.yaml sets them
+    procedural: Procedural = Procedural()  # the distribution of rooms a world of drawn rooms is drawn from
 
     def mrf(self, features: str, **options: Any) -> ScorerMethod:
         """The paper's model with these features, and `options` (`ScorerMethod`'s fields) as the method has them."""

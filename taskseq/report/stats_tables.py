@@ -9,7 +9,7 @@ from .stats import FIGURES, TEST, Comparison, Interval
 
 HEADINGS = {"average_prim": "avg prim", "average_arg": "avg arg", "sequence_prim": "seq prim",
             "sequence_arg": "seq arg", "success": "success"}
-ROLES = {"paper": "the paper's model", "baseline": "the best baseline"}
+ROLES = {"paper": "the paper's model", "baseline": "the best baseline", "shipped": "the shipped planner"}
 
 
 def bootstrap_text(resamples: int, seed: int, confidence: float, n_worlds: int) -> str:
@@ -56,7 +56,8 @@ def _p(p: float) -> str:
 
 
 def comparisons_markdown(rows: Sequence[Comparison], labels: dict[str, str], method: str) -> str:
-    """Each added method against the paper's model and the best baseline, a row per figure."""
+    """Each added method against the paper's model, the best baseline and (when given) the shipped planner, a row
+    per figure."""
     out = ["# Paired comparisons", "", method, "",
            "| method | against | figure | method % | against % | difference [interval] | only method right | "
            "only other right | p | p (Holm) |", "|---|---|---|---:|---:|---:|---:|---:|---:|---:|"]

@@ -171,7 +171,9 @@ def _scenes(reports: Path, paper_shaped: dict[str, Any], labels: dict[str, str])
             out.append(f"| {labels[name]} | " + " | ".join(cells) + " |")
     out += ["", "Per primitive: `reports/scenes/paper/table1.md`, `reports/scenes/drawn/table1.md`; why programs fail "
             "there: `failures.md` beside them; noise and feedback in drawn rooms: `reports/scenes/drawn/noise.csv`, "
-            "`feedback.csv`; what drawing the rooms cost: `reports/scenes/drawn/worlds.json`.", ""]
+            "`feedback.csv`; what drawing the rooms cost: `reports/scenes/drawn/worlds.json`; intervals and paired "
+            "comparisons (with the shipped planner too) in drawn rooms held out: "
+            "`reports/scenes/drawn/table1_ci.md`, `comparisons.md`.", ""]
     return out
 
 

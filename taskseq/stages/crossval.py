@@ -24,7 +24,7 @@ from ..report.figures import confusion_png
 from ..report.tables import table_rows, to_csv, to_latex, to_markdown
 from ..runtime.atomic import write_json_atomic, write_text_atomic
 from ..selection import read_selection
-from ..settings import Crossval, Learner, Methods, Params
+from ..settings import Crossval, Learner, Methods, Params, Procedural
 from ..track.mlflow_runs import NO_RUN, Tracker
 from ..track.recordings import record_program, spread
 from .options import CrossvalOptions
@@ -36,16 +36,17 @@ class Settings:
     learner: Learner
     horizon: int  # longest plan of the symbolic baselines
     methods: Methods
+    procedural: Procedural = Procedural()  # params.yaml's `procedural`: the rooms a method may draw to train on
 
 
 def settings(params: Params, world_seed: int | None = None) -> Settings:
-    return Settings(params.crossval, params.train.learner, params.pddl.horizon, params.methods)
+    return Settings(params.crossval, params.train.learner, params.pddl.horizon, params.methods, params.procedural)
 
 
 def run(settings: Settings, options: CrossvalOptions, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> dict[str, Any]:
     crossval, methods, output = settings.crossval, options.methods, options.output
     lineup = Lineup(settings.methods, read_selection(options.selection), settings.learner, crossval, settings.horizon,
-                    options.store)
+                    options.store, settings.procedural)
     every = lineup.names()
     unknown = set(methods or []) - set(every)
     if unknown:

@@ -20,7 +20,7 @@ from ..report.csvs import OUTCOME_COLUMNS, RATE_DECIMALS, csv_text, outcome_row
 from ..report.figures import line_plot_png
 from ..runtime.atomic import write_text_atomic
 from ..selection import read_selection
-from ..settings import Feedback, Methods, Params, Replay
+from ..settings import Feedback, Methods, Params, Procedural, Replay
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .options import EvaluationOptions
 
@@ -32,17 +32,19 @@ class Settings:
     feedback: Feedback
     replay: Replay
     methods: Methods  # those whose experiments name feedback are run
+    procedural: Procedural = Procedural()  # params.yaml's `procedural`: the rooms a method may draw to train on
 
 
 def settings(params: Params, world_seed: int | None = None) -> Settings:
-    return Settings(params.feedback, Replay.of(params), params.methods)
+    return Settings(params.feedback, Replay.of(params), params.methods, params.procedural)
 
 
 def run(settings: Settings, options: EvaluationOptions, tracker: Tracker = NO_RUN,
         n_jobs: int = 1) -> list[dict[str, Any]]:
     feedback = settings.feedback
     replay = settings.replay
-    lineup = Lineup(settings.methods, read_selection(options.selection), replay.learner, store=options.store)
+    lineup = Lineup(settings.methods, read_selection(options.selection), replay.learner, store=options.store,
+                    procedural=settings.procedural)
     methods = lineup.running("feedback")
     contexts, meta = read_features(options.features)
     bench = load_benchmark(options.processed)

@@ -17,7 +17,7 @@ from ..features.dataset import read_features
 from ..methods import Lineup
 from ..runtime.atomic import write_json_atomic
 from ..selection import read_selection
-from ..settings import Folds, Learner, Methods, Params
+from ..settings import Folds, Learner, Methods, Params, Procedural
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .options import FoldModelsOptions
 
@@ -28,15 +28,17 @@ class Settings:
     learner: Learner
     methods: Methods
     recipes: bool = True  # also those the recipes experiment runs, once per recipe kind (every step outside it)
+    procedural: Procedural = Procedural()  # params.yaml's `procedural`: the rooms a method may draw to train on
 
 
 def settings(params: Params, world_seed: int | None = None) -> Settings:
-    return Settings(params.crossval.fold_settings, params.train.learner, params.methods)
+    return Settings(params.crossval.fold_settings, params.train.learner, params.methods, procedural=params.procedural)
 
 
 def run(settings: Settings, options: FoldModelsOptions, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> dict[str, Any]:
     folds, output = settings.folds, options.output
-    lineup = Lineup(settings.methods, read_selection(options.selection), settings.learner)
+    lineup = Lineup(settings.methods, read_selection(options.selection), settings.learner,
+                    procedural=settings.procedural)
     methods = lineup.mrf()  # a method without its C stops here, before minutes of work
     recipe_methods = lineup.names("recipes") if settings.recipes else []
     contexts, meta = read_features(options.features)

@@ -157,6 +157,9 @@ class StatsOptions:
     worlds: Path = option("folder of the per-world results, one subfolder per seed (their crossval_sequences.csv "
                           "and crossval_steps.csv)", Path("reports/worlds"), input=True)
     output: Path = option("folder for the intervals and comparisons")
+    selection: Path | None = option("also compare every added method with the method ranked first in this file "
+                                    "written by `taskseq select` (the shipped planner; default: no file, no such "
+                                    "comparison)", None, input=True)
 
 
 @dataclass(frozen=True, kw_only=True)

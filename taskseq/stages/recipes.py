@@ -20,7 +20,7 @@ from ..methods import Lineup, method_labels
 from ..report.csvs import csv_text
 from ..runtime.atomic import write_json_atomic, write_text_atomic
 from ..selection import read_selection
-from ..settings import Learner, Methods, Params, Recipes
+from ..settings import Learner, Methods, Params, Procedural, Recipes
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .options import EvaluationOptions
 
@@ -31,14 +31,17 @@ class Settings:
     max_steps: int  # step cap of each program
     learner: Learner
     methods: Methods  # those whose experiments name recipes are run
+    procedural: Procedural = Procedural()  # params.yaml's `procedural`: the rooms a method may draw to train on
 
 
 def settings(params: Params, world_seed: int | None = None) -> Settings:
-    return Settings(params.recipes, params.crossval.max_steps, params.train.learner, params.methods)
+    return Settings(params.recipes, params.crossval.max_steps, params.train.learner, params.methods,
+                    params.procedural)
 
 
 def run(settings: Settings, options: EvaluationOptions, tracker: Tracker = NO_RUN) -> dict[str, Any]:
-    lineup = Lineup(settings.methods, read_selection(options.selection), settings.learner, store=options.store)
+    lineup = Lineup(settings.methods, read_selection(options.selection), settings.learner, store=options.store,
+                    procedural=settings.procedural)
     methods = lineup.running("recipes")
     contexts, meta = read_features(options.features)
     scenarios = load_benchmark(options.processed).scenarios

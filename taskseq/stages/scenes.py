@@ -66,11 +66,12 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
     return Settings(
         world=Generate(family="procedural", procedural=params.procedural),
         seeds=params.world.seeds,
-        fold_models=fold_models.Settings(rooms, learner, params.methods, recipes=False),
+        fold_models=fold_models.Settings(rooms, learner, params.methods, False, params.procedural),
         crossval=crossval.Settings(Crossval(c.folds, "environment", c.seed, c.chance_seed, c.multiclass_C,
-                                            c.ranking_C, c.max_steps), learner, params.pddl.horizon, params.methods),
-        noise=noise.Settings(params.noise, replay, params.methods),
-        feedback=feedback.Settings(params.feedback, replay, params.methods),
+                                            c.ranking_C, c.max_steps), learner, params.pddl.horizon, params.methods,
+                                            params.procedural),
+        noise=noise.Settings(params.noise, replay, params.methods, params.procedural),
+        feedback=feedback.Settings(params.feedback, replay, params.methods, params.procedural),
         methods=params.methods,
         learner=learner,
         paper_shaped=params.world.family == "paper",
@@ -149,7 +150,8 @@ def _drawn_world(settings: Settings, options: ScenesOptions, seed: int, here: Pa
 
 def _transferred(settings: Settings, options: ScenesOptions) -> dict[str, Any]:
     """The MRF methods the transfer experiment runs, by name, as factories of unfitted methods."""
-    return Lineup(settings.methods, read_selection(options.selection), settings.learner).running("transfer")
+    return Lineup(settings.methods, read_selection(options.selection), settings.learner,
+                  procedural=settings.world.procedural).running("transfer")
 
 
 def transfer_markdown(rows: list[dict[str, Any]], n_seeds: int) -> str:

@@ -48,7 +48,8 @@ def run(settings: Settings, options: SelectOptions, tracker: Tracker = NO_RUN, n
     if world.dev_seed in world.seeds:
         raise ValueError(f"params.yaml: world.dev_seed {world.dev_seed} is also a reported seed; settings must "
                          "be chosen on a world that is never reported")
-    lineup = Lineup(settings.methods, learner=settings.learner)  # a wrong entry stops here, before minutes of work
+    # a wrong entry stops here, before minutes of work
+    lineup = Lineup(settings.methods, learner=settings.learner, procedural=settings.procedural)
     names = lineup.names("select")
     if PAPER_MODEL not in names:
         raise ValueError(f"params.yaml: methods.{PAPER_MODEL}.experiments must include select: its C is also the "

@@ -4,7 +4,9 @@ Reads every world's programs and teacher-forced steps (`crossval_sequences.csv`,
 `crossval_steps.csv` in `reports/worlds/<seed>/`) and writes, beside the
 tables over worlds, `table1_ci.csv`/`.md` (every figure of every method with
 its interval) and `comparisons.csv`/`.md` (each added method against the
-paper's model and against the best baseline). The tables it adds to change
+paper's model, against the best baseline and, given `--selection`, against
+the method ranked first there: the shipped planner). Run on the `scenes`
+stage's drawn worlds it gives the same for whole drawn rooms held out. The tables it adds to change
 none of the others.
 """
 
@@ -25,6 +27,7 @@ from ..report.stats_tables import (
     test_text,
 )
 from ..runtime.atomic import write_text_atomic
+from ..selection import read_selection
 from ..settings import Params, Stats, World
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .options import StatsOptions
@@ -53,7 +56,9 @@ def run(settings: Settings, options: StatsOptions, tracker: Tracker = NO_RUN) ->
     present = {r.method for r in intervals}
     baseline = best_baseline(worlds, [b for b in BASELINES if b in present])
     added = [m for m in labels if m in present and m not in PAPER_METHODS] + sorted(present - set(labels))
-    pairs = [(m, against, role) for m in added for against, role in ((PAPER_MODEL, "paper"), (baseline, "baseline"))]
+    shipped = read_selection(options.selection).method if options.selection else None
+    against = [(PAPER_MODEL, "paper"), (baseline, "baseline"), *([(shipped, "shipped")] if shipped in present else [])]
+    pairs = [(m, other, role) for m in added for other, role in against if other != m]
     comparisons = paired_comparisons(worlds, pairs, stats.resamples, stats.seed, stats.confidence)
     write_text_atomic(out / "comparisons.csv", comparisons_csv(comparisons))
     write_text_atomic(out / "comparisons.md", comparisons_markdown(comparisons, labels, test_text(stats.confidence)))

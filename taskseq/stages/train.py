@@ -24,7 +24,7 @@ from ..methods import Lineup, method_labels
 from ..report.csvs import csv_text
 from ..runtime.atomic import write_json_atomic, write_text_atomic
 from ..selection import read_selection
-from ..settings import Methods, Params, Train
+from ..settings import Methods, Params, Procedural, Train
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .options import TrainOptions
 
@@ -34,13 +34,14 @@ class Settings:
     train: Train
     people_logs: Path | None  # people's demonstrations added to the training steps (`people.train`), or None
     methods: Methods  # the shipped method's own settings
+    procedural: Procedural = Procedural()  # params.yaml's `procedural`: the rooms a method may draw to train on
 
 
 def settings(params: Params, world_seed: int | None = None) -> Settings:
     t, people = params.train, params.people
     logs, use = Path(people.logs), people.train  # both read, so the keys read never depend on the values
     return Settings(Train(tol=t.tol, max_iter=t.max_iter, n_slacks=t.n_slacks, method=t.method),
-                    logs if use else None, params.methods)
+                    logs if use else None, params.methods, params.procedural)
 
 
 def shipped_method(settings: Train, options: TrainOptions) -> tuple[str, str]:
@@ -63,7 +64,8 @@ def run(settings: Settings, options: TrainOptions, tracker: Tracker = NO_RUN) ->
     train = settings.train
     features, model, metrics, curve = options.features, options.model, options.metrics, options.curve
     name, chosen_by = shipped_method(train, options)
-    method = Lineup(settings.methods, read_selection(options.selection), train.learner).mrf([name])[name]()
+    method = Lineup(settings.methods, read_selection(options.selection), train.learner,
+                    procedural=settings.procedural).mrf([name])[name]()
     contexts, meta = read_features(features)
     people = people_records(settings.people_logs)[0] if settings.people_logs is not None else []
     if people:
