@@ -78,7 +78,7 @@ def _table(name: str) -> str:
     return path.read_text()
 
 
-def _shipped_comparisons(name: str) -> str:
+def _shipped_comparisons(name: str, where: str) -> str:
     """The rows of a comparisons table (`taskseq stats`) that pair a method with the shipped planner, under the
     table's own header and test paragraph."""
     path = REPORTS / name
@@ -89,7 +89,7 @@ def _shipped_comparisons(name: str) -> str:
     rows = [line for line in lines[header + 2:] if "(the shipped planner)" in line]
     if not rows:
         return ""
-    return ("Paired with the shipped planner, program by program, in drawn rooms held out (every comparison: "
+    return (f"Paired with the shipped planner, program by program, {where} (every comparison: "
             f"`reports/{name}`). " + " ".join(lines[2:header]).strip() + "\n\n"
             + "\n".join([*lines[header:header + 2], *rows]) + "\n")
 
@@ -109,7 +109,9 @@ def results_page(files: list[Path]) -> str:
                  "(`reports/scenes/drawn/failures.md`).\n\n" + "\n".join(
                      _table(name) for name in ("scenes/paper/table1.md", "scenes/drawn/table1.md",
                                                "scenes/transfer.md", "scenes/drawn/failures.md"))
-                 + "\n" + _shipped_comparisons("scenes/drawn/comparisons.md"))
+                 + "\n" + _shipped_comparisons("scenes/drawn/comparisons.md", "in drawn rooms held out")
+                 + "\n" + _shipped_comparisons("scenes/transfer/comparisons.md",
+                                                "trained on the paper-shaped rooms and run in drawn ones"))
     parts.append("## People's demonstrations (VEIL-500)\n\nThe methods on sequences people demonstrated, with whole "
                  "environments held out (`reports/veil/tables.md`; [People's demonstrations](../veil.md)).\n\n"
                  + veil_results(reports=""))

@@ -102,6 +102,19 @@ def test_the_scenes_stage_writes_every_table_over_seeds(benchmark_logs, tmp_path
     assert [{k: f"{v:.2f}" for k, v in means[r["method"]].items()} for r in rows] == [
         {k: v for k, v in r.items() if k != "method"} for r in rows]
     assert all(0.0 <= float(r["sequence_arg"]) <= float(r["success"]) + 1e-9 <= 100.0 for r in rows)
+    # the transfer's programs, one per drawn scenario and method, agree with its table and feed `taskseq stats`
+    moved = list(csv.DictReader((data / "transfer" / "0" / "crossval_sequences.csv").open()))
+    drawn_scenarios = {r["scenario"] for r in csv.DictReader((data / "drawn" / "0" / "crossval_sequences.csv").open())}
+    for r in rows:
+        mine = [p for p in moved if p["method"] == r["method"]]
+        assert {p["scenario"] for p in mine} == drawn_scenarios and len(mine) == len(drawn_scenarios)
+        assert f"{100 * sum(p['arg_correct'] == '1' for p in mine) / len(mine):.2f}" == r["sequence_arg"]
+    steps = list(csv.DictReader((data / "transfer" / "0" / "crossval_steps.csv").open()))
+    assert steps and {p["scenario"].split("/")[0] for p in steps} <= {"proc001", "proc002", "proc003"}
+    assert main(["stats", "--worlds", str(data / "transfer"), "--output", str(out / "transfer"),
+                 "--set", "world.seeds=[0]", "--set", "stats.resamples=50"]) == 0
+    assert "| ours + relations | ours - full (the paper's model) | seq arg |" in \
+        (out / "transfer" / "comparisons.md").read_text()
     for part in ("paper", "drawn"):
         means = json.loads((out / part / "crossval_means.json").read_text())
         assert 0.0 <= means["full"]["sequence_arg"] <= 100.0

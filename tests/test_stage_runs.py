@@ -229,7 +229,7 @@ def test_aggregate_and_report_over_worlds(evaluated, tiny):
     assert float(seq["low"]) <= float(seq["value"]) <= float(seq["high"])
     assert {r["method"] for r in csv.DictReader((out / "comparisons.csv").open())} == {
         "relations", "chained", "dagger", "feasible", "choice", "choice_feasible", "choice_lookahead",
-        "choice_chained_lookahead", "noise_trained"}
+        "choice_chained_lookahead", "noise_trained", "drawn_rooms"}
     assert main(["report", "--reports", str(out), "--output", str(out / "summary.md"),
                  "--plots-template", str(out / "page.html")]) == 0
     page = (out / "page.html").read_text()

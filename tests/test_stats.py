@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from math import comb
 
 import numpy as np
@@ -120,10 +121,10 @@ def test_paired_comparison_of_a_method_better_on_exactly_the_discordant_pairs_bu
     assert best_baseline(worlds, ["chance", "full"]) == "full"
 
 
-def write_world(path, seed: int) -> None:
+def write_world(path, seed: int, added: tuple[tuple[str, float], ...] = (("relations", 0.8),)) -> None:
     rng = np.random.default_rng(seed)
     rows, steps = [], []
-    for method, p in (("chance", 0.0), ("symb_plan_manual", 0.5), ("full", 0.6), ("relations", 0.8)):
+    for method, p in (("chance", 0.0), ("symb_plan_manual", 0.5), ("full", 0.6), *added):
         for i in range(40):
             right = int(rng.random() < p)
             rows.append({"method": method, "fold": i % 6, "scenario": f"s{i:02d}", "task": "pour", "status": "done",
@@ -151,3 +152,25 @@ def test_stats_stage_writes_intervals_and_comparisons_the_same_bytes_every_run(t
         [["relations", "symb_plan_manual", "baseline"]] * 3
     md = (tmp_path / "a" / "table1_ci.md").read_text()
     assert "| ours + relations |" in md and "300 resamples (seed 0)" in md
+
+
+def test_with_a_selection_every_added_method_is_also_paired_with_the_shipped_planner_but_itself(tmp_path):
+    for seed in (0, 3):
+        write_world(tmp_path / "worlds" / str(seed), seed, (("relations", 0.8), ("choice", 0.9)))
+    args = ["stats", "--worlds", str(tmp_path / "worlds"), "--set", "world.seeds=0 3", "--set", "stats.resamples=300"]
+    # the shipped planner is an added method, then the paper's model (whose pairs are rows already)
+    for shipped, name in (("choice", "added"), ("full", "paper")):
+        selection = tmp_path / f"{name}.json"
+        selection.write_text(json.dumps({"method": shipped, "settings": {shipped: {"C": 1.0}}}))
+        assert main([*args, "--selection", str(selection), "--output", str(tmp_path / name)]) == 0
+
+    def pairs(name: str) -> list[list[str]]:
+        rows = (tmp_path / name / "comparisons.csv").read_text().splitlines()[1:]
+        return list(dict.fromkeys(tuple(r.split(",")[:3]) for r in rows))
+
+    both = [("relations", "full", "paper"), ("relations", "symb_plan_manual", "baseline"),
+            ("choice", "full", "paper"), ("choice", "symb_plan_manual", "baseline")]
+    assert pairs("added") == [*both[:2], ("relations", "choice", "shipped"), *both[2:]]  # never choice with itself
+    assert pairs("paper") == both
+    assert "| ours + relations | ours + relations + choice cues (the shipped planner) | seq arg |" in \
+        (tmp_path / "added" / "comparisons.md").read_text()

@@ -173,7 +173,8 @@ def _scenes(reports: Path, paper_shaped: dict[str, Any], labels: dict[str, str])
             "there: `failures.md` beside them; noise and feedback in drawn rooms: `reports/scenes/drawn/noise.csv`, "
             "`feedback.csv`; what drawing the rooms cost: `reports/scenes/drawn/worlds.json`; intervals and paired "
             "comparisons (with the shipped planner too) in drawn rooms held out: "
-            "`reports/scenes/drawn/table1_ci.md`, `comparisons.md`.", ""]
+            "`reports/scenes/drawn/table1_ci.md`, `comparisons.md`; for the transfer: the same in "
+            "`reports/scenes/transfer/`.", ""]
     return out
 
 

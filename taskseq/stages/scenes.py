@@ -6,7 +6,9 @@ same stages run as on a paper-shaped world, with folds that hold out whole
 rooms, their new objects with them: generate, ingest, features, the fold
 models, Table I, attribute noise and feedback. The MRF methods whose
 `experiments` name transfer (params.yaml's `methods`) are also trained on every step of the seed's paper-shaped
-world and run on every scenario of its drawn world. The tables over seeds
+world and run on every scenario of its drawn world; their programs and steps go to
+`data/scenes/transfer/<seed>/` in the files a cross-validation writes, so
+`taskseq stats` gives the transfer's intervals and paired tests too. The tables over seeds
 (mean ± sd) are written as the `aggregate` stage writes the paper-shaped ones.
 """
 
@@ -21,7 +23,7 @@ from ..evaluate.metrics import summarize
 from ..experiments.transfer import transfer
 from ..features.dataset import read_features
 from ..methods import Lineup, method_labels
-from ..report.csvs import csv_text
+from ..report.csvs import SEQUENCE_COLUMNS, STEP_COLUMNS, csv_text, sequence_rows, step_rows
 from ..report.seeds import curve_over_seeds, json_over_seeds, world_dirs
 from ..runtime.atomic import write_json_atomic, write_text_atomic
 from ..selection import read_selection
@@ -87,7 +89,8 @@ def run(settings: Settings, options: ScenesOptions, tracker: Tracker = NO_RUN, n
             _held_out_rooms(settings, options, Path(options.paper) / str(seed), data / "paper" / str(seed), child,
                             n_jobs)
             print(f"world seed {seed}: {settings.world.procedural.environments} drawn rooms")
-            _drawn_world(settings, options, seed, data / "drawn" / str(seed), child, n_jobs)
+            _drawn_world(settings, options, seed, data / "drawn" / str(seed), data / "transfer" / str(seed), child,
+                         n_jobs)
     world = World(seeds=settings.seeds)
     aggregate.run(world, AggregateOptions(worlds=data / "paper", output=out / "paper"), tracker)
     aggregate.run(replace(world, family="procedural"), AggregateOptions(worlds=data / "drawn", output=out / "drawn"),
@@ -121,10 +124,11 @@ def _held_out_rooms(settings: Settings, options: ScenesOptions, world: Path, her
     return evaluation
 
 
-def _drawn_world(settings: Settings, options: ScenesOptions, seed: int, here: Path, tracker: Tracker,
+def _drawn_world(settings: Settings, options: ScenesOptions, seed: int, here: Path, moved: Path, tracker: Tracker,
                  n_jobs: int) -> None:
     """The per-world stages on the drawn world `seed`, into `here`, then the transfer from the paper-shaped one
-    (when the reported worlds are paper-shaped)."""
+    (when the reported worlds are paper-shaped), its programs and steps into `moved` as a cross-validation's are
+    written (for `taskseq stats`)."""
     raw, processed, feats = here / "raw", here / "processed", here / "features"
     generate.run(replace(settings.world, seed=seed), GenerateOptions(output=raw, metrics=here / "world.json"), tracker)
     ingest.run(None, IngestOptions(input=raw, output=processed, metrics=here / "dataset.json"), tracker)
@@ -141,7 +145,11 @@ def _drawn_world(settings: Settings, options: ScenesOptions, seed: int, here: Pa
     print(f"training {', '.join(methods)} on the paper-shaped world {seed} ({len(train[0])} steps) and running them "
           f"on the drawn one ({len(test[2].scenarios)} scenarios)")
     results, contexts = transfer(methods, train, test, settings.crossval.crossval.max_steps, n_jobs)
-    summary = summarize(results, contexts, {name: True for name in methods})
+    predicts_args = dict.fromkeys(methods, True)
+    summary = summarize(results, contexts, predicts_args)
+    write_text_atomic(moved / "crossval_sequences.csv", csv_text(SEQUENCE_COLUMNS, sequence_rows(results)))
+    steps = step_rows(results, contexts, train[1] + test[1], predicts_args)  # `transfer` pools train, then test
+    write_text_atomic(moved / "crossval_steps.csv", csv_text(STEP_COLUMNS, steps))
     rows = [{"method": name, **{k: summary[name][k.replace("sequence_", "sequence/")] for k in TRANSFER}}
             for name in methods]
     write_text_atomic(here / "transfer.csv", csv_text(["method", *TRANSFER], rows, dict.fromkeys(TRANSFER, 2)))

@@ -6,7 +6,9 @@ tables over worlds, `table1_ci.csv`/`.md` (every figure of every method with
 its interval) and `comparisons.csv`/`.md` (each added method against the
 paper's model, against the best baseline and, given `--selection`, against
 the method ranked first there: the shipped planner). Run on the `scenes`
-stage's drawn worlds it gives the same for whole drawn rooms held out. The tables it adds to change
+stage's drawn worlds it gives the same for whole drawn rooms held out, and
+on its transfer programs (paper-shaped rooms to drawn ones, where no
+baseline runs) for the transfer. The tables it adds to change
 none of the others.
 """
 
@@ -54,10 +56,12 @@ def run(settings: Settings, options: StatsOptions, tracker: Tracker = NO_RUN) ->
     write_text_atomic(out / "table1_ci.md", intervals_markdown(intervals, labels, text, stats.confidence))
 
     present = {r.method for r in intervals}
-    baseline = best_baseline(worlds, [b for b in BASELINES if b in present])
+    baselines = [b for b in BASELINES if b in present]  # none where only MRF methods ran (the transfer)
+    baseline = best_baseline(worlds, baselines) if baselines else None
     added = [m for m in labels if m in present and m not in PAPER_METHODS] + sorted(present - set(labels))
     shipped = read_selection(options.selection).method if options.selection else None
-    against = [(PAPER_MODEL, "paper"), (baseline, "baseline"), *([(shipped, "shipped")] if shipped in present else [])]
+    against = [(PAPER_MODEL, "paper"), *([(baseline, "baseline")] if baseline else [])]
+    against += [(shipped, "shipped")] if shipped in present and shipped not in (PAPER_MODEL, baseline) else []
     pairs = [(m, other, role) for m in added for other, role in against if other != m]
     comparisons = paired_comparisons(worlds, pairs, stats.resamples, stats.seed, stats.confidence)
     write_text_atomic(out / "comparisons.csv", comparisons_csv(comparisons))
