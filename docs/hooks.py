@@ -428,8 +428,8 @@ TEACH_COMMAND = "dvc repro teach"
 
 
 def teach_results() -> str:
-    """The `teach` stage's table (`reports/teach/teach.md` without its title), each world's counts of held-out tasks
-    and successes per k (`reports/teach/teach_seeds.csv`), and what changes from the smallest k to the largest."""
+    """The `teach` stage's table (`reports/teach/teach.md` without its title) and each world's counts of held-out
+    tasks and programs as demonstrated per k (`reports/teach/teach_seeds.csv`)."""
     path = REPORTS / "teach" / "teach.md"
     seeds = REPORTS / "teach" / "teach_seeds.csv"
     if not path.is_file() or not seeds.is_file():
@@ -440,21 +440,34 @@ def teach_results() -> str:
         rows = list(csv.DictReader(fh))
     ks = sorted({int(r["k"]) for r in rows})
     worlds = sorted({int(r["world_seed"]) for r in rows})
-    count = {(int(r["world_seed"]), int(r["k"])): (int(r["successes"]), int(r["held_out_tasks"])) for r in rows}
-    table = _rows(["world seed", "held-out tasks", *(f"successes, k = {k}" for k in ks)], "r" * (len(ks) + 2),
-                  [[w, count[w, ks[0]][1], *(count[w, k][0] for k in ks)] for w in worlds])
-    first, last = ks[0], ks[-1]
-    moves = ", ".join(f"{count[w, last][0] - count[w, first][0]:+d} in world {w}" for w in worlds)
-    total = sum(count[w, first][1] for w in worlds)
-    gained = sum(count[w, last][0] - count[w, first][0] for w in worlds)
-    return (text.rstrip("\n") + "\n\nPer world (`reports/teach/teach_seeds.csv`), the held-out tasks and how many "
-            "succeed for each k:\n\n" + table
-            + f"\nFrom k = {first} to k = {last}, successes change by {moves}: {gained:+d} of {total} held-out tasks "
-            "in all.\n")
+    got = {(int(r["world_seed"]), int(r["k"])): r for r in rows}
+    table = _rows(["world seed", "held-out tasks", *(f"seq arg %, k = {k}" for k in ks)], "r" * (len(ks) + 2),
+                  [[w, got[w, ks[0]]["held_out_tasks"], *(got[w, k]["sequence_arg"] for k in ks)] for w in worlds])
+    return (text.rstrip("\n") + "\n\nPer world (`reports/teach/teach_seeds.csv`), the held-out tasks and the share "
+            "of programs as demonstrated for each k:\n\n" + table)
+
+
+TEACH_WEIGHT_COMMAND = "python scripts/teach_weight.py --weights 1 3 10 30 --output reports/teach_weight.json"
+
+
+def teach_weight() -> str:
+    """How much a taught step counts, as `scripts/teach_weight.py` ranked the weights on the development world."""
+    choice = _json("teach_weight.json")
+    if choice is None:
+        return _missing("teach_weight.json", TEACH_WEIGHT_COMMAND)
+    rows = [[f"**{r['weight']} (chosen)**" if r["weight"] == choice["chosen"] else r["weight"],
+             f"{r['sequence_arg']:.1f}", f"{r['success']:.1f}"] for r in choice["ranked"]]
+    rows.append(["nothing taught (k = 0)", f"{choice['untaught']['sequence_arg']:.1f}",
+                 f"{choice['untaught']['success']:.1f}"])
+    return (f"`{TEACH_WEIGHT_COMMAND}`: the drawn development world {choice['dev_seed']}, rooms "
+            f"{', '.join(choice['environments'])} held out, k = {', '.join(map(str, choice['k']))}, the shipped "
+            f"planner (`{choice['method']}`, C = {choice['C']:g}); % of the programs of every k above 0 together.\n\n"
+            + _rows(["weight", "sequence arg", "success"], "rrr", rows))
 
 
 GENERATED = {
     "teach-results": teach_results,
+    "teach-weight": teach_weight,
     "bench-training": bench_training,
     "bench-latency": bench_latency,
     "scaling-fit": scaling_fit,

@@ -185,11 +185,18 @@ class People:
 
 @dataclass(frozen=True)
 class Teach:
-    """Teaching unseen environments: a scripted person demonstrates k tasks in each; the rest are tested."""
+    """Teaching rooms never seen: a scripted person demonstrates k tasks in each; the rest are tested."""
 
-    environments: tuple[str, ...] = ("env11", "env12", "env13")  # held out of the training data
-    k: tuple[int, ...] = (0, 1, 2, 3)  # tasks demonstrated per environment
+    environments: tuple[str, ...] = ("proc011", "proc012", "proc013")  # drawn rooms held out of the training data
+    k: tuple[int, ...] = (0, 1, 2, 3)  # tasks demonstrated per room
     seed: int = 0  # order in which tasks are demonstrated
+    weight: int = 1  # times each taught step counts in training (scripts/teach_weight.py, on the development world)
+
+    def __post_init__(self) -> None:
+        if not self.k or min(self.k) < 0:
+            raise ValueError(f"teach.k must list numbers of tasks, at least 0, got {' '.join(map(str, self.k))}")
+        if self.weight < 1:
+            raise ValueError(f"teach.weight must be at least 1 (times a taught step counts), got {self.weight}")
 
 
 @dataclass(frozen=True)

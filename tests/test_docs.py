@@ -58,8 +58,8 @@ def test_the_teach_page_shows_the_teach_reports_as_they_are():
     rows = [line for line in (ROOT / "reports" / "teach" / "teach.md").read_text().splitlines() if line.startswith("|")]
     assert rows and all(row in text for row in rows)
     for seed in (ROOT / "reports" / "teach" / "teach_seeds.csv").read_text().splitlines()[1:]:
-        world, _, held_out, _ = seed.split(",")[:4]
-        assert f"| {world} | {held_out} |" in text
+        world, k, held_out, arg = seed.split(",")[:4]
+        assert f"| {world} | {held_out} |" in text and f" {arg} |" in text
     page = (DOCS / "teach.md").read_text()
     assert "<!-- generated: teach-results -->" in page
     assert not any(row in page for row in rows[2:])

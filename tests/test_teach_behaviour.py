@@ -1,247 +1,239 @@
-"""The teach stage's split of taught and held-out data, with spies in place of the learner and the planner: the
-training steps are the benchmark's outside the held-out environments plus exactly the first k demonstrations of
-each, written and read back as a person's; the planner is judged on the same other tasks for every k, never on a
-task it was taught; the tables, the figure and the tracked metrics carry the outcomes the spies gave, by hand.
-Then `experiments/teaching.py` on hand-made tasks, outcomes and programs."""
+"""The teach stage's split of taught and held-out data in drawn rooms, with a spy in place of the shipped planner:
+the training steps are the drawn world's outside the held-out rooms plus exactly the first k demonstrations of each,
+written and read back as a person's and counted `teach.weight` times; the planner is judged on the same other tasks
+for every k, never on a task it was shown; the tables pair every k with k = 0 task by task. Then
+`experiments/teaching.py` on hand-made tasks, outcomes and programs."""
 
 from __future__ import annotations
 
 import csv
-import dataclasses
-import io
 import json
 import math
-import re
+import runpy
 from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
+from taskseq.cli import main
 from taskseq.experiments import teaching
-from taskseq.experiments.teaching import Outcome, pooled, success_on, teaching_order
+from taskseq.experiments.crossval import SequenceOutcome
+from taskseq.experiments.teaching import Outcome, pooled, rooms_to_teach, success_on, teaching_order, weighted
 from taskseq.serve.environments import world_environment
 from taskseq.settings import Learner, Params, Teach, World
 from taskseq.sim.demonstrator import demonstrate
 from taskseq.sim.primitives import Action
-from taskseq.sim.scenarios import doable_tasks
-from taskseq.sim.tasks import TASKS, Task
+from taskseq.sim.scenarios import room_scenarios
+from taskseq.sim.tasks import Task
 from taskseq.stages import teach
 from taskseq.stages.options import TeachOptions
 
-ENVS = ("env12", "env13")
+ROOT = Path(__file__).resolve().parents[1]
+ROOMS = ("proc002", "proc003")
 KS = (0, 1, 2)
 SEEDS = (0, 1)
 LEARNER = Learner(tol=1e-3, max_iter=7)
-FULL_C = 2.5  # the full model's C in the selection file the spied stage reads
 
 
-def bench(seed: int) -> list[dict]:
-    """Hand-made benchmark records (the spied `build_steps` reads only what the tags below name)."""
-    return [{"env_id": env, "demo_id": f"{seed}/{env}/{i}", "task": {"name": "stir", "args": [f"obj{i}"]},
-             "steps": []} for i, env in enumerate(("env01", "env12", "env02", "env13", "env11", "env12"))]
+@pytest.fixture(scope="module")
+def worlds(tmp_path_factory):
+    """Two drawn worlds of three rooms, as the scenes stage leaves them (`<seed>/processed`)."""
+    root = tmp_path_factory.mktemp("drawn")
+    for seed in SEEDS:
+        raw = root / f"raw{seed}"
+        assert main(["--no-mlflow", "generate", "--world-seed", str(seed), "--set", "world.family=procedural",
+                     "--set", "procedural.environments=3", "--output", str(raw)]) == 0
+        processed = root / str(seed) / "processed"
+        assert main(["--no-mlflow", "ingest", "--input", str(raw), "--output", str(processed)]) == 0
+    return root
 
 
-def tag(record: dict) -> tuple:
-    """What a training step is made from: the record's environment, demo, task, participant and actions."""
-    return (record["env_id"], record["demo_id"] if "participant" not in record else None,
-            (record["task"]["name"], *record["task"]["args"]), record.get("participant"),
-            tuple((s["primitive"], *s["args"]) for s in record["steps"]))
+class Spy:
+    """The shipped planner as the stage sees it: what it was fitted on, and what it was asked to run."""
+
+    def __init__(self, log: list) -> None:
+        self.log = log
+
+    def fit(self, contexts, meta):
+        self.entry = {"steps": list(contexts), "meta": list(meta), "ran": []}
+        self.log.append(self.entry)
+        return self
+
+    def run(self, scenario, max_steps):
+        self.entry["ran"].append((scenario, max_steps))
+        return SimpleNamespace(scenario=scenario)
 
 
-def outcome(seed: int, k: int, env_id: str) -> Outcome:
-    """The spied planner's results, chosen by hand: env12 has 2 pours and 1 stir held out, env13 1 pour."""
-    if env_id.endswith("env12"):
-        by_kind = {"pour": (2, min(k, 2) if seed == 0 else 1), "stir": (1, int(k >= 1))}
-    else:
-        by_kind = {"pour": (1, 1)}
-    return Outcome(env_id, sum(n for n, _ in by_kind.values()), sum(s for _, s in by_kind.values()), by_kind)
+def outcome(world_seed: int, k: int, scenario) -> SequenceOutcome:
+    """Hand-chosen: every pour is right from k = 1 on; in world 0 every other task from k = 2; success as arg, except
+    that in world 1 everything succeeds."""
+    right = (scenario.task.name == "pour" and k >= 1) or (world_seed == 0 and k >= 2)
+    return SequenceOutcome(scenario.id, scenario.task.name, (), "done", right, right, True, True,
+                           right or world_seed == 1, "exact" if right else "other_success")
 
 
 @pytest.fixture
-def spied(tmp_path, monkeypatch, capsys):
-    calls = SimpleNamespace(loaded=[], fits=[], judged=[], orders=[], plots=[], metrics=[])
+def spied(worlds, tmp_path, monkeypatch):
+    calls = SimpleNamespace(fits=[], plots=[], metrics=[])
+    current = {}
 
-    def load_benchmark(processed):
-        calls.loaded.append(Path(processed))
-        return SimpleNamespace(records=bench(int(Path(processed).parent.name)))
+    def judged(method, scenarios, max_steps):
+        ran = [method.run(s, max_steps) for s in scenarios]
+        return [outcome(current["seed"], current["k"], r.scenario) for r in ran]
 
-    def fit(contexts, C, learner):
-        calls.fits.append((list(contexts), C, learner))
-        return f"planner {len(calls.fits)}"
+    real_teach_world = teach.teach_world
 
-    def success_on_spy(planner, env_id, state, tasks, max_steps):
-        calls.judged.append((planner, env_id, state, list(tasks), max_steps))
-        n = len(calls.fits) - 1  # the planner last fit: world n // len(KS), k n % len(KS)
-        return outcome(SEEDS[n // len(KS)], KS[n % len(KS)], env_id)
+    def teach_world(seed, bench, settings, make, max_steps):
+        current["seed"] = seed
+        return real_teach_world(seed, bench, settings, make, max_steps)
 
-    def order_spy(tasks, rng):
-        state = rng.bit_generator.state
-        order = teaching_order(tasks, rng)
-        calls.orders.append((list(tasks), state, order))
-        return order
-
-    monkeypatch.setattr(teach, "load_benchmark", load_benchmark)
-    monkeypatch.setattr(teach, "build_steps", lambda records: ([tag(r) for r in records], None))
-    monkeypatch.setattr(teach, "fit", fit)
-    monkeypatch.setattr(teach, "success_on", success_on_spy)
-    monkeypatch.setattr(teach, "teaching_order", order_spy)
+    monkeypatch.setattr(teach, "judged", judged)
+    monkeypatch.setattr(teach, "teach_world", teach_world)
     monkeypatch.setattr(teach, "line_plot_png", lambda *a, **kw: calls.plots.append((a, kw)))
+    original_weighted = teach.weighted
+
+    def weighted_spy(contexts, meta, taught, taught_meta, weight):
+        current["k"] = len({m.sequence_id for m in taught_meta}) // len(ROOMS)
+        return original_weighted(contexts, meta, taught, taught_meta, weight)
+
+    monkeypatch.setattr(teach, "weighted", weighted_spy)
+
+    class Make:  # a fresh spy per fit; a fit without taught steps (`weighted` not called) is k = 0's
+        def __call__(self):
+            if len(calls.fits) % len(KS) == 0:
+                current["k"] = 0
+            return Spy(calls.fits)
+
+    monkeypatch.setattr(teach, "Lineup", lambda *a, **kw: SimpleNamespace(mrf=lambda names: {names[0]: Make()}))
     tracker = SimpleNamespace(metrics=lambda values: calls.metrics.append(values))
-    settings = teach.Settings(World(seeds=SEEDS), Teach(environments=ENVS, k=KS, seed=5), LEARNER, 17)
+    settings = teach.Settings(World(seeds=SEEDS), Teach(environments=ROOMS, k=KS, seed=5, weight=3), LEARNER, 17,
+                              Params().methods)
     selection = tmp_path / "selection.json"
-    selection.write_text(json.dumps({"settings": {"full": {"C": FULL_C}, "relations": {"C": 0.1}}}))
-    calls.table = teach.run(settings, TeachOptions(worlds=tmp_path / "worlds", output=tmp_path / "out",
-                                                 selection=selection), tracker)
-    calls.out = tmp_path / "out"
-    calls.worlds = tmp_path / "worlds"
-    calls.printed = capsys.readouterr().out
+    selection.write_text(json.dumps({"method": "drawn_rooms", "settings": {"drawn_rooms": {"C": 0.3}}}))
+    calls.table = teach.run(settings, TeachOptions(worlds=worlds, output=tmp_path / "out", selection=selection),
+                            tracker)
+    calls.out, calls.worlds = tmp_path / "out", worlds
     return calls
 
 
-def test_each_world_is_read_from_its_own_processed_tables(spied):
-    assert spied.loaded == [spied.worlds / "0" / "processed", spied.worlds / "1" / "processed"]
+def _rooms_of(meta) -> set[str]:
+    return {m.scenario_id.split("/")[0] for m in meta}
 
 
-def test_the_tasks_of_each_environment_are_ordered_by_one_generator_seeded_by_teach_seed_and_world(spied):
-    assert len(spied.orders) == len(SEEDS) * len(ENVS)
-    for s, seed in enumerate(SEEDS):
-        rng = np.random.default_rng([5, seed])
-        for e, env in enumerate(ENVS):
-            tasks, state, order = spied.orders[s * len(ENVS) + e]
-            assert [t for t, _ in tasks] == [t for t, _ in doable_tasks(world_environment(seed, env).state)]
-            assert state == rng.bit_generator.state  # env13's order follows env12's draws
-            rng.permutation(len(tasks))
-            assert sorted(order) == list(range(len(tasks)))
-
-
-def test_training_is_the_benchmark_outside_the_held_out_environments_plus_the_first_k_taught_tasks(spied):
+def test_training_is_the_drawn_world_outside_the_held_out_rooms_plus_the_first_k_taught_tasks_weighted(spied):
     assert len(spied.fits) == len(SEEDS) * len(KS)
-    for s, seed in enumerate(SEEDS):
-        base = [tag(r) for r in bench(seed) if r["env_id"] not in ENVS]
-        assert [b[0] for b in base] == ["env01", "env02", "env11"]
-        for i, k in enumerate(KS):
-            contexts, C, learner = spied.fits[s * len(KS) + i]
-            assert C == FULL_C and learner == LEARNER  # the full model's C, not another method's
-            people = []
-            for e, env in enumerate(ENVS):
-                tasks, _, order = spied.orders[s * len(ENVS) + e]
-                for task, actions in [tasks[j] for j in order[:k]]:
-                    people.append((f"w{seed}-{env}", None, (task.name, *task.args), "scripted",
-                                   tuple((a.primitive, *a.args) for a in actions)))
-            assert contexts == base + people
-            assert len(people) == k * len(ENVS)
+    for n, fit in enumerate(spied.fits):
+        k = KS[n % len(KS)]
+        base = [m for m in fit["meta"] if "/scripted-" not in m.sequence_id]
+        taught = [m for m in fit["meta"] if "/scripted-" in m.sequence_id]
+        assert not _rooms_of(base) & set(ROOMS) and _rooms_of(base) == {"proc001"}
+        assert len(base) == len(spied.fits[n - n % len(KS)]["meta"])  # k = 0 trains on the base alone
+        sequences = {m.sequence_id for m in taught}
+        assert len(sequences) == k * len(ROOMS) and _rooms_of(taught) == (set(ROOMS) if k else set())
+        assert all(sum(m.sequence_id == s for m in taught) % 3 == 0 for s in sequences)  # each counted 3 times
+        assert len(taught) == 3 * len(taught) // 3 and len(fit["steps"]) == len(fit["meta"])
+    # the tasks shown at k are those shown at k - 1 and one more per room
+    for seed in range(len(SEEDS)):
+        shown = [{m.scenario_id for m in spied.fits[seed * len(KS) + i]["meta"] if "/scripted-" in m.sequence_id}
+                 for i in range(len(KS))]
+        assert shown[0] <= shown[1] <= shown[2] and len(shown[2]) == len(ROOMS) * max(KS)
 
 
-def test_the_planner_is_judged_on_the_same_other_tasks_for_every_k_and_never_on_a_taught_one(spied):
-    assert len(spied.judged) == len(SEEDS) * len(KS) * len(ENVS)
-    for s, seed in enumerate(SEEDS):
-        for e, env in enumerate(ENVS):
-            tasks, _, order = spied.orders[s * len(ENVS) + e]
-            taught = [tasks[j][0] for j in order[: max(KS)]]
-            expected = [tasks[j][0] for j in order[max(KS):]]
-            assert sorted(map(str, taught + expected)) == sorted(str(t) for t, _ in tasks)  # every doable task
-            state = world_environment(seed, env).state
-            for i, _ in enumerate(KS):
-                planner, env_id, judged_state, judged, max_steps = spied.judged[(s * len(KS) + i) * len(ENVS) + e]
-                assert planner == f"planner {s * len(KS) + i + 1}"  # the one trained for this world and k
-                assert env_id == f"w{seed}-{env}" and max_steps == 17
-                assert judged == expected and not set(map(str, judged)) & set(map(str, taught))
-                assert judged_state.poses == state.poses and judged_state.support == state.support
+def test_the_planner_is_judged_on_the_same_other_tasks_for_every_k_and_never_on_a_shown_one(spied):
+    for seed in range(len(SEEDS)):
+        fits = spied.fits[seed * len(KS):(seed + 1) * len(KS)]
+        ran = [[s.id for s, _ in f["ran"]] for f in fits]
+        assert ran[0] == ran[1] == ran[2] and all(cap == 17 for f in fits for _, cap in f["ran"])
+        shown = {m.scenario_id for m in fits[-1]["meta"] if "/scripted-" in m.sequence_id}
+        assert not shown & set(ran[0]) and {r.split("/")[0] for r in ran[0]} == set(ROOMS)
+        states = {s.env_id: s.initial for s, _ in fits[0]["ran"]}
+        every = {s.id for room in ROOMS for s in room_scenarios(room, states[room])}
+        assert set(ran[0]) | shown == every  # every task the demonstrator can do there is shown or judged
 
 
-def test_the_tables_carry_the_outcomes_per_world_and_their_mean_and_sd_over_worlds(spied):
-    rows = list(csv.DictReader(io.StringIO((spied.out / "teach_seeds.csv").read_text())))
-    assert list(rows[0]) == ["world_seed", "k", "held_out_tasks", "successes", "success",
-                             *[f"success_{t}" for t in TASKS]]
-    got = [(r["world_seed"], r["k"], r["held_out_tasks"], r["successes"], r["success"], r["success_pour"],
-            r["success_stir"], r["success_throw_away"]) for r in rows]
-    assert got == [("0", "0", "4", "1", "25.00", "33.33", "0.00", "nan"),
-                   ("0", "1", "4", "3", "75.00", "66.67", "100.00", "nan"),
-                   ("0", "2", "4", "4", "100.00", "100.00", "100.00", "nan"),
-                   ("1", "0", "4", "2", "50.00", "66.67", "0.00", "nan"),
-                   ("1", "1", "4", "3", "75.00", "66.67", "100.00", "nan"),
-                   ("1", "2", "4", "3", "75.00", "66.67", "100.00", "nan")]
-    table = list(csv.DictReader(io.StringIO((spied.out / "teach.csv").read_text())))
-    assert list(table[0]) == ["k", "success_mean", *[f"success_{t}_mean" for t in TASKS], "success_sd", "n_seeds"]
-    assert [(r["k"], r["success_mean"], r["success_pour_mean"], r["success_stir_mean"], r["success_pour_to_mean"],
-             r["success_sd"], r["n_seeds"]) for r in table] == [
-        ("0", "37.50", "50.00", "0.00", "nan", "17.68", "2"),
-        ("1", "75.00", "66.67", "100.00", "nan", "0.00", "2"),
-        ("2", "87.50", "83.33", "100.00", "nan", "17.68", "2")]
-    assert [r["k"] for r in spied.table] == list(KS)
-    assert spied.table[0]["success_mean"] == 37.5 and spied.table[0]["success_sd"] == pytest.approx(12.5 * 2**0.5)
-    assert spied.table[2]["success_pour_mean"] == pytest.approx(250 / 3) and spied.table[1]["n_seeds"] == 2
-    assert spied.metrics == [{"success_k0": 37.5}, {"success_k1": 75.0}, {"success_k2": 87.5}]
-    out = spied.printed
-    assert "world 0, k = 0: 1/4 held-out tasks succeed (25.0%)\n" in out
-    assert "world 1, k = 2: 3/4 held-out tasks succeed (75.0%)\n" in out
+def test_the_tables_pair_every_k_with_k0_and_carry_the_outcomes_by_hand(spied):
+    programs = list(csv.DictReader((spied.out / "teach_programs.csv").open()))
+    assert {(r["world_seed"], r["k"]) for r in programs} == {(str(s), str(k)) for s in SEEDS for k in KS}
+    per_seed = {(int(r["world_seed"]), int(r["k"])): r for r in csv.DictReader((spied.out / "teach_seeds.csv").open())}
+    for (seed, k), row in per_seed.items():
+        mine = [p for p in programs if p["world_seed"] == str(seed) and p["k"] == str(k)]
+        pours = sum(p["task"] == "pour" for p in mine)
+        right = len(mine) if seed == 0 and k >= 2 else pours if k >= 1 else 0
+        assert int(row["held_out_tasks"]) == len(mine)
+        assert float(row["sequence_arg"]) == pytest.approx(100 * right / len(mine), abs=0.005)
+        assert float(row["success"]) == pytest.approx(100.0 if seed == 1 else 100 * right / len(mine), abs=0.005)
+    table = {int(r["k"]): r for r in csv.DictReader((spied.out / "teach.csv").open())}
+    n = sum(1 for p in programs if p["k"] == "0")
+    assert int(table[0]["arg_misses"]) == n and float(table[0]["misses_removed"]) == 0.0
+    assert int(table[0]["better"]) == int(table[0]["worse"]) == 0 and float(table[0]["p"]) == 1.0
+    k2 = [p for p in programs if p["k"] == "2"]
+    fixed = sum(p["sequence_arg"] == "1" for p in k2)
+    assert int(table[2]["better"]) == fixed and int(table[2]["worse"]) == 0
+    assert float(table[2]["misses_removed"]) == pytest.approx(100 * fixed / n, abs=0.005)
+    assert float(table[2]["p"]) == pytest.approx(2 * 0.5 ** fixed, rel=1e-3)
+    # the table is from unrounded figures, the per-world file rounds them
+    seq = [float(per_seed[(s, 1)]["sequence_arg"]) for s in SEEDS]
+    assert float(table[1]["sequence_arg_mean"]) == pytest.approx(np.mean(seq), abs=0.02)
+    assert float(table[1]["sequence_arg_sd"]) == pytest.approx(np.std(seq, ddof=1), abs=0.02)
+    md = (spied.out / "teach.md").read_text()
+    assert "the shipped planner, ours + relations + choice cues + safety lookahead + drawn rooms (`drawn_rooms`)" in md
+    assert "counted 3 times" in md and f"| 2 | {float(table[2]['sequence_arg_mean']):.1f} ±" in md
+    assert spied.metrics[-1] == {"sequence_arg_k2": pytest.approx(float(table[2]["sequence_arg_mean"]), abs=0.005),
+                                 "success_k2": pytest.approx(float(table[2]["success_mean"]), abs=0.005)}
+    (args, kwargs), = spied.plots
+    assert set(args[0]) == {"sequence arg", "success"} and kwargs["xticks"] == list(KS)
 
 
-def test_the_page_and_the_figure_say_what_was_measured(spied):
-    cells = {"pour": ["50.0", "66.7", "83.3"], "stir": ["0.0", "100.0", "100.0"]}
-    rows = [f"| {k} | {m} | " + " | ".join(cells.get(t, ["nan"] * 3)[i] for t in TASKS) + " | 2 |"
-            for i, (k, m) in enumerate(zip(KS, ["37.5 ± 17.7", "75.0 ± 0.0", "87.5 ± 17.7"], strict=True))]
-    assert (spied.out / "teach.md").read_text() == "\n".join([
-        "# Teaching unseen environments", "",
-        "Environments env12, env13, held out of the training data; a scripted person demonstrates k tasks in each; "
-        "success of the full model on the other tasks there (mean ± sd over world seeds).", "",
-        "| k | success (%) | stir | pick_and_place | pour | pour_to | throw_away | world seeds |",
-        "|---:|---:|---:|---:|---:|---:|---:|---:|", *rows, "",
-        "Task kinds: mean over world seeds of the success on the held-out tasks of that kind.", ""])
-    [(args, kwargs)] = spied.plots
-    series, path, title, xlabel, ylabel = args
-    assert list(series) == ["full model"]
-    xs, ys, sds = series["full model"]
-    assert xs == [0, 1, 2] and ys == [37.5, 75.0, 87.5] and sds == pytest.approx([12.5 * 2**0.5, 0.0, 12.5 * 2**0.5])
-    assert path == str(spied.out / "teach.png")
-    assert title == "unseen environments env12, env13: mean ± sd over worlds 0, 1"
-    assert (xlabel, ylabel) == ("tasks demonstrated per environment (k)", "success on the other tasks (%)")
-    assert kwargs == {"xticks": [0, 1, 2], "xticklabels": ["0", "1", "2"]}
-
-
-def test_one_world_has_an_sd_of_zero(tmp_path, monkeypatch):
-    monkeypatch.setattr(teach, "load_benchmark", lambda processed: SimpleNamespace(records=bench(0)))
-    monkeypatch.setattr(teach, "build_steps", lambda records: ([tag(r) for r in records], None))
-    monkeypatch.setattr(teach, "fit", lambda contexts, C, learner: "planner")
-    monkeypatch.setattr(teach, "success_on", lambda planner, env_id, state, tasks, max_steps: outcome(0, 2, env_id))
-    monkeypatch.setattr(teach, "line_plot_png", lambda *a, **kw: None)
-    settings = teach.Settings(World(seeds=(3,)), Teach(environments=("env13",), k=(1,), seed=0), LEARNER, 20)
-    [row] = teach.run(settings, TeachOptions(worlds=tmp_path, output=tmp_path / "out"))
-    assert row["success_sd"] == 0.0 and row["n_seeds"] == 1 and row["success_mean"] == 100.0
-
-
-@pytest.mark.parametrize("envs, unknown", [(("env00",), "['env00']"), (("env14", "env13", "env1"),
-                                                                           "['env1', 'env14']")])
-def test_an_environment_outside_env01_to_env13_is_refused_before_anything_is_read(tmp_path, envs, unknown):
-    settings = teach.Settings(World(seeds=(0,)), Teach(environments=envs), LEARNER, 20)
-    with pytest.raises(ValueError, match=rf"^teach.environments: unknown environments {re.escape(unknown)}$"):
-        teach.run(settings, TeachOptions(worlds=tmp_path / "none", output=tmp_path / "out"))
+def test_a_room_the_drawn_world_does_not_have_is_refused_naming_the_rooms_it_has(worlds, tmp_path):
+    selection = tmp_path / "selection.json"
+    selection.write_text(json.dumps({"method": "full", "settings": {"full": {"C": 1.0}}}))
+    settings = teach.Settings(World(seeds=(0,)), Teach(environments=("proc009",), k=(0,)), LEARNER, 17,
+                              Params().methods)
+    with pytest.raises(ValueError, match=r"proc009 not among world 0's rooms \(proc001, proc002, proc003\)"):
+        teach.run(settings, TeachOptions(worlds=worlds, output=tmp_path / "out", selection=selection))
     assert not (tmp_path / "out").exists()
 
 
-def test_the_first_and_last_environments_are_known(tmp_path, monkeypatch):
-    seen = []
-    monkeypatch.setattr(teach, "load_benchmark", lambda processed: seen.append(processed) or
-                        SimpleNamespace(records=[]))
-    monkeypatch.setattr(teach, "build_steps", lambda records: ([], None))
-    monkeypatch.setattr(teach, "fit", lambda contexts, C, learner: "planner")
-    monkeypatch.setattr(teach, "success_on", lambda planner, env_id, state, tasks, max_steps: outcome(0, 0, env_id))
-    monkeypatch.setattr(teach, "line_plot_png", lambda *a, **kw: None)
-    settings = teach.Settings(World(seeds=(0,)), Teach(environments=("env01", "env13"), k=(0,)), LEARNER, 20)
-    teach.run(settings, TeachOptions(worlds=tmp_path, output=tmp_path / "out"))
-    assert len(seen) == 1
+def test_a_selection_without_a_ranked_method_is_refused(worlds, tmp_path):
+    selection = tmp_path / "selection.json"
+    selection.write_text(json.dumps({"settings": {"full": {"C": 1.0}}}))
+    settings = teach.Settings(World(seeds=(0,)), Teach(environments=ROOMS, k=(0,)), LEARNER, 17, Params().methods)
+    with pytest.raises(ValueError, match="names no method ranked first"):
+        teach.run(settings, TeachOptions(worlds=worlds, output=tmp_path / "out", selection=selection))
 
 
-def test_the_settings_come_from_train_teach_world_and_the_closed_loop_step_cap():
-    base = Params()
-    params = dataclasses.replace(base, train=dataclasses.replace(base.train, tol=0.004, max_iter=11, n_slacks=3),
-                                 world=World(seeds=(4, 9)), teach=Teach(environments=("env02",), k=(0, 5)),
-                                 crossval=dataclasses.replace(base.crossval, max_steps=13))
-    s = teach.settings(params)
-    assert s.world == World(seeds=(4, 9)) and s.teach == Teach(environments=("env02",), k=(0, 5))
-    assert s.max_steps == 13
-    assert s.learner == Learner(tol=0.004, max_iter=11, n_slacks=3)
+def test_teach_settings_refuse_a_weight_below_one_and_a_negative_k():
+    with pytest.raises(ValueError, match="teach.weight must be at least 1"):
+        Params.load(None, ["teach.weight=0"])
+    with pytest.raises(ValueError, match="teach.k must list"):
+        Params.load(None, ["teach.k=0 -1"])
+    s = teach.settings(Params.load(None, ["teach.weight=4", "world.seeds=[2]", "crossval.max_steps=9"]))
+    assert s.teach.weight == 4 and s.world.seeds == (2,) and s.max_steps == 9
+
+
+def test_weighted_counts_each_taught_step_weight_times_after_the_base():
+    assert weighted(["a", "b"], ["ma", "mb"], ["t"], ["mt"], 3) == (["a", "b", "t", "t", "t"],
+                                                                      ["ma", "mb", "mt", "mt", "mt"])
+    with pytest.raises(ValueError, match="at least 1"):
+        weighted([], [], ["t"], ["mt"], 0)
+
+
+def test_rooms_to_teach_shows_the_first_of_the_teaching_order_and_tests_the_rest():
+    env = world_environment(0, "env02")
+    candidates = room_scenarios("env02", env.state)
+    order = teaching_order([(s.task, list(s.demonstrations[0])) for s in candidates], np.random.default_rng(3))
+    (room,) = rooms_to_teach({"env02": env.state}, 2, np.random.default_rng(3))
+    assert [t for t, _ in room.shown] == [candidates[i].task for i in order[:2]]
+    assert [a for _, a in room.shown] == [candidates[i].demonstrations[0] for i in order[:2]]
+    assert [s.id for s in room.tested] == [candidates[i].id for i in order[2:]]
+
+
+def test_the_weight_script_ranks_by_sequence_arg_then_success_then_the_smaller_weight():
+    rank = runpy.run_path(str(ROOT / "scripts" / "teach_weight.py"))["rank"]
+    rows = [{"weight": 10, "sequence_arg": 90.0, "success": 99.0}, {"weight": 3, "sequence_arg": 90.0, "success": 99.0},
+            {"weight": 1, "sequence_arg": 90.0, "success": 99.5}, {"weight": 30, "sequence_arg": 91.0, "success": 9.0}]
+    assert [r["weight"] for r in rank(rows)] == [30, 1, 3, 10]
 
 
 def test_records_are_written_by_the_servers_writer_and_read_back_as_ingest_reads_them():

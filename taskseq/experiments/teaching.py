@@ -22,13 +22,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..evaluate.methods import Method
 from ..features.context import StepContext
+from ..features.dataset import StepMeta
 from ..learn.estimator import StepScorer
 from ..plan.planner import plan
 from ..settings import Learner
 from ..sim.primitives import Action
+from ..sim.scenarios import Scenario, room_scenarios
 from ..sim.state import WorldState
 from ..sim.tasks import Task
+from .crossval import SequenceOutcome, judge
 
 
 @dataclass(frozen=True)
@@ -82,3 +86,41 @@ def teaching_order(tasks: list[tuple[Task, list[Action]]], rng: np.random.Genera
             if by_kind[k]:
                 out.append(by_kind[k].pop(0))
     return out
+
+
+@dataclass(frozen=True)
+class Taught:
+    """One held-out room of a teaching run: where it is, the tasks a person shows first (in order) and the rest."""
+
+    env_id: str
+    state: WorldState
+    shown: tuple[tuple[Task, tuple[Action, ...]], ...]  # the first max(k) tasks of the teaching order, one sequence
+    tested: tuple[Scenario, ...]  # every other task the demonstrator can do there, with all its sequences
+
+
+def rooms_to_teach(rooms: dict[str, WorldState], most: int, rng: np.random.Generator) -> list[Taught]:
+    """Per room (in the mapping's order), what a person shows and what is judged: the room's scenarios
+    (`sim.scenarios.room_scenarios`) in `teaching_order`; the first `most` are shown, the rest tested, so the
+    tested tasks are the same for every k up to `most` and never one that was shown."""
+    out = []
+    for env_id, state in rooms.items():
+        candidates = room_scenarios(env_id, state)
+        order = teaching_order([(s.task, list(s.demonstrations[0])) for s in candidates], rng)
+        out.append(Taught(env_id, state, tuple((candidates[i].task, candidates[i].demonstrations[0])
+                                               for i in order[:most]),
+                          tuple(candidates[i] for i in order[most:])))
+    return out
+
+
+def weighted(contexts: list[StepContext], meta: list[StepMeta], taught: list[StepContext],
+             taught_meta: list[StepMeta], weight: int) -> tuple[list[StepContext], list[StepMeta]]:
+    """The training steps with each taught step counted `weight` times (its room's own ways, made to weigh against
+    the many steps of other rooms)."""
+    if weight < 1:
+        raise ValueError(f"teach.weight must be at least 1 (times a taught step counts), got {weight}")
+    return contexts + taught * weight, meta + taught_meta * weight
+
+
+def judged(method: Method, scenarios: Iterable[Scenario], max_steps: int) -> list[SequenceOutcome]:
+    """The fitted method's program for each scenario, judged against its demonstrations."""
+    return [judge(s, method.run(s, max_steps)) for s in scenarios]

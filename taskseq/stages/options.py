@@ -139,10 +139,11 @@ class PeopleOptions:
 
 @dataclass(frozen=True, kw_only=True)
 class TeachOptions:
-    worlds: Path = option("folder of the worlds' data, one subfolder per seed with its processed tables",
-                          Path("data/worlds"), input=True)
-    selection: Path | None = _selection()
-    output: Path = option("folder for teach.{csv,md,png} and teach_seeds.csv")
+    worlds: Path = option("folder of the drawn worlds' data (the scenes stage's), one subfolder per seed with its "
+                          "processed tables", Path("data/scenes/drawn"), input=True)
+    selection: Path | None = option("the file `taskseq select` wrote: the shipped planner is the method it ranks "
+                                    "first, at its C", Path("reports/selection.json"), input=True)
+    output: Path = option("folder for teach.{csv,md,png}, teach_seeds.csv and teach_programs.csv")
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -53,7 +53,7 @@ def run(settings: Settings, options: SelectOptions, tracker: Tracker = NO_RUN, n
     names = lineup.names("select")
     if PAPER_MODEL not in names:
         raise ValueError(f"params.yaml: methods.{PAPER_MODEL}.experiments must include select: its C is also the "
-                         "paper's ablations' (only_edge, only_clique) and the teach and people stages'")
+                         "paper's ablations' (only_edge, only_clique) and the people stage's")
     lineup.mrf(names)
     data, output = options.data, options.output
     rooms = replace(settings.procedural, environments=select.environments)  # the development world's own size

@@ -1,12 +1,17 @@
-"""Stage `teach`: what k demonstrations buy in environments the planner has never seen.
+"""Stage `teach`: what k demonstrations buy the shipped planner in drawn rooms it has never seen.
 
-For each reported world, the environments of `teach.environments` are held
-out of the benchmark's training steps. A scripted person (the demonstrator,
-writing through the server's record writer, read back by the ingest
-validator) demonstrates k tasks in each of them; the full model is trained
-on the rest of the benchmark plus those k per environment and judged on the
-same held-out tasks for every k: all the tasks of those environments the
-demonstrator can do, except the first max(k) it demonstrates.
+For each reported world, the `scenes` stage's drawn world of that seed is
+read, and the rooms of `teach.environments` are held out of its training
+steps. A scripted person (the demonstrator, writing through the server's
+record writer, read back by the ingest validator) shows k tasks in each of
+them; the shipped planner (the method `select` ranks first, at its C) is
+trained on the rest of the drawn world plus those k per room, each taught
+step counted `teach.weight` times, and judged on the same other tasks of
+those rooms for every k: every task the demonstrator can do there
+(`sim.scenarios.room_scenarios`) except the first max(k) it shows. A program
+counts for sequence arg when it is one of the task's demonstrations, for
+success when it stopped by choice with the goal reached and no safety rule
+broken; k against 0 is paired task by task (exact McNemar test).
 """
 
 from __future__ import annotations
@@ -19,23 +24,24 @@ from typing import Any
 
 import numpy as np
 
-from ..demonstrations.benchmark import load_benchmark
+from ..demonstrations.benchmark import Benchmark, load_benchmark
 from ..demonstrations.ingest import load_logs
-from ..experiments.teaching import fit, pooled, success_on, teaching_order
+from ..experiments.teaching import judged, rooms_to_teach, weighted
 from ..features.dataset import build_steps
+from ..methods import Lineup, method_labels
 from ..report.csvs import csv_text
 from ..report.figures import line_plot_png
+from ..report.stats import mcnemar_exact
 from ..runtime.atomic import write_text_atomic
 from ..selection import read_selection
-from ..serve.environments import world_environment
+from ..serve.environments import Environment
 from ..serve.writer import RecordWriter, person_record
-from ..settings import Learner, Params, Teach, World
-from ..sim.scenarios import doable_tasks
-from ..sim.tasks import TASKS
+from ..settings import Learner, Methods, Params, Procedural, Teach, World
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .options import TeachOptions
 
 SCRIPTED = "scripted"  # the participant id of the scripted person's records
+FIGURES = ("sequence_arg", "success")
 
 
 def written_and_read_back(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -53,86 +59,130 @@ def written_and_read_back(records: list[dict[str, Any]]) -> list[dict[str, Any]]
 class Settings:
     world: World
     teach: Teach
-    learner: Learner  # the full model's, as `train` sets it (its C from the selection file)
+    learner: Learner  # as `train` sets it (the shipped method's C from the selection file)
     max_steps: int  # step cap of closed-loop runs
+    methods: Methods  # the shipped method's own settings
+    procedural: Procedural = Procedural()  # where a method that trains on drawn rooms draws them
 
 
 def settings(params: Params, world_seed: int | None = None) -> Settings:
     t = params.train
-    return Settings(params.world, params.teach, Learner(t.tol, t.max_iter, t.n_slacks),
-                    params.crossval.max_steps)
+    return Settings(params.world, params.teach, Learner(t.tol, t.max_iter, t.n_slacks), params.crossval.max_steps,
+                    params.methods, params.procedural)
 
 
 def run(settings: Settings, options: TeachOptions, tracker: Tracker = NO_RUN) -> list[dict[str, Any]]:
-    world, teach, learner, max_steps = settings.world, settings.teach, settings.learner, settings.max_steps
-    worlds, output = options.worlds, options.output
-    C = read_selection(options.selection).of("full")
-    unknown = sorted(set(teach.environments) - {f"env{i:02d}" for i in range(1, 14)})
-    if unknown:
-        raise ValueError(f"teach.environments: unknown environments {unknown}")
-    rows = []
+    world, teach, max_steps = settings.world, settings.teach, settings.max_steps
+    selection = read_selection(options.selection)
+    shipped = selection.method
+    if shipped is None:
+        raise ValueError(f"{options.selection}: names no method ranked first (the shipped planner); run "
+                         "`taskseq select` again")
+    make = Lineup(settings.methods, selection, settings.learner, procedural=settings.procedural).mrf([shipped])[shipped]
+    programs = []
     for seed in world.seeds:
-        records = load_benchmark(Path(worlds) / str(seed) / "processed").records
-        base, _ = build_steps([r for r in records if r["env_id"] not in teach.environments])
-        rng = np.random.default_rng([teach.seed, seed])
-        taught, tested = {}, {}
-        for env_id in teach.environments:
-            env = world_environment(seed, env_id)
-            tasks = doable_tasks(env.state)
-            order = teaching_order(tasks, rng)
-            taught[env_id] = (env, [tasks[i] for i in order[: max(teach.k)]])
-            tested[env_id] = [tasks[i][0] for i in order[max(teach.k) :]]
-        for k in teach.k:
-            people = written_and_read_back([person_record(env, task, actions, SCRIPTED)
-                                            for env, shown in taught.values() for task, actions in shown[:k]])
-            planner = fit(base + (build_steps(people)[0] if people else []), C, learner)
-            outcomes = [success_on(planner, env.env_id, env.state, tested[e], max_steps)
-                        for e, (env, _) in taught.items()]
-            rows.append({"world_seed": seed, "k": k, "held_out_tasks": sum(o.n_tasks for o in outcomes),
-                         "successes": sum(o.n_success for o in outcomes), "success": pooled(outcomes),
-                         **{f"success_{t}": pooled(outcomes, t) for t in TASKS}})
-            print(f"world {seed}, k = {k}: {rows[-1]['successes']}/{rows[-1]['held_out_tasks']} held-out tasks "
-                  f"succeed ({rows[-1]['success']:.1f}%)")
-    table = _over_seeds(rows, teach.k)
-    out = Path(output)
-    kinds = [f"success_{t}" for t in TASKS]
-    write_text_atomic(out / "teach_seeds.csv", csv_text(["world_seed", "k", "held_out_tasks", "successes", "success",
-                                                         *kinds], rows, dict.fromkeys(["success", *kinds], 2)))
-    means = [f"{c}_mean" for c in ["success", *kinds]]
-    write_text_atomic(out / "teach.csv", csv_text(["k", *means, "success_sd", "n_seeds"], table,
-                                                  dict.fromkeys([*means, "success_sd"], 2)))
-    write_text_atomic(out / "teach.md", _markdown(table, teach))
+        programs += teach_world(seed, load_benchmark(Path(options.worlds) / str(seed) / "processed"), teach, make,
+                                max_steps)
+    table, per_seed = _over_seeds(programs, teach.k, world.seeds)
+    out, label = Path(options.output), method_labels().get(shipped, shipped)
+    write_text_atomic(out / "teach_programs.csv", csv_text(list(programs[0]), programs) if programs else "")
+    write_text_atomic(out / "teach_seeds.csv", csv_text(["world_seed", "k", "held_out_tasks", *FIGURES], per_seed,
+                                                        dict.fromkeys(FIGURES, 2)))
+    columns = ["k", *(f"{f}_{s}" for f in FIGURES for s in ("mean", "sd")), "arg_misses", "misses_removed",
+               "better", "worse", "p", "n_seeds"]
+    write_text_atomic(out / "teach.csv", csv_text(columns, table, {c: 2 for c in columns[1:5]} | {"p": 4}))
+    write_text_atomic(out / "teach.md", _markdown(table, teach, label, shipped))
     out.mkdir(parents=True, exist_ok=True)
-    line_plot_png({"full model": ([r["k"] for r in table], [r["success_mean"] for r in table],
-                                  [r["success_sd"] for r in table])},
-                  str(out / "teach.png"), f"unseen environments {', '.join(teach.environments)}: "
-                  f"mean ± sd over worlds {', '.join(map(str, world.seeds))}",
-                  "tasks demonstrated per environment (k)", "success on the other tasks (%)",
-                  xticks=list(teach.k), xticklabels=[str(k) for k in teach.k])
+    ks = [r["k"] for r in table]
+    line_plot_png({name: (ks, [r[f"{f}_mean"] for r in table], [r[f"{f}_sd"] for r in table])
+                   for name, f in (("sequence arg", "sequence_arg"), ("success", "success"))},
+                  str(out / "teach.png"), f"{label}\ndrawn rooms {', '.join(teach.environments)} held out: mean ± sd "
+                  f"over worlds {', '.join(map(str, world.seeds))}", "tasks demonstrated per room (k)",
+                  "% of the other tasks there", xticks=ks, xticklabels=[str(k) for k in ks])
     for r in table:
-        tracker.metrics({f"success_k{r['k']}": r["success_mean"]})
+        tracker.metrics({f"sequence_arg_k{r['k']}": r["sequence_arg_mean"], f"success_k{r['k']}": r["success_mean"]})
     return table
 
 
-def _over_seeds(rows: list[dict[str, Any]], ks: tuple[int, ...]) -> list[dict[str, Any]]:
-    out = []
+def teach_world(seed: int, bench: Benchmark, teach: Teach, make: Any, max_steps: int) -> list[dict[str, Any]]:
+    """Every program the planner (`make()`, unfitted) runs in the held-out rooms of world `seed` (its benchmark
+    `bench`), for every k: one row each."""
+    rooms: dict[str, Any] = {}
+    for scenario in bench.scenarios.values():
+        rooms.setdefault(scenario.env_id, scenario.initial)
+    unknown = sorted(set(teach.environments) - set(rooms))
+    if unknown:
+        raise ValueError(f"teach.environments: {', '.join(unknown)} not among world {seed}'s rooms "
+                         f"({', '.join(sorted(rooms))})")
+    base, base_meta = build_steps([r for r in bench.records if r["env_id"] not in teach.environments])
+    taught = rooms_to_teach({e: rooms[e] for e in teach.environments}, max(teach.k),
+                            np.random.default_rng([teach.seed, seed]))
+    rows = []
+    for k in teach.k:
+        people = written_and_read_back([person_record(Environment(room.env_id, room.env_id, room.state), task,
+                                                      list(actions), SCRIPTED)
+                                        for room in taught for task, actions in room.shown[:k]])
+        steps, meta = weighted(base, base_meta, *build_steps(people), teach.weight) if people else (base, base_meta)
+        method = make().fit(steps, meta)
+        for room in taught:
+            for outcome in judged(method, room.tested, max_steps):
+                rows.append({"world_seed": seed, "k": k, "room": room.env_id, "scenario": outcome.scenario_id,
+                             "task": outcome.task, "sequence_arg": int(outcome.arg_correct),
+                             "success": int(outcome.success), "failure": outcome.failure})
+        done = [r for r in rows if r["k"] == k]
+        print(f"world {seed}, k = {k}: {sum(r['sequence_arg'] for r in done)} of {len(done)} held-out tasks as "
+              f"demonstrated, {sum(r['success'] for r in done)} succeed")
+    return rows
+
+
+def _over_seeds(programs: list[dict[str, Any]], ks: tuple[int, ...],
+                seeds: tuple[int, ...]) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """Per k: each figure's mean and sd over worlds, and the programs paired with k = 0's (misses of sequence arg
+    removed, McNemar's discordant pairs and p); and per world and k, the counts behind them."""
+    per_seed = []
+    for seed in seeds:
+        for k in ks:
+            mine = [r for r in programs if r["world_seed"] == seed and r["k"] == k]
+            per_seed.append({"world_seed": seed, "k": k, "held_out_tasks": len(mine),
+                             **{f: 100.0 * statistics.fmean(r[f] for r in mine) if mine else float("nan")
+                                for f in FIGURES}})
+    first = {(r["world_seed"], r["scenario"]): r["sequence_arg"] for r in programs if r["k"] == ks[0]}
+    table = []
     for k in ks:
-        mine = [r for r in rows if r["k"] == k]
-        values = [r["success"] for r in mine]
-        kinds = {f"success_{t}_mean": statistics.fmean(r[f"success_{t}"] for r in mine) for t in TASKS}
-        out.append({"k": k, "success_mean": statistics.fmean(values), **kinds,
-                    "success_sd": statistics.stdev(values) if len(values) > 1 else 0.0, "n_seeds": len(values)})
-    return out
+        mine = [r for r in per_seed if r["k"] == k]
+        paired = [r for r in programs if r["k"] == k]
+        now = np.array([r["sequence_arg"] for r in paired], dtype=bool)
+        before = np.array([first[(r["world_seed"], r["scenario"])] for r in paired], dtype=bool)
+        better, worse, p = mcnemar_exact(now, before)
+        misses = int((~before).sum())
+        table.append({"k": k, **{f"{f}_{s}": fn([r[f] for r in mine]) for f in FIGURES
+                                 for s, fn in (("mean", statistics.fmean), ("sd", _sd))},
+                      "arg_misses": int((~now).sum()),
+                      "misses_removed": 100.0 * (misses - int((~now).sum())) / misses if misses else 0.0,
+                      "better": better, "worse": worse, "p": p, "n_seeds": len(mine)})
+    return table, per_seed
 
 
-def _markdown(table: list[dict[str, Any]], teach: Teach) -> str:
-    lines = ["# Teaching unseen environments", "",
-             f"Environments {', '.join(teach.environments)}, held out of the training data; a scripted person "
-             "demonstrates k tasks in each; success of the full model on the other tasks there "
-             "(mean ± sd over world seeds).", "",
-             "| k | success (%) | " + " | ".join(TASKS) + " | world seeds |", "|---:|---:|" + "---:|" * len(TASKS)
-             + "---:|"]
-    lines += [f"| {r['k']} | {r['success_mean']:.1f} ± {r['success_sd']:.1f} | "
-              + " | ".join(f"{r[f'success_{t}_mean']:.1f}" for t in TASKS) + f" | {r['n_seeds']} |" for r in table]
-    lines += ["", "Task kinds: mean over world seeds of the success on the held-out tasks of that kind."]
+def _sd(values: list[float]) -> float:
+    return statistics.stdev(values) if len(values) > 1 else 0.0
+
+
+def _markdown(table: list[dict[str, Any]], teach: Teach, label: str, shipped: str) -> str:
+    k0 = table[0]["k"]
+    lines = ["# Teaching rooms never seen", "",
+             f"Drawn rooms {', '.join(teach.environments)} of each world's drawn world, held out of its training "
+             f"data; a scripted person shows k tasks in each (each taught step counted {teach.weight} times); "
+             f"the shipped planner, {label} (`{shipped}`), on the other tasks there: % of programs as "
+             "demonstrated (sequence arg) and successful, mean ± sd over world seeds. Against "
+             f"k = {k0}, task by task: the misses of sequence arg removed (share of k = {k0}'s misses), the "
+             f"programs right only with k (better) and only with k = {k0} (worse), and the exact McNemar p.", "",
+             "| k | sequence arg | success | misses | misses removed | better | worse | p | world seeds |",
+             "|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    lines += [f"| {r['k']} | {r['sequence_arg_mean']:.1f} ± {r['sequence_arg_sd']:.1f} | "
+              f"{r['success_mean']:.1f} ± {r['success_sd']:.1f} | {r['arg_misses']} | {r['misses_removed']:.0f}% | "
+              f"{r['better']} | {r['worse']} | {_p(r['p'])} | {r['n_seeds']} |" for r in table]
     return "\n".join(lines) + "\n"
+
+
+def _p(p: float) -> str:
+    return "< 1e-4" if p < 1e-4 else f"{p:.2g}"
