@@ -447,7 +447,7 @@ def teach_results() -> str:
             "of programs as demonstrated for each k:\n\n" + table)
 
 
-TEACH_WEIGHT_COMMAND = "python scripts/teach_weight.py --weights 1 3 10 30 --output reports/teach_weight.json"
+TEACH_WEIGHT_COMMAND = "python scripts/teach_weight.py --weights 1 3 10 30 100 300 --output reports/teach_weight.json"
 
 
 def teach_weight() -> str:

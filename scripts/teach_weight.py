@@ -10,7 +10,7 @@ of the grid, and ranks the weights by sequence arg over every k above 0
 pooled, then success, then the smaller weight. The first goes into
 params.yaml by hand; docs/teach.md shows the table this writes.
 
-    python scripts/teach_weight.py --weights 1 3 10 30 --output reports/teach_weight.json
+    python scripts/teach_weight.py --weights 1 3 10 30 100 300 --output reports/teach_weight.json
 
 Run it after `dvc repro` has run `select` (the shipped planner and its C are read from reports/selection.json).
 """
@@ -43,8 +43,8 @@ def rank(rows: list[dict[str, float]]) -> list[dict[str, float]]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--weights", type=int, nargs="+", default=[1, 3, 10, 30],
-                        help="times a taught step counts, to try (default: 1 3 10 30)")
+    parser.add_argument("--weights", type=int, nargs="+", default=[1, 3, 10, 30, 100, 300],
+                        help="times a taught step counts, to try (default: 1 3 10 30 100 300)")
     parser.add_argument("--selection", type=Path, default=ROOT / "reports" / "selection.json",
                         help="the shipped planner and its C (default: reports/selection.json)")
     parser.add_argument("--params", type=Path, default=ROOT / "params.yaml")

@@ -190,7 +190,7 @@ class Teach:
     environments: tuple[str, ...] = ("proc011", "proc012", "proc013")  # drawn rooms held out of the training data
     k: tuple[int, ...] = (0, 1, 2, 3)  # tasks demonstrated per room
     seed: int = 0  # order in which tasks are demonstrated
-    weight: int = 1  # times each taught step counts in training (scripts/teach_weight.py, on the development world)
+    weight: int = 30  # times each taught step counts in training (scripts/teach_weight.py, on the development world)
 
     def __post_init__(self) -> None:
         if not self.k or min(self.k) < 0:

@@ -59,7 +59,7 @@ STAGES: dict[str, Stage] = {
                     True),
     "people": Stage("check people's demonstrations, count them, and compare the planner with and without them",
                     opts.PeopleOptions),
-    "teach": Stage("success on unseen environments after a scripted person demonstrates k tasks in each",
+    "teach": Stage("the shipped planner in drawn rooms it never saw, after a scripted person shows k tasks in each",
                    opts.TeachOptions),
     "aggregate": Stage("every figure over the world seeds: mean ± sd tables, failures, noise, feedback, recipes",
                        opts.AggregateOptions),
