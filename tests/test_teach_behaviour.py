@@ -55,7 +55,8 @@ class Spy:
     def __init__(self, log: list) -> None:
         self.log = log
 
-    def fit(self, contexts, meta):
+    def fit(self, contexts, meta, scenarios):
+        assert {m.scenario_id for m in meta} <= set(scenarios)  # every training scenario can be rolled out
         self.entry = {"steps": list(contexts), "meta": list(meta), "ran": []}
         self.log.append(self.entry)
         return self

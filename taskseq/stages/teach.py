@@ -123,7 +123,8 @@ def teach_world(seed: int, bench: Benchmark, teach: Teach, make: Any, max_steps:
                                                       list(actions), SCRIPTED)
                                         for room in taught for task, actions in room.shown[:k]])
         steps, meta = weighted(base, base_meta, *build_steps(people), teach.weight) if people else (base, base_meta)
-        method = make().fit(steps, meta)
+        # a shipped method that rolls out its training scenarios (chained starts, DAgger) finds them here
+        method = make().fit(steps, meta, {**bench.scenarios, **Benchmark.from_records(people).scenarios})
         for room in taught:
             for outcome in judged(method, room.tested, max_steps):
                 rows.append({"world_seed": seed, "k": k, "room": room.env_id, "scenario": outcome.scenario_id,
