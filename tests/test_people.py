@@ -8,7 +8,6 @@ from pathlib import Path
 
 import pytest
 
-from taskseq.demonstrations.ingest import write_tables
 from taskseq.demonstrations.people import people_records
 from taskseq.features.dataset import build_steps, write_features
 from taskseq.serve.environments import world_environment
@@ -89,15 +88,27 @@ def test_the_train_switch_adds_people_steps_and_off_leaves_the_metrics_as_they_w
     assert (tmp_path / "a.npz").read_bytes() != (tmp_path / "b.npz").read_bytes()
 
 
-def test_the_teach_stage_tests_the_same_tasks_for_every_k(benchmark_tables, tmp_path, capsys):
-    write_tables(benchmark_tables[0], tmp_path / "worlds" / "0" / "processed")
-    settings = teach_stage.Settings(World(seeds=(0,)), Teach(environments=("env13",), k=(0, 2), seed=0), LEARNER, 20)
-    table = teach_stage.run(settings, TeachOptions(worlds=tmp_path / "worlds", output=tmp_path / "out"))
-    assert [r["k"] for r in table] == [0, 2] and all(0 <= r["success_mean"] <= 100 for r in table)
+def test_the_teach_stage_runs_the_shipped_planner_on_the_same_tasks_for_every_k(tmp_path, capsys):
+    """End to end on a drawn world of three rooms, with the full model as the method ranked first."""
+    from taskseq.cli import main
+
+    assert main(["--no-mlflow", "generate", "--world-seed", "0", "--set", "world.family=procedural",
+                 "--set", "procedural.environments=3", "--output", str(tmp_path / "raw")]) == 0
+    assert main(["--no-mlflow", "ingest", "--input", str(tmp_path / "raw"), "--output",
+                 str(tmp_path / "worlds" / "0" / "processed")]) == 0
+    selection = tmp_path / "selection.json"
+    selection.write_text(json.dumps({"method": "full", "settings": {"full": {"C": 1.0}}}))
+    settings = teach_stage.Settings(World(seeds=(0,)), Teach(environments=("proc003",), k=(0, 2), seed=0, weight=2),
+                                    LEARNER, 20, Methods())
+    options = TeachOptions(worlds=tmp_path / "worlds", output=tmp_path / "out", selection=selection)
+    table = teach_stage.run(settings, options)
+    assert [r["k"] for r in table] == [0, 2]
+    assert all(0 <= r["sequence_arg_mean"] <= r["success_mean"] + 1e-9 <= 100 for r in table)
     out = capsys.readouterr().out
-    held_out = {line.split("/")[1].split()[0] for line in out.splitlines() if "held-out" in line}
+    held_out = {line.split("of ")[1].split()[0] for line in out.splitlines() if "held-out" in line}
     assert len(held_out) == 1  # one test set for every k
     assert "| 2 |" in (tmp_path / "out" / "teach.md").read_text() and (tmp_path / "out" / "teach.png").exists()
-    with pytest.raises(ValueError, match="unknown environments"):
-        teach_stage.run(teach_stage.Settings(World(seeds=(0,)), Teach(environments=("env99",)), LEARNER, 20),
-                        TeachOptions(worlds=tmp_path / "worlds", output=tmp_path / "out2"))
+    assert "`full`" in (tmp_path / "out" / "teach.md").read_text()
+    with pytest.raises(ValueError, match="proc099 not among world 0's rooms"):
+        teach_stage.run(teach_stage.Settings(World(seeds=(0,)), Teach(environments=("proc099",)), LEARNER, 20,
+                                             Methods()), options)
