@@ -94,11 +94,12 @@ def run(settings: Settings, options: TeachOptions, tracker: Tracker = NO_RUN) ->
     write_text_atomic(out / "teach.md", _markdown(table, teach, label, shipped))
     out.mkdir(parents=True, exist_ok=True)
     ks = [r["k"] for r in table]
+    title = (f"the shipped planner ({shipped}) in drawn rooms held out:\n{', '.join(teach.environments)}; "
+             f"mean ± sd over worlds {', '.join(map(str, world.seeds))}")
     line_plot_png({name: (ks, [r[f"{f}_mean"] for r in table], [r[f"{f}_sd"] for r in table])
                    for name, f in (("sequence arg", "sequence_arg"), ("success", "success"))},
-                  str(out / "teach.png"), f"{label}\ndrawn rooms {', '.join(teach.environments)} held out: mean ± sd "
-                  f"over worlds {', '.join(map(str, world.seeds))}", "tasks demonstrated per room (k)",
-                  "% of the other tasks there", xticks=ks, xticklabels=[str(k) for k in ks])
+                  str(out / "teach.png"), title, "tasks demonstrated per room (k)", "% of the other tasks there",
+                  xticks=ks, xticklabels=[str(k) for k in ks])
     for r in table:
         tracker.metrics({f"sequence_arg_k{r['k']}": r["sequence_arg_mean"], f"success_k{r['k']}": r["success_mean"]})
     return table
