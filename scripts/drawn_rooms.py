@@ -28,7 +28,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from taskseq.demonstrations.benchmark import Benchmark  # noqa: E402
-from taskseq.demonstrations.records import demonstration_record  # noqa: E402
+from taskseq.demonstrations.records import scenario_records  # noqa: E402
 from taskseq.evaluate.methods import ScorerMethod  # noqa: E402
 from taskseq.evaluate.metrics import summarize  # noqa: E402
 from taskseq.experiments.crossval import cross_validate  # noqa: E402
@@ -65,7 +65,7 @@ def main(argv: list[str] | None = None) -> int:
     C = read_selection(args.selection).of("choice_lookahead")
     dev = Generate(world.dev_seed, "procedural", params.procedural)
     scenarios, _ = world_scenarios(dev)
-    records = [demonstration_record(s, i) for s in scenarios for i in range(len(s.demonstrations))]
+    records = scenario_records(scenarios)
     contexts, meta = build_steps(records)
     bench = Benchmark.from_records(records)
     planner = partial(ScorerMethod, features="choice", C=C, tol=learner.tol, max_iter=learner.max_iter,

@@ -27,7 +27,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from taskseq.demonstrations.benchmark import Benchmark  # noqa: E402
-from taskseq.demonstrations.records import demonstration_record  # noqa: E402
+from taskseq.demonstrations.records import scenario_records  # noqa: E402
 from taskseq.methods import Lineup  # noqa: E402
 from taskseq.runtime.atomic import write_json_atomic  # noqa: E402
 from taskseq.selection import read_selection  # noqa: E402
@@ -62,8 +62,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"{args.selection}: names no method ranked first; run `taskseq select` again")
     make = Lineup(params.methods, selection, params.train.learner, procedural=params.procedural).mrf([shipped])[shipped]
     scenarios, _ = world_scenarios(Generate(world.dev_seed, "procedural", params.procedural))
-    bench = Benchmark.from_records([demonstration_record(s, i) for s in scenarios
-                                    for i in range(len(s.demonstrations))])
+    bench = Benchmark.from_records(scenario_records(scenarios))
     print(f"the shipped planner ({shipped}, C = {selection.of(shipped):g}) on the drawn development world "
           f"{world.dev_seed}: rooms {' '.join(teach.environments)} held out, k = {' '.join(map(str, teach.k))}",
           file=sys.stderr)

@@ -8,15 +8,14 @@ from ..runtime.atomic import atomic_directory
 from ..settings import Generate
 from ..sim.procedural import DrawReport
 from ..sim.scenarios import Scenario, world_scenarios
-from .records import demonstration_record, dumps
+from .records import dumps, scenario_records
 
 
 def write_demonstrations(scenarios: list[Scenario], output: Path | str) -> dict[str, int]:
     """Replace `output` with one `<env>.jsonl` per environment; returns lines per file."""
     by_env: dict[str, list[str]] = {}
-    for scenario in scenarios:
-        for index in range(len(scenario.demonstrations)):
-            by_env.setdefault(scenario.env_id, []).append(dumps(demonstration_record(scenario, index)))
+    for record in scenario_records(scenarios):
+        by_env.setdefault(record["env_id"], []).append(dumps(record))
     with atomic_directory(output) as tmp:
         for env_id, lines in by_env.items():
             (tmp / f"{env_id}.jsonl").write_text("\n".join(lines) + "\n", encoding="utf-8")

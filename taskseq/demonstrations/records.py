@@ -8,6 +8,7 @@ state. `demonstration.schema.json` beside this file is the formal schema.
 from __future__ import annotations
 
 import json
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
@@ -109,3 +110,9 @@ def parse_record(record: dict[str, Any]) -> tuple[dict[str, ObjectSpec], Task, l
 def dumps(record: dict[str, Any]) -> str:
     """One log line; the same record always gives the same bytes."""
     return json.dumps(record, separators=(",", ":"), allow_nan=False)
+
+
+def scenario_records(scenarios: Iterable[Scenario]) -> list[dict[str, Any]]:
+    """The log record of every acceptable sequence of every scenario, scenario by scenario: what `taskseq
+    generate` writes for them, without files."""
+    return [demonstration_record(s, i) for s in scenarios for i in range(len(s.demonstrations))]

@@ -20,7 +20,7 @@ from __future__ import annotations
 from dataclasses import replace
 from functools import lru_cache
 
-from ..demonstrations.records import demonstration_record
+from ..demonstrations.records import scenario_records
 from ..settings import Generate, Procedural
 from ..sim.scenarios import world_scenarios
 from .context import StepContext
@@ -37,6 +37,4 @@ def drawn_room_steps(rooms: int, seed: int, distribution: Procedural) -> tuple[S
     if rooms < 1:
         raise ValueError(f"drawn rooms: the number of rooms must be at least 1, got {rooms}")
     world = Generate(seed=seed, family="procedural", procedural=replace(distribution, environments=rooms))
-    scenarios, _ = world_scenarios(world)
-    records = [demonstration_record(s, i) for s in scenarios for i in range(len(s.demonstrations))]
-    return tuple(build_steps(records)[0])
+    return tuple(build_steps(scenario_records(world_scenarios(world)[0]))[0])
