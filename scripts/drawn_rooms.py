@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
+from dataclasses import replace
 from functools import partial
 from pathlib import Path
 
@@ -35,9 +37,14 @@ from taskseq.experiments.crossval import cross_validate  # noqa: E402
 from taskseq.features.dataset import build_steps  # noqa: E402
 from taskseq.methods import Lineup  # noqa: E402
 from taskseq.runtime.atomic import write_json_atomic  # noqa: E402
-from taskseq.selection import read_selection  # noqa: E402
+from taskseq.selection import Selection, read_selection  # noqa: E402
 from taskseq.settings import Generate, Params  # noqa: E402
 from taskseq.sim.scenarios import world_scenarios  # noqa: E402
+
+
+def _renamed(make: Callable[[], ScorerMethod], name: str) -> ScorerMethod:
+    """A method as `make` builds it, under its row's name in this script's table."""
+    return replace(make(), name=name)
 
 
 def rank(rows: list[dict[str, float]]) -> list[dict[str, float]]:
@@ -68,11 +75,13 @@ def main(argv: list[str] | None = None) -> int:
     records = scenario_records(scenarios)
     contexts, meta = build_steps(records)
     bench = Benchmark.from_records(records)
-    planner = partial(ScorerMethod, features="choice", C=C, tol=learner.tol, max_iter=learner.max_iter,
-                      n_slacks=learner.n_slacks, policy="lookahead")
-    makes = {"none": partial(planner, name="none")}
-    makes |= {f"rooms{n}": partial(planner, name=f"rooms{n}", training_rooms=n, rooms_seed=seed,
-                                   rooms_from=params.procedural) for n in args.rooms}
+    # both methods as their specs build them (taskseq/methods), at the choice-cue planner's C, one per room count
+    at_C = Selection(dict.fromkeys(("choice_lookahead", "drawn_rooms"), C), source=str(args.selection))
+    makes = {"none": partial(_renamed, Lineup(params.methods, at_C, learner).factory("choice_lookahead"), "none")}
+    for n in args.rooms:
+        rooms = Params.load(args.params, [f"methods.drawn_rooms.rooms={n}"]).methods
+        makes[f"rooms{n}"] = partial(_renamed, Lineup(rooms, at_C, learner, procedural=params.procedural)
+                                     .factory("drawn_rooms"), f"rooms{n}")
     print(f"{len(makes)} settings x {crossval.folds} folds, rooms held out, on the drawn development world "
           f"{world.dev_seed} ({params.procedural.environments} rooms, {len(bench.scenarios)} scenarios), "
           f"C = {C:g}, drawn rooms' seed {seed}", file=sys.stderr)
