@@ -53,12 +53,13 @@ def test_transfer_trains_on_the_first_world_only_and_tests_every_scenario_of_the
     paper = _world(tmp_path / "paper", Generate(seed=0))
     drawn = _world(tmp_path / "drawn", Generate(seed=0, family="procedural", procedural=Procedural(environments=2)))
     spy = _Spy()
-    results, contexts = transfer({"spy": lambda: spy}, paper, drawn, max_steps=5)
+    results, contexts, meta = transfer({"spy": lambda: spy}, paper, drawn, max_steps=5)
     assert spy.seen["trained"] == set(paper[2].scenarios)
     assert spy.seen["predicted"] == set(drawn[2].scenarios) >= spy.seen["run"]  # a method running no programs
     assert results[0].sequences is None  # stops at the first
     assert len(contexts) == len(paper[0]) + len(drawn[0])
     assert [contexts[i] for i in results[0].step_index] == drawn[0]
+    assert [meta[i] for i in results[0].step_index] == drawn[1] and len(meta) == len(contexts)
     with pytest.raises(ValueError, match="share scenario ids"):
         transfer({"spy": lambda: spy}, paper, paper, max_steps=5)
 

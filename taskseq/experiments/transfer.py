@@ -21,9 +21,9 @@ World = tuple[list[StepContext], list[StepMeta], Benchmark]
 
 
 def transfer(methods: dict[str, Callable[[], Method]], train: World, test: World, max_steps: int,
-             n_jobs: int = 1) -> tuple[list[FoldResult], list[StepContext]]:
-    """Each method fitted on every step of `train` and run on every scenario of `test`; the results and the pooled
-    steps their `step_index` points into (for `metrics.summarize`)."""
+             n_jobs: int = 1) -> tuple[list[FoldResult], list[StepContext], list[StepMeta]]:
+    """Each method fitted on every step of `train` and run on every scenario of `test`; the results, and the pooled
+    steps and their metadata that their `step_index` points into (for `metrics.summarize`, `report.csvs.step_rows`)."""
     (train_contexts, train_meta, train_bench), (test_contexts, test_meta, test_bench) = train, test
     shared_ids = set(train_bench.scenarios) & set(test_bench.scenarios)
     if shared_ids:
@@ -36,4 +36,4 @@ def transfer(methods: dict[str, Callable[[], Method]], train: World, test: World
     steps, shared_meta, scenarios, demos = Shared(contexts), Shared(meta), Shared(bench.scenarios), Shared(bench)
     results = run_jobs([(run_fold, (make, 0, steps, shared_meta, scenarios, tested, max_steps, demos))
                         for make in methods.values()], n_jobs)
-    return results, contexts
+    return results, contexts, meta

@@ -144,12 +144,12 @@ def _drawn_world(settings: Settings, options: ScenesOptions, seed: int, here: Pa
     methods = _transferred(settings, options)
     print(f"training {', '.join(methods)} on the paper-shaped world {seed} ({len(train[0])} steps) and running them "
           f"on the drawn one ({len(test[2].scenarios)} scenarios)")
-    results, contexts = transfer(methods, train, test, settings.crossval.crossval.max_steps, n_jobs)
+    results, contexts, meta = transfer(methods, train, test, settings.crossval.crossval.max_steps, n_jobs)
     predicts_args = dict.fromkeys(methods, True)
     summary = summarize(results, contexts, predicts_args)
     write_text_atomic(moved / "crossval_sequences.csv", csv_text(SEQUENCE_COLUMNS, sequence_rows(results)))
-    steps = step_rows(results, contexts, train[1] + test[1], predicts_args)  # `transfer` pools train, then test
-    write_text_atomic(moved / "crossval_steps.csv", csv_text(STEP_COLUMNS, steps))
+    write_text_atomic(moved / "crossval_steps.csv", csv_text(STEP_COLUMNS, step_rows(results, contexts, meta,
+                                                                                      predicts_args)))
     rows = [{"method": name, **{k: summary[name][k.replace("sequence_", "sequence/")] for k in TRANSFER}}
             for name in methods]
     write_text_atomic(here / "transfer.csv", csv_text(["method", *TRANSFER], rows, dict.fromkeys(TRANSFER, 2)))
