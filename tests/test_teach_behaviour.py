@@ -77,36 +77,15 @@ def outcome(world_seed: int, k: int, scenario) -> SequenceOutcome:
 @pytest.fixture
 def spied(worlds, tmp_path, monkeypatch):
     calls = SimpleNamespace(fits=[], plots=[], metrics=[])
-    current = {}
 
     def judged(method, scenarios, max_steps):
-        ran = [method.run(s, max_steps) for s in scenarios]
-        return [outcome(current["seed"], current["k"], r.scenario) for r in ran]
-
-    real_teach_world = teach.teach_world
-
-    def teach_world(seed, bench, settings, make, max_steps):
-        current["seed"] = seed
-        return real_teach_world(seed, bench, settings, make, max_steps)
+        n = calls.fits.index(method.entry)  # the stage fits world by world, k by k
+        return [outcome(SEEDS[n // len(KS)], KS[n % len(KS)], method.run(s, max_steps).scenario) for s in scenarios]
 
     monkeypatch.setattr(teach, "judged", judged)
-    monkeypatch.setattr(teach, "teach_world", teach_world)
     monkeypatch.setattr(teach, "line_plot_png", lambda *a, **kw: calls.plots.append((a, kw)))
-    original_weighted = teach.weighted
-
-    def weighted_spy(contexts, meta, taught, taught_meta, weight):
-        current["k"] = len({m.sequence_id for m in taught_meta}) // len(ROOMS)
-        return original_weighted(contexts, meta, taught, taught_meta, weight)
-
-    monkeypatch.setattr(teach, "weighted", weighted_spy)
-
-    class Make:  # a fresh spy per fit; a fit without taught steps (`weighted` not called) is k = 0's
-        def __call__(self):
-            if len(calls.fits) % len(KS) == 0:
-                current["k"] = 0
-            return Spy(calls.fits)
-
-    monkeypatch.setattr(teach, "Lineup", lambda *a, **kw: SimpleNamespace(mrf=lambda names: {names[0]: Make()}))
+    monkeypatch.setattr(teach, "Lineup", lambda *a, **kw: SimpleNamespace(
+        mrf=lambda names: {names[0]: lambda: Spy(calls.fits)}))
     tracker = SimpleNamespace(metrics=lambda values: calls.metrics.append(values))
     settings = teach.Settings(World(seeds=SEEDS), Teach(environments=ROOMS, k=KS, seed=5, weight=3), LEARNER, 17,
                               Params().methods)
