@@ -11,7 +11,7 @@ from taskseq.demonstrations.generate import generate
 from taskseq.demonstrations.ingest import load_logs
 from taskseq.evaluate.methods import ScorerMethod
 from taskseq.experiments.crossval import cross_validate
-from taskseq.experiments.fold_models import train_fold_models, training_jobs
+from taskseq.experiments.fold_models import plan_tasks, train_fold_models, training_jobs
 from taskseq.experiments.recipes import evaluate_recipes
 from taskseq.experiments.robustness import NoiseCondition, evaluate_conditions
 from taskseq.features.dataset import build_steps
@@ -142,3 +142,35 @@ def test_a_dask_cluster_trains_the_same_bytes_as_local_processes(world, local, r
     assert len(on_cluster) == len(fitted)
     for path in out.iterdir():
         assert (again / path.name).read_bytes() == path.read_bytes(), path.name
+
+
+def test_each_fit_starts_from_an_earlier_one_of_its_own_training_set_and_features(small):
+    """Warm starts (`plan_tasks`): within one task, every start is an earlier fit of the same features and the
+    same training steps, so no fit starts from one that saw its test steps; a model of select's grid starts from
+    the same recipe at the nearest C, and DAgger's rollouts from its base."""
+    records, contexts, meta, scenarios = small
+    lineup = Lineup(Methods(), Selection(dict.fromkeys(specs(), 1.0), source="s"),
+                    Learner(SETTINGS["tol"], SETTINGS["max_iter"], SETTINGS["n_slacks"]))
+    made = lineup.mrf(["full", "relations", "chained", "dagger"])
+    grid = {f"{m} C={C:g}": (lambda m=m, C=C: replace(made[m](), C=C, name=f"{m} C={C:g}"))
+            for m in made for C in (1.0, 3.0)}
+    jobs = training_jobs(grid, meta, scenarios, n_folds=2, seed=0, group_by="scenario")
+    keyed: dict = {}
+    for job in jobs:
+        keyed.setdefault(grid[job.method]().key([contexts[i] for i in job.index]), []).append(job)
+    unfitted = {k: grid[uses[0].method]() for k, uses in keyed.items()}
+    tasks = plan_tasks(unfitted, keyed, contexts)
+    assert sorted(k for keys, _ in tasks for k in keys) == sorted(keyed)
+    assert len(tasks) == 2 * 2  # (full, relations) x two folds
+    for keys, starts in tasks:
+        assert len({(unfitted[k].features, keyed[k][0].index) for k in keys}) == 1
+        steps = [contexts[i] for i in keyed[keys[0]][0].index]
+        for i, (key, (base, warm)) in enumerate(zip(keys, starts, strict=True)):
+            method = unfitted[key]
+            assert (base is None) == (method.dagger_rounds == 0)
+            assert base is None or (base < i and keys[base] == replace(method, dagger_rounds=0).key(steps))
+            assert (warm is None) == (i == 0) and (warm is None or warm < i)
+            if method.chained_starts and any(unfitted[k].chained_starts for k in keys[:i]):
+                assert unfitted[keys[warm]].chained_starts and unfitted[keys[warm]].C != method.C  # same recipe
+            elif warm is not None:
+                assert not unfitted[keys[warm]].chained_starts  # else the plain model nearest its C

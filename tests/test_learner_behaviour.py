@@ -465,7 +465,7 @@ def test_the_progress_bar_counts_iterations_with_the_gap_and_constraints(steps, 
 
 
 def test_a_failed_fit_closes_its_bar(steps, monkeypatch):
-    def fails(self, X, y):
+    def fails(self, X, y, warm_start=None):
         raise RuntimeError("the solver gave up")
 
     monkeypatch.setattr("taskseq.learn.estimator.tqdm", Bar)

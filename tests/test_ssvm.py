@@ -10,6 +10,7 @@ from sklearn.svm import LinearSVC
 
 from taskseq.learn.multiclass import MulticlassModel
 from taskseq.learn.ssvm import CuttingPlaneSSVM
+from taskseq.learn.working_set import WorkingSet
 
 
 class PairModel:
@@ -215,3 +216,70 @@ def test_bad_arguments_are_refused(toy):
         CuttingPlaneSSVM(model).fit(X, Y[:-1])
     with pytest.raises(ValueError, match="n_slacks"):
         CuttingPlaneSSVM(model, n_slacks=-1).fit(X, Y)
+
+
+def _gap(ssvm) -> float:
+    return ssvm.primal_objective_ - ssvm.dual_objective_
+
+
+@pytest.mark.parametrize("C_from, C_to", [(1.0, 1.0), (0.3, 3.0), (3.0, 0.3)])
+def test_a_warm_start_reaches_the_same_certified_gap_and_weights_within_its_bound(toy, C_from, C_to):
+    """The primal is 1-strongly convex, so a fit whose primal is within g of the dual is within sqrt(2 g) of the
+    optimum: a warm and a cold fit lie within the sum of their bounds of each other, whatever their paths."""
+    model, X, Y = toy
+    X, Y = X * 3, Y * 3  # 36 examples: more cuts than iterations
+    neighbour = CuttingPlaneSSVM(model, C=C_from, tol=1e-4, n_slacks=0).fit(X, Y)
+    cold = CuttingPlaneSSVM(model, C=C_to, tol=1e-4, n_slacks=0).fit(X, Y)
+    warm = CuttingPlaneSSVM(model, C=C_to, tol=1e-4, n_slacks=0).fit(X, Y, warm_start=neighbour.cuts_)
+    for fit in (cold, warm):
+        assert fit.converged_
+        assert _gap(fit) <= 1e-4 * max(1.0, fit.primal_objective_)
+    bound = np.sqrt(2 * _gap(cold)) + np.sqrt(2 * _gap(warm))
+    assert np.linalg.norm(warm.w_ - cold.w_) <= bound
+    assert warm.n_iter_ <= cold.n_iter_
+    if C_from == C_to:
+        assert warm.n_iter_ == 1  # the neighbour's optimum is certified at once
+
+
+def test_a_warm_start_on_more_examples_starts_from_the_first_ones(toy):
+    model, X, Y = toy
+    first = CuttingPlaneSSVM(model, C=1.0, tol=1e-4, n_slacks=0).fit(X[:8], Y[:8])
+    more = CuttingPlaneSSVM(model, C=1.0, tol=1e-4, n_slacks=0).fit(X, Y, warm_start=first.cuts_)
+    cold = CuttingPlaneSSVM(model, C=1.0, tol=1e-4, n_slacks=0).fit(X, Y)
+    assert more.converged_
+    assert np.linalg.norm(more.w_ - cold.w_) <= np.sqrt(2 * _gap(more)) + np.sqrt(2 * _gap(cold))
+    assert more.cuts_.n_examples == len(X) and set(more.cuts_.examples) <= set(range(len(X)))
+
+
+def test_a_warm_start_from_other_examples_or_grouped_slacks_is_refused(toy):
+    model, X, Y = toy
+    start = CuttingPlaneSSVM(model, C=1.0, n_slacks=0).fit(X, Y).cuts_
+    relabelled = [(2 - a, b) for a, b in Y]
+    with pytest.raises(ValueError, match="cuts are of other examples"):
+        CuttingPlaneSSVM(model, C=1.0, n_slacks=0).fit(X, relabelled, warm_start=start)
+    with pytest.raises(ValueError, match="cuts are of other examples"):
+        CuttingPlaneSSVM(model, C=1.0, n_slacks=0).fit(X[:5], Y[:5], warm_start=start)
+    with pytest.raises(ValueError, match="one slack per example"):
+        CuttingPlaneSSVM(model, C=1.0, n_slacks=3).fit(X, Y, warm_start=start)
+    assert CuttingPlaneSSVM(model, C=1.0, n_slacks=3).fit(X, Y).cuts_ is None  # grouped cuts mix examples
+
+
+def test_seeded_weights_scaled_to_a_smaller_C_stay_within_every_budget(toy):
+    model, X, Y = toy
+    start = CuttingPlaneSSVM(model, C=10.0, tol=1e-4, n_slacks=0).fit(X, Y).cuts_
+    for C in (10.0, 1.0, 0.1, 1 / 3):
+        alpha = start.alpha_at(C, len(X))
+        budget = np.zeros(len(X))
+        np.add.at(budget, start.examples, alpha)
+        assert np.all(alpha >= 0) and np.all(budget <= C)
+
+
+def test_a_working_set_refuses_an_infeasible_seed():
+    ws = WorkingSet(dim=2, n_groups=2, C=1.0)
+    rows = np.array([[1.0, 0.0], [0.0, 1.0]])
+    with pytest.raises(ValueError, match="at most C"):
+        ws.seed(rows, np.ones(2), np.array([0, 0]), np.array([0.7, 0.7]))
+    ws.seed(rows, np.ones(2), np.array([0, 1]), np.array([0.7, 0.7]))
+    assert np.allclose(ws.w, [0.7, 0.7]) and ws.dual() == pytest.approx(1.4 - 0.49)
+    with pytest.raises(ValueError, match="empty"):
+        ws.seed(rows, np.ones(2), np.array([0, 1]), np.array([0.1, 0.1]))

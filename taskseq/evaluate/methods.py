@@ -173,12 +173,15 @@ class ScorerMethod:
         return StepScorer(self.features, C=self.C, tol=self.tol, max_iter=self.max_iter, n_slacks=self.n_slacks)
 
     def fit(self, contexts: list[StepContext], meta: list[StepMeta],
-            scenarios: Mapping[str, Scenario] | None = None, base: StepScorer | None = None) -> ScorerMethod:
+            scenarios: Mapping[str, Scenario] | None = None, base: StepScorer | None = None,
+            warm: StepScorer | None = None) -> ScorerMethod:
         """Sets `planner_`, the fitted `StepScorer`: loaded from the store when it holds these steps and settings,
         else fitted.
 
         `base` is this method's scorer without DAgger, fitted on the same
-        steps, when the caller has it: DAgger starts from it.
+        steps, when the caller has it: DAgger starts from it. `warm` is a
+        scorer of the same features fitted on `contexts` alone (at any C):
+        the fit starts from its cuts (`StepScorer.fit`'s warm start).
         """
         stored = ModelStore(self.store).load(self.key(contexts)) if self.store else None
         if stored is not None:
@@ -192,11 +195,11 @@ class ScorerMethod:
                 raise ValueError(f"method {self.name}: chained starts and DAgger need the training scenarios")
             training = [scenarios[s] for s in dict.fromkeys(m.scenario_id for m in meta)]
             if base is None and self.dagger_rounds and self.store:  # the model without DAgger, stored or not
-                base = replace(self, dagger_rounds=0).fit(contexts, meta, scenarios).planner_
+                base = replace(self, dagger_rounds=0).fit(contexts, meta, scenarios, warm=warm).planner_
             self.planner_ = fit_imitation(self.estimator(), steps, training, self.dagger_rounds,
-                                          self.chained_starts, base=base)
+                                          self.chained_starts, base=base, warm=warm)
         else:
-            self.planner_ = self.estimator().fit(steps)
+            self.planner_ = self.estimator().fit(steps, warm_start=warm)
         return self
 
     def predict_steps(self, contexts: list[StepContext], meta=None, demos=None) -> list[Y]:

@@ -10,6 +10,7 @@ folder, where the stages find them by content.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -51,14 +52,78 @@ def training_jobs(methods: Mapping[str, MakeScorerMethod], meta: list[StepMeta],
     return jobs
 
 
-def _fit(makes: tuple[MakeScorerMethod, ...], contexts: list[StepContext], meta: list[StepMeta],
-         scenarios: dict[str, Scenario], index: tuple[int, ...]) -> list[ScorerMethod]:
-    """Fit the methods on the same steps, the first one first: the DAgger ones after it start from it."""
+@dataclass(frozen=True)
+class Fit:
+    """One model of a task: its factory, and the task's earlier models it starts from (positions in the task)."""
+
+    make: MakeScorerMethod
+    base: int | None  # the same settings without DAgger: DAgger's first rollouts use it
+    warm: int | None  # the nearest C of the task's models of the demonstrated steps alone: the fit starts there
+
+
+def _fit(fits: tuple[Fit, ...], contexts: list[StepContext], meta: list[StepMeta], scenarios: dict[str, Scenario],
+         index: tuple[int, ...]) -> list[ScorerMethod]:
+    """Fit the models of one task in turn, each from the earlier ones it names; returned without their cuts (a
+    neighbour's start, not worth sending back from a worker)."""
     steps, steps_meta = [contexts[i] for i in index], [meta[i] for i in index]
     fitted: list[ScorerMethod] = []
-    for make in makes:
-        fitted.append(make().fit(steps, steps_meta, scenarios, base=fitted[0].planner_ if fitted else None))
+    for fit in fits:
+        fitted.append(fit.make().fit(steps, steps_meta, scenarios,
+                                     base=None if fit.base is None else fitted[fit.base].planner_,
+                                     warm=None if fit.warm is None else fitted[fit.warm].planner_))
+    for method in fitted:
+        method.planner_.drop_cuts()
     return fitted
+
+
+def _plain(method: ScorerMethod) -> bool:
+    """Fitted on the demonstrated steps alone: the model any other of its features and steps can start from."""
+    return not (method.chained_starts or method.dagger_rounds or method.noise_copies or method.training_rooms)
+
+
+Starts = tuple[int | None, int | None]  # a fit's base and warm start: positions of earlier fits in its task
+
+
+def _recipe(method: ScorerMethod) -> dict[str, Any]:
+    """What a model is trained on and how, but for C: models of one recipe share their training data."""
+    return {k: v for k, v in method.learner_params().items() if k != "C"}
+
+
+def plan_tasks(unfitted: Mapping[str, ScorerMethod], keyed: Mapping[str, list[TrainingJob]],
+               contexts: list[StepContext]) -> list[tuple[list[str], list[Starts]]]:
+    """The fits grouped into tasks, one per (features, training steps), each fit starting from an earlier one.
+
+    Within a task the models of the demonstrated steps alone come first, by
+    increasing C, each starting from the one before. Every other model starts
+    from the same settings at the nearest C fitted before it (select's grid:
+    its data, chained starts or noisy copies or drawn rooms included, are the
+    same), else from the plain model nearest its C (its data begin with the
+    plain model's); a DAgger model's first rollouts use its base, the same
+    settings without DAgger. A start never crosses training sets, so no fit
+    starts from one that saw its test steps. Returns each task's keys in
+    fitting order with each one's (base, warm start).
+    """
+    groups: dict[tuple[str, tuple[int, ...]], list[str]] = {}
+    for key, uses in keyed.items():
+        groups.setdefault((unfitted[key].features, uses[0].index), []).append(key)
+    out = []
+    for (_, index), keys in groups.items():
+        keys = sorted(keys, key=lambda k: (not _plain(unfitted[k]), bool(unfitted[k].dagger_rounds),
+                                           unfitted[k].C))
+        position = {k: i for i, k in enumerate(keys)}
+        steps = [contexts[i] for i in index]
+        plans: list[Starts] = []
+        for i, key in enumerate(keys):
+            method = unfitted[key]
+            base = position.get(replace(method, dagger_rounds=0).key(steps)) if method.dagger_rounds else None
+            # the same training data at another C when fitted already (all its steps' cuts), else the plain model
+            same = [j for j in range(i) if _recipe(unfitted[keys[j]]) == _recipe(method)]
+            plain = [j for j in range(i) if _plain(unfitted[keys[j]])]
+            warm = min(same or plain, key=lambda j: (abs(math.log(unfitted[keys[j]].C / method.C)),
+                                                     unfitted[keys[j]].C), default=None)
+            plans.append((base, warm))
+        out.append((keys, plans))
+    return out
 
 
 def _expected_cost(method: ScorerMethod, n_steps: int) -> float:
@@ -91,20 +156,13 @@ def train_fold_models(methods: Mapping[str, MakeScorerMethod], contexts: list[St
 
     make = {key: methods[uses[0].method] for key, uses in keyed.items()}  # the factory a key's workers call
     unfitted = {key: f() for key, f in make.items()}
-    # a DAgger model whose base (same steps and settings, no DAgger) is a job too -> that base's key
-    dagger_base = {}
-    for key, method in unfitted.items():
-        if method.dagger_rounds:
-            base = replace(method, dagger_rounds=0).key([contexts[i] for i in keyed[key][0].index])
-            if base in keyed:
-                dagger_base[key] = base
-    # keys fitted in turn by one task: a base, then the DAgger models that start from it
-    tasks = [(k, *(d for d, b in dagger_base.items() if b == k)) for k in keyed if k not in dagger_base]
-    cost = [sum(_expected_cost(unfitted[k], len(keyed[k][0].index)) for k in task) for task in tasks]
+    tasks = plan_tasks(unfitted, keyed, contexts)
+    cost = [sum(_expected_cost(unfitted[k], len(keyed[k][0].index)) for k in keys) for keys, _ in tasks]
     steps, shared_meta, shared_scenarios = Shared(contexts), Shared(meta), Shared(scenarios)
-    parts = run_jobs([(_fit, (tuple(make[k] for k in task), steps, shared_meta, shared_scenarios,
-                              keyed[task[0]][0].index)) for task in tasks], n_jobs, verbose, cost=cost)
-    fitted = {k: m for task, part in zip(tasks, parts, strict=True) for k, m in zip(task, part, strict=True)}
+    parts = run_jobs([(_fit, (tuple(Fit(make[k], b, w) for k, (b, w) in zip(keys, plans, strict=True)), steps,
+                              shared_meta, shared_scenarios, keyed[keys[0]][0].index)) for keys, plans in tasks],
+                     n_jobs, verbose, cost=cost)
+    fitted = {k: m for (keys, _), part in zip(tasks, parts, strict=True) for k, m in zip(keys, part, strict=True)}
     records, seconds, curves = [], [], []
     with atomic_directory(output) as tmp:
         store = ModelStore(tmp)

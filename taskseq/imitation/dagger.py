@@ -53,13 +53,17 @@ def rollout_contexts(policy: Policy, scenario: Scenario, seen: set[tuple[Action,
 
 
 def fit_imitation(planner: StepScorer, contexts: list[StepContext], scenarios: Sequence[Scenario], rounds: int,
-                  chained: bool, expert: Expert | None = None, base: StepScorer | None = None) -> StepScorer:
+                  chained: bool, expert: Expert | None = None, base: StepScorer | None = None,
+                  warm: StepScorer | None = None) -> StepScorer:
     """`planner` (unfitted) fitted on the demonstrations' `contexts` (of `scenarios`), with chained starts and
     DAgger rounds added; returns the fitted planner of the last round.
 
     `base` is the planner already fitted with these settings on the data
     before any DAgger round, when the caller has it: the first rollouts use it
-    instead of fitting it again. The result is the same either way.
+    instead of fitting it again (either way, a fit certified within the same gap). `warm`, a
+    planner of the same features fitted on `contexts`, is where the first fit
+    starts (`StepScorer.fit`'s warm start); each round's refit starts where
+    the fit before it ended, since its data begin with that fit's.
     """
     data = list(contexts)
     scenarios = sorted(scenarios, key=lambda s: s.id)
@@ -67,7 +71,7 @@ def fit_imitation(planner: StepScorer, contexts: list[StepContext], scenarios: S
         extra = chained_scenarios(scenarios)
         data += [x for sc in extra for x in chained_contexts(sc)]
         scenarios += extra
-    fitted = base if base is not None and rounds else planner.clone().fit(data)
+    fitted = base if base is not None and rounds else planner.clone().fit(data, warm_start=warm)
     seconds = 0.0 if fitted is base else fitted.fit_seconds_
     refit = None
     seen: list[set[tuple[Action, ...]]] = [set() for _ in scenarios]
@@ -77,10 +81,10 @@ def fit_imitation(planner: StepScorer, contexts: list[StepContext], scenarios: S
         if not new:
             break
         data += new
-        fitted = refit = planner.clone().fit(data)
+        fitted = refit = planner.clone().fit(data, warm_start=fitted)
         seconds += refit.fit_seconds_
     if fitted is base and refit is None:  # the rollouts found nothing to add: the base is the answer,
-        fitted = planner.clone().fit(data)  # fitted here for its record
+        fitted = planner.clone().fit(data, warm_start=base)  # fitted here for its record (from the base: same data)
         seconds += fitted.fit_seconds_
     fitted.fit_seconds_ = seconds
     return fitted

@@ -27,7 +27,7 @@ from tqdm import tqdm
 from ..features.context import StepContext, candidate_index
 from .mrf import FEATURE_SETS, StepMRF
 from .persist import load_model, save_model
-from .ssvm import CuttingPlaneSSVM
+from .ssvm import Cuts, CuttingPlaneSSVM
 
 Y = tuple[int, int, int]
 
@@ -103,8 +103,15 @@ class StepScorer:
             raise ValueError(f"C and tol must be positive, max_iter at least 1 and n_slacks at least 0 (one per "
                              f"step): {self.get_params()}")
 
-    def fit(self, X: list[StepContext], y: list[Y] | None = None, progress: bool = False) -> StepScorer:
-        """Fit on steps `X`, labelled `y` (default: each step's demonstrated `gold`)."""
+    def fit(self, X: list[StepContext], y: list[Y] | None = None, progress: bool = False,
+            warm_start: StepScorer | None = None) -> StepScorer:
+        """Fit on steps `X`, labelled `y` (default: each step's demonstrated `gold`).
+
+        `warm_start` is a scorer of the same features fitted here on the first
+        steps of `X` (at any C): the fit starts from its final cuts
+        (`ssvm.Cuts`), which saves iterations and stops at the same certified
+        gap. A scorer without them (loaded from a file) gives a cold start.
+        """
         self._check_params()
         if not X:
             raise ValueError("no training steps")
@@ -129,7 +136,7 @@ class StepScorer:
         # bytes whether this runs in the main process or in a joblib worker (whose BLAS threads differ)
         try:
             with threadpool_limits(limits=1):
-                ssvm.fit(X, y)
+                ssvm.fit(X, y, warm_start=_cuts_of(warm_start, self.features))
         finally:
             bar.close()
             ssvm.progress = None  # a fitted scorer keeps neither the closed bar nor its training steps
@@ -138,6 +145,11 @@ class StepScorer:
         self.fit_seconds_ = time.perf_counter() - start
         self.n_steps_ = len(X)
         return self
+
+    def drop_cuts(self) -> None:
+        """Forget the cuts a warm start would take (memory; a fit started from this scorer is then cold)."""
+        if getattr(self, "ssvm_", None) is not None:
+            self.ssvm_.cuts_ = None
 
     def _check_fitted(self) -> None:
         if not hasattr(self, "w_"):
@@ -187,6 +199,15 @@ class StepScorer:
             raise ValueError(f"{features} weights must have shape ({scorer.model_.size_joint_feature},), "
                              f"got {scorer.w_.shape}")
         return scorer
+
+
+def _cuts_of(scorer: StepScorer | None, features: str) -> Cuts | None:
+    """The cuts a warm start takes from `scorer`, None for a cold start."""
+    if scorer is None or scorer.ssvm_ is None:
+        return None
+    if scorer.features != features:
+        raise ValueError(f"a {features} scorer cannot start from a {scorer.features} one: their features differ")
+    return scorer.ssvm_.cuts_
 
 
 def _check_labels(X: list[StepContext], y: list) -> None:

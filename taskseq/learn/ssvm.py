@@ -42,6 +42,7 @@ same bits on every processor.
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import time
 from collections.abc import Callable, Sequence
@@ -81,6 +82,50 @@ class Iteration:
     n_constraints: int
     loss: float  # sum of losses of the most violated labellings
     seconds: float  # since `fit` began: when each objective was reached
+
+
+@dataclass(frozen=True)
+class Cuts:
+    """The cuts a fit ended with that carry dual weight: where a neighbouring fit may start (`fit(warm_start=)`).
+
+    Kept only for one slack per example (`n_slacks=0`), where a cut belongs
+    to one example: a fit on the same examples, or on them followed by more
+    (chained starts, noisy copies, DAgger's rollouts, drawn rooms, all appended
+    after the demonstrated steps), holds the same constraint for it, so the
+    cuts with their weights, scaled to its C, are a feasible start of its
+    dual. The start changes only the path: the stopping test is the same
+    certified gap, so the fit lands as close to the one optimum as a cold one.
+    """
+
+    deltas: sp.csr_matrix  # one row per cut: psi(x, y) - psi(x, y_hat)
+    losses: np.ndarray
+    examples: np.ndarray  # the example whose slack each cut belongs to
+    alpha: np.ndarray  # its dual weight, at most C summed over an example's cuts
+    C: float
+    n_examples: int  # of the fit
+    fingerprint: str  # of those examples' true joint features: a start is taken on the same examples only
+
+    def alpha_at(self, C: float, n_examples: int) -> np.ndarray:
+        """The weights scaled to a fit at `C`: every example's sum stays within its budget (the start is
+        feasible), the last bit of the scaling included."""
+        alpha = self.alpha * (C / self.C)
+        budget = np.zeros(n_examples)
+        np.add.at(budget, self.examples, alpha)
+        over = budget > C
+        if np.any(over):
+            alpha = alpha * np.where(over, C / np.where(over, budget, 1.0), 1.0)[self.examples]
+        return alpha
+
+
+def _fingerprint(psi_true: sp.csr_matrix) -> str:
+    """A hash of sparse rows (the true joint features of the examples, so of the examples and their labels)."""
+    rows = sp.csr_matrix(psi_true)
+    rows.sort_indices()
+    digest = hashlib.sha256()
+    for part in (np.asarray(rows.shape, np.int64), rows.indptr.astype(np.int64), rows.indices.astype(np.int64),
+                 rows.data.astype(np.float64)):
+        digest.update(part.tobytes())
+    return digest.hexdigest()
 
 
 class CuttingPlaneSSVM:
@@ -123,7 +168,9 @@ class CuttingPlaneSSVM:
         return {"C": self.C, "tol": self.tol, "max_iter": self.max_iter, "n_slacks": self.n_slacks,
                 "inactive_window": self.inactive_window}
 
-    def fit(self, X: Sequence[Any], Y: Sequence[Any]) -> CuttingPlaneSSVM:
+    def fit(self, X: Sequence[Any], Y: Sequence[Any], warm_start: Cuts | None = None) -> CuttingPlaneSSVM:
+        """Fit on examples `X` labelled `Y`; `warm_start` (a neighbouring fit's `cuts_`, its examples the first
+        of `X`) seeds the working set, which changes the path, never the stopping test."""
         if len(X) != len(Y):
             raise ValueError(f"X has {len(X)} examples but Y has {len(Y)}")
         if len(X) == 0:
@@ -140,7 +187,12 @@ class CuttingPlaneSSVM:
         psi_true = self._joint_features(X, Y)
         ws = WorkingSet(self.model.size_joint_feature, n_groups, self.C)
         w = np.zeros(self.model.size_joint_feature)
-        best, best_w, dual = np.inf, w, 0.0
+        dual = 0.0
+        if warm_start is not None:
+            self._seed(ws, warm_start, psi_true, n_groups == n)
+            w = ws.w
+            dual = ws.dual(w)
+        best, best_w = np.inf, w
         self.history_: list[Iteration] = []
         self.seconds_oracle_ = self.seconds_qp_ = 0.0
         converged = False
@@ -183,7 +235,26 @@ class CuttingPlaneSSVM:
         self.n_iter_ = len(self.history_)
         self.converged_ = converged
         self.n_qp_steps_ = ws.n_steps
+        self.cuts_ = self._cuts(ws, psi_true) if n_groups == n else None
         return self
+
+    def _seed(self, ws: WorkingSet, start: Cuts, psi_true: sp.csr_matrix, per_example: bool) -> None:
+        """Put `start`'s cuts in the empty working set, their weights scaled to this C (the loop solves it)."""
+        if not per_example:
+            raise ValueError("a warm start needs one slack per example (n_slacks=0)")
+        m = start.n_examples
+        if m > psi_true.shape[0] or _fingerprint(psi_true[:m]) != start.fingerprint:
+            raise ValueError(f"the warm start's cuts are of other examples: its {m} examples are not the first "
+                             f"of the {psi_true.shape[0]} given, with the same labels")
+        if start.deltas.shape[1] != ws.dim:
+            raise ValueError(f"the warm start's cuts have {start.deltas.shape[1]} features, this model "
+                             f"{ws.dim}")
+        ws.seed(start.deltas, start.losses, start.examples, start.alpha_at(self.C, ws.n_groups))
+
+    def _cuts(self, ws: WorkingSet, psi_true: sp.csr_matrix) -> Cuts:
+        held = np.flatnonzero(ws.alpha > 0)
+        return Cuts(ws.deltas[held], ws.losses[held].copy(), ws.groups[held].copy(), ws.alpha[held].copy(),
+                    self.C, psi_true.shape[0], _fingerprint(psi_true))
 
     def _loss_augmented(self, X: Sequence[Any], Y: Sequence[Any], w: np.ndarray) -> list[Any]:
         if hasattr(self.model, "batch_loss_augmented_inference"):

@@ -100,6 +100,10 @@ class WorkingSet:
         return self._size
 
     @property
+    def deltas(self) -> sp.csr_matrix:
+        return self._deltas
+
+    @property
     def losses(self) -> np.ndarray:
         return self._losses[: self._size]
 
@@ -173,6 +177,26 @@ class WorkingSet:
         self._alpha[k : k + m] = 0.0
         self._grad[k : k + m] = losses - new @ w
         self._size = k + m
+
+    def seed(self, deltas: sp.spmatrix, losses: np.ndarray, groups: np.ndarray, alpha: np.ndarray) -> None:
+        """Fill an empty set with cuts and their dual weights (a neighbouring fit's, `ssvm.Cuts`).
+
+        Each group's weights must sum to at most C, so the start is feasible
+        and its dual a valid lower bound; the gradients are made exact for it.
+        """
+        if self._size:
+            raise ValueError("only an empty working set can be seeded")
+        alpha = np.asarray(alpha, dtype=float)
+        budget = np.zeros(self.n_groups)
+        np.add.at(budget, groups, alpha)
+        if np.any(alpha < 0) or np.any(budget > self.C * (1 + 1e-12)):
+            raise ValueError("seeded dual weights must be non-negative and sum to at most C in every group")
+        self.add(deltas, losses, groups, iteration=0)
+        self._alpha[: self._size] = alpha
+        w = self._deltas.T @ self.alpha
+        if self._gram is None:
+            self._w = w
+        self._grad[: self._size] = self.losses - self._deltas @ w
 
     def prune(self, iteration: int, window: int) -> None:
         """Drop cuts whose dual weight has been zero for `window` iterations (0 keeps all)."""
