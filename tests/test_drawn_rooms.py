@@ -72,7 +72,7 @@ def test_the_method_fits_on_its_training_steps_and_the_drawn_rooms_and_nothing_e
     keep = [i for i, m in enumerate(meta) if m.scenario_id in first]
     contexts, meta = [contexts[i] for i in keep], [meta[i] for i in keep]
     seen = []
-    monkeypatch.setattr(StepScorer, "fit", lambda self, steps: seen.append(list(steps)) or self)
+    monkeypatch.setattr(StepScorer, "fit", lambda self, steps, warm_start=None: seen.append(list(steps)) or self)
     method = Lineup(Params.load(None, ["methods.drawn_rooms.rooms=2"]).methods,
                     Selection({"drawn_rooms": 1.0}, source="s")).factory("drawn_rooms")()
     assert method.policy == "lookahead" and method.features == "choice"
