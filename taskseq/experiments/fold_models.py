@@ -58,7 +58,7 @@ class Fit:
 
     make: MakeScorerMethod
     base: int | None  # the same settings without DAgger: DAgger's first rollouts use it
-    warm: int | None  # the nearest C of the task's models of the demonstrated steps alone: the fit starts there
+    warm: int | None  # where the fit starts (`plan_tasks`): the same recipe at the nearest C, else the plain model
 
 
 def _fit(fits: tuple[Fit, ...], contexts: list[StepContext], meta: list[StepMeta], scenarios: dict[str, Scenario],

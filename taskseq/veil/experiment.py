@@ -12,7 +12,6 @@ row against each baseline on the same sequences.
 from __future__ import annotations
 
 import json
-import math
 import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import asdict, dataclass, field, fields
@@ -170,17 +169,8 @@ class Fits:
     def __call__(self, name: str, C: float, replays: Sequence[Replay]) -> VeilMethod:
         key = self._key(name, C, replays)
         if key not in self._fits:
-            method = make_method(name, self.release, self.objectives, self.settings, C)
-            self._fits[key] = method.fit(replays, warm_start=self._nearest(key))
+            self._fits[key] = make_method(name, self.release, self.objectives, self.settings, C).fit(replays)
         return self._fits[key]
-
-    def _nearest(self, key: tuple) -> DomainScorer | None:
-        """The fit of the same row content and sequences at the C nearest `key`'s, if one was made here (with its
-        cuts): a fit at another C starts from it."""
-        features, categories, C, sequences = key
-        made = [(abs(math.log(k[2] / C)), k[2], m) for k, m in self._fits.items()
-                if k[:2] == (features, categories) and k[3] == sequences and getattr(m, "cuts_", None) is not None]
-        return min(made, key=lambda t: t[:2])[2] if made else None
 
     def add(self, name: str, C: float, replays: Sequence[Replay], weights: np.ndarray) -> None:
         """The weights of a fit made elsewhere (another process) of row `name` at C on `replays`."""

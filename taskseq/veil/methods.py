@@ -16,7 +16,7 @@ from typing import Protocol
 
 import numpy as np
 
-from ..learn.ssvm import Cuts, CuttingPlaneSSVM
+from ..learn.ssvm import CuttingPlaneSSVM
 from .features import ARITIES, DONE, PAIR_COLUMNS, Vocabulary, label_of, step_of
 from .grounding import Step
 from .mrf import DomainMRF, StepInput, best_first
@@ -62,7 +62,6 @@ class DomainScorer:
     max_iter: int = 500
     model_: DomainMRF = field(init=False, repr=False)
     w_: np.ndarray = field(init=False, repr=False)
-    cuts_: Cuts | None = field(init=False, repr=False, default=None)  # where a fit at another C may start
 
     def __post_init__(self) -> None:
         self.model_ = DomainMRF(ARITIES, len(self.vocabulary.objectives), len(self.vocabulary.columns),
@@ -75,13 +74,10 @@ class DomainScorer:
             Y.append(label_of(s, state))
         return X, Y
 
-    def fit(self, train: Sequence[Replay], warm_start: DomainScorer | None = None) -> DomainScorer:
-        """Fit on the steps of `train`; `warm_start`, this row fitted on the same sequences at another C, is where
-        the learner starts (`ssvm.Cuts`: same certified gap, fewer iterations)."""
+    def fit(self, train: Sequence[Replay]) -> DomainScorer:
         X, Y = self.inputs(train)
         learner = CuttingPlaneSSVM(self.model_, C=self.C, tol=self.tol, max_iter=self.max_iter, n_slacks=0)
-        learner.fit(X, Y, warm_start=None if warm_start is None else warm_start.cuts_)
-        self.w_, self.cuts_ = learner.w_, learner.cuts_
+        self.w_ = learner.fit(X, Y).w_
         return self
 
     def ranked(self, state: State, history: Sequence[Step], objective: str) -> Iterator[Step]:
