@@ -255,3 +255,26 @@ def test_dagger_from_a_given_base_equals_dagger_from_scratch(small):
                           base=base)
     scratch = fit_imitation(StepScorer("full", **SSVM), contexts, list(scenarios.values()), rounds=1, chained=False)
     assert given.w_.tobytes() == scratch.w_.tobytes()
+
+
+def test_each_dagger_refit_starts_where_the_fit_before_it_ended(small, monkeypatch):
+    """Warm starts: the first fit (demonstrations and chained starts) from `warm`, a fit on the demonstrations
+    alone; every round's refit from the fit before it, whose steps its own begin with."""
+    contexts, _, scenarios = small
+    warm = StepScorer("full", **SSVM).fit(contexts)
+    fits: list[tuple[int, StepScorer | None]] = []
+    real = StepScorer.fit
+
+    def spy(self, X, y=None, progress=False, warm_start=None):
+        fitted = real(self, X, y, progress, warm_start)
+        fits.append((len(X), warm_start))
+        return fitted
+
+    monkeypatch.setattr(StepScorer, "fit", spy)
+    last = fit_imitation(StepScorer("full", **SSVM), contexts, list(scenarios.values()), rounds=2, chained=True,
+                         warm=warm)
+    assert fits[0][1] is warm and fits[0][0] > len(contexts)  # chained starts added after the demonstrations
+    assert len(fits) >= 2  # at least one round found states off the demonstrations
+    for (n_before, _), (n, start) in zip(fits[:-1], fits[1:], strict=True):
+        assert start is not None and start.n_steps_ == n_before < n
+    assert last.n_steps_ == fits[-1][0]
