@@ -165,8 +165,8 @@ def test_each_fit_starts_from_an_earlier_one_of_its_own_training_set_and_feature
     for keys, starts in tasks:
         assert len({(unfitted[k].features, keyed[k][0].index) for k in keys}) == 1
         steps = [contexts[i] for i in keyed[keys[0]][0].index]
-        for i, (key, (base, warm)) in enumerate(zip(keys, starts, strict=True)):
-            method = unfitted[key]
+        for i, (key, start) in enumerate(zip(keys, starts, strict=True)):
+            method, base, warm = unfitted[key], start.base, start.warm
             assert (base is None) == (method.dagger_rounds == 0)
             assert base is None or (base < i and keys[base] == replace(method, dagger_rounds=0).key(steps))
             assert (warm is None) == (i == 0) and (warm is None or warm < i)

@@ -180,8 +180,9 @@ class ScorerMethod:
 
         `base` is this method's scorer without DAgger, fitted on the same
         steps, when the caller has it: DAgger starts from it. `warm` is a
-        scorer of the same features fitted on `contexts` alone (at any C):
-        the fit starts from its cuts (`StepScorer.fit`'s warm start).
+        scorer of the same features, at any C, fitted on steps this fit's
+        begin with (`contexts` alone, or this recipe's very steps): the fit
+        starts from its cuts (`StepScorer.fit`'s warm start).
         """
         stored = ModelStore(self.store).load(self.key(contexts)) if self.store else None
         if stored is not None:

@@ -53,24 +53,23 @@ def training_jobs(methods: Mapping[str, MakeScorerMethod], meta: list[StepMeta],
 
 
 @dataclass(frozen=True)
-class Fit:
-    """One model of a task: its factory, and the task's earlier models it starts from (positions in the task)."""
+class Start:
+    """Where a fit of a task starts: positions of earlier fits in the same task (`plan_tasks`)."""
 
-    make: MakeScorerMethod
     base: int | None  # the same settings without DAgger: DAgger's first rollouts use it
-    warm: int | None  # where the fit starts (`plan_tasks`): the same recipe at the nearest C, else the plain model
+    warm: int | None  # the same recipe at the nearest C, else the plain model: the learner starts from its cuts
 
 
-def _fit(fits: tuple[Fit, ...], contexts: list[StepContext], meta: list[StepMeta], scenarios: dict[str, Scenario],
-         index: tuple[int, ...]) -> list[ScorerMethod]:
-    """Fit the models of one task in turn, each from the earlier ones it names; returned without their cuts (a
-    neighbour's start, not worth sending back from a worker)."""
+def _fit(makes: tuple[MakeScorerMethod, ...], starts: tuple[Start, ...], contexts: list[StepContext],
+         meta: list[StepMeta], scenarios: dict[str, Scenario], index: tuple[int, ...]) -> list[ScorerMethod]:
+    """Fit the models of one task in turn, each from the earlier ones its start names; returned without their cuts
+    (a neighbour's start, not worth sending back from a worker)."""
     steps, steps_meta = [contexts[i] for i in index], [meta[i] for i in index]
     fitted: list[ScorerMethod] = []
-    for fit in fits:
-        fitted.append(fit.make().fit(steps, steps_meta, scenarios,
-                                     base=None if fit.base is None else fitted[fit.base].planner_,
-                                     warm=None if fit.warm is None else fitted[fit.warm].planner_))
+    for make, start in zip(makes, starts, strict=True):
+        fitted.append(make().fit(steps, steps_meta, scenarios,
+                                 base=None if start.base is None else fitted[start.base].planner_,
+                                 warm=None if start.warm is None else fitted[start.warm].planner_))
     for method in fitted:
         method.planner_.drop_cuts()
     return fitted
@@ -81,16 +80,13 @@ def _plain(method: ScorerMethod) -> bool:
     return not (method.chained_starts or method.dagger_rounds or method.noise_copies or method.training_rooms)
 
 
-Starts = tuple[int | None, int | None]  # a fit's base and warm start: positions of earlier fits in its task
-
-
 def _recipe(method: ScorerMethod) -> dict[str, Any]:
     """What a model is trained on and how, but for C: models of one recipe share their training data."""
     return {k: v for k, v in method.learner_params().items() if k != "C"}
 
 
 def plan_tasks(unfitted: Mapping[str, ScorerMethod], keyed: Mapping[str, list[TrainingJob]],
-               contexts: list[StepContext]) -> list[tuple[list[str], list[Starts]]]:
+               contexts: list[StepContext]) -> list[tuple[list[str], list[Start]]]:
     """The fits grouped into tasks, one per (features, training steps), each fit starting from an earlier one.
 
     Within a task the models of the demonstrated steps alone come first, by
@@ -101,7 +97,7 @@ def plan_tasks(unfitted: Mapping[str, ScorerMethod], keyed: Mapping[str, list[Tr
     plain model's); a DAgger model's first rollouts use its base, the same
     settings without DAgger. A start never crosses training sets, so no fit
     starts from one that saw its test steps. Returns each task's keys in
-    fitting order with each one's (base, warm start).
+    fitting order with each one's `Start`.
     """
     groups: dict[tuple[str, tuple[int, ...]], list[str]] = {}
     for key, uses in keyed.items():
@@ -112,7 +108,7 @@ def plan_tasks(unfitted: Mapping[str, ScorerMethod], keyed: Mapping[str, list[Tr
                                            unfitted[k].C))
         position = {k: i for i, k in enumerate(keys)}
         steps = [contexts[i] for i in index]
-        plans: list[Starts] = []
+        plans: list[Start] = []
         for i, key in enumerate(keys):
             method = unfitted[key]
             base = position.get(replace(method, dagger_rounds=0).key(steps)) if method.dagger_rounds else None
@@ -121,7 +117,7 @@ def plan_tasks(unfitted: Mapping[str, ScorerMethod], keyed: Mapping[str, list[Tr
             plain = [j for j in range(i) if _plain(unfitted[keys[j]])]
             warm = min(same or plain, key=lambda j: (abs(math.log(unfitted[keys[j]].C / method.C)),
                                                      unfitted[keys[j]].C), default=None)
-            plans.append((base, warm))
+            plans.append(Start(base, warm))
         out.append((keys, plans))
     return out
 
@@ -159,9 +155,8 @@ def train_fold_models(methods: Mapping[str, MakeScorerMethod], contexts: list[St
     tasks = plan_tasks(unfitted, keyed, contexts)
     cost = [sum(_expected_cost(unfitted[k], len(keyed[k][0].index)) for k in keys) for keys, _ in tasks]
     steps, shared_meta, shared_scenarios = Shared(contexts), Shared(meta), Shared(scenarios)
-    parts = run_jobs([(_fit, (tuple(Fit(make[k], b, w) for k, (b, w) in zip(keys, plans, strict=True)), steps,
-                              shared_meta, shared_scenarios, keyed[keys[0]][0].index)) for keys, plans in tasks],
-                     n_jobs, verbose, cost=cost)
+    parts = run_jobs([(_fit, (tuple(make[k] for k in keys), tuple(plans), steps, shared_meta, shared_scenarios,
+                              keyed[keys[0]][0].index)) for keys, plans in tasks], n_jobs, verbose, cost=cost)
     fitted = {k: m for (keys, _), part in zip(tasks, parts, strict=True) for k, m in zip(keys, part, strict=True)}
     records, seconds, curves = [], [], []
     with atomic_directory(output) as tmp:

@@ -51,7 +51,8 @@ def comparisons_csv(rows: Sequence[Comparison]) -> str:
                     {"rate": 2, "against_rate": 2, "difference": 2, "low": 2, "high": 2})
 
 
-def _p(p: float) -> str:
+def p_text(p: float) -> str:
+    """A p-value as the tables print it: two significant digits, or "< 1e-4"."""
     return f"{p:.2g}" if p >= 1e-4 else "< 1e-4"
 
 
@@ -65,5 +66,5 @@ def comparisons_markdown(rows: Sequence[Comparison], labels: dict[str, str], met
         against = f"{labels.get(r.against, r.against)} ({ROLES.get(r.role, r.role)})"
         out.append(f"| {labels.get(r.method, r.method)} | {against} | {HEADINGS[r.figure]} | {r.rate:.1f} | "
                    f"{r.against_rate:.1f} | {r.difference:+.1f} [{r.low:+.1f}, {r.high:+.1f}] | {r.better} | "
-                   f"{r.worse} | {_p(r.p_value)} | {_p(r.p_holm)} |")
+                   f"{r.worse} | {p_text(r.p_value)} | {p_text(r.p_holm)} |")
     return "\n".join(out) + "\n"

@@ -31,7 +31,9 @@ from ..features.dataset import build_steps
 from ..methods import Lineup, method_labels
 from ..report.csvs import csv_text
 from ..report.figures import line_plot_png
+from ..report.seeds import mean_sd
 from ..report.stats import mcnemar_exact
+from ..report.stats_tables import p_text
 from ..runtime.atomic import write_text_atomic
 from ..selection import read_selection
 from ..serve.environments import Environment
@@ -157,16 +159,12 @@ def _over_seeds(programs: list[dict[str, Any]], ks: tuple[int, ...],
         before = np.array([first[(r["world_seed"], r["scenario"])] for r in paired], dtype=bool)
         better, worse, p = mcnemar_exact(now, before)
         misses = int((~before).sum())
-        table.append({"k": k, **{f"{f}_{s}": fn([r[f] for r in mine]) for f in FIGURES
-                                 for s, fn in (("mean", statistics.fmean), ("sd", _sd))},
+        spread = {f: mean_sd([r[f] for r in mine]) for f in FIGURES}
+        table.append({"k": k, **{f"{f}_{s}": spread[f][i] for f in FIGURES for i, s in enumerate(("mean", "sd"))},
                       "arg_misses": int((~now).sum()),
                       "misses_removed": 100.0 * (misses - int((~now).sum())) / misses if misses else 0.0,
                       "better": better, "worse": worse, "p": p, "n_seeds": len(mine)})
     return table, per_seed
-
-
-def _sd(values: list[float]) -> float:
-    return statistics.stdev(values) if len(values) > 1 else 0.0
 
 
 def _markdown(table: list[dict[str, Any]], teach: Teach, label: str, shipped: str) -> str:
@@ -182,9 +180,6 @@ def _markdown(table: list[dict[str, Any]], teach: Teach, label: str, shipped: st
              "|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     lines += [f"| {r['k']} | {r['sequence_arg_mean']:.1f} ± {r['sequence_arg_sd']:.1f} | "
               f"{r['success_mean']:.1f} ± {r['success_sd']:.1f} | {r['arg_misses']} | {r['misses_removed']:.0f}% | "
-              f"{r['better']} | {r['worse']} | {_p(r['p'])} | {r['n_seeds']} |" for r in table]
+              f"{r['better']} | {r['worse']} | {p_text(r['p'])} | {r['n_seeds']} |" for r in table]
     return "\n".join(lines) + "\n"
 
-
-def _p(p: float) -> str:
-    return "< 1e-4" if p < 1e-4 else f"{p:.2g}"
