@@ -20,6 +20,7 @@ from taskseq.report.stats import (
     paired_comparisons,
     world_outcomes,
 )
+from taskseq.report.stats_tables import p_text
 
 
 def programs(method: str, right: list[int], prefix: str = "s") -> list[dict[str, str]]:
@@ -174,3 +175,8 @@ def test_with_a_selection_every_added_method_is_also_paired_with_the_shipped_pla
     assert pairs("paper") == both
     assert "| ours + relations | ours + relations + choice cues (the shipped planner) | seq arg |" in \
         (tmp_path / "added" / "comparisons.md").read_text()
+
+
+def test_p_values_print_with_two_digits_down_to_a_floor():
+    assert [p_text(p) for p in (0.034, 0.00098, 1e-4, 9.9e-5, 0.0)] == ["0.034", "0.00098", "0.0001", "< 1e-4",
+                                                                        "< 1e-4"]
