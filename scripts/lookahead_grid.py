@@ -4,7 +4,7 @@ The `lookahead` policy (`taskseq.plan.planner.lookahead`) takes, of the
 `width` best runnable steps, the first whose next `depth` imagined steps
 break no safety rule. Both are free settings; this script cross-validates the
 choice-cue models (`ours + relations + choice cues`, C from the selection
-file) on the development world that the `select` stage draws (`data/dev`,
+file) on the development world that the `dev_world` stage draws (`data/dev`,
 never reported), runs every fold's programs with each (depth, width) of the
 grid, and ranks them by sequence arg, then success, then the shorter depth,
 then the smaller width. The chosen pair is written into
@@ -13,7 +13,7 @@ docs/model.md shows the table this prints.
 
     python scripts/lookahead_grid.py --depths 2 4 6 8 12 --widths 2 3 5
 
-Run it after `dvc repro` has run `select` (it reads data/dev and C from reports/selection.json).
+Run it after `dvc repro` has run `dev_world` and `select` (it reads data/dev and C from reports/selection.json).
 """
 
 from __future__ import annotations

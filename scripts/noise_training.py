@@ -3,7 +3,7 @@
 The method (`taskseq/methods/noise_trained.py`) adds copies of its training
 steps with binary attributes flipped. How many copies and how often to flip
 are its free settings; this script cross-validates every pair of a grid on
-the development world that the `select` stage draws (`data/dev`, never
+the development world that the `dev_world` stage draws (`data/dev`, never
 reported), runs each fold's model under the `noise` stage's conditions (its
 rates, draws and seed from params.yaml), and ranks the pairs by the mean
 sequence arg over those rates (the area under the noise curve), then by the
@@ -13,7 +13,7 @@ docs/model.md shows the table this prints.
 
     python scripts/noise_training.py --flip-rates 0.05 0.1 0.2 --copies 1 2 3
 
-Run it after `dvc repro` has run `select` (it reads data/dev and C from reports/selection.json).
+Run it after `dvc repro` has run `dev_world` and `select` (it reads data/dev and C from reports/selection.json).
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ from taskseq.demonstrations.ingest import load_logs
 from taskseq.experiments.transfer import transfer
 from taskseq.features.dataset import build_steps
 from taskseq.settings import Generate, Params, Procedural
-from taskseq.stages import scenes
+from taskseq.stages import drawn_world, scenes, scenes_world
 
 LEARN = ["--set", "train.tol=0.01", "--set", "train.max_iter=300", "--set", "train.n_slacks=0"]
 
@@ -65,11 +65,24 @@ def test_transfer_trains_on_the_first_world_only_and_tests_every_scenario_of_the
 
 
 def test_scenes_hold_out_whole_rooms_whatever_crossval_group_by_says():
-    s = scenes.settings(Params.load(None, ["crossval.group_by=scenario", "crossval.folds=4"]))
-    assert s.world.family == "procedural"
+    s = scenes_world.settings(Params.load(None, ["crossval.group_by=scenario", "crossval.folds=4"]))
+    assert drawn_world.settings(Params.load(None, ["world.family=paper"]), 3).family == "procedural"
     assert (s.fold_models.folds.group_by, s.crossval.crossval.group_by, s.noise.replay.folds.group_by,
             s.feedback.replay.folds.group_by) == ("environment",) * 4
     assert s.crossval.crossval.folds == 4
+
+
+def _scenes(root, paper, settings):
+    """The scenes stages of world seed 0, as dvc.yaml runs them: the drawn world into root/drawn/0, its
+    evaluations (and the paper-shaped world's, `paper`) into root/data, the tables over seeds into root/reports."""
+    drawn, data = root / "drawn" / "0", root / "data"
+    assert main(["--no-mlflow", "drawn_world", "--world-seed", "0", "--output", str(drawn), *settings]) == 0
+    assert main(["--no-mlflow", "scenes_world", "--world-seed", "0", "--selection", str(root / "selection.json"),
+                 "--paper", str(paper), "--drawn", str(drawn), "--paper-results", str(data / "paper" / "0"),
+                 "--drawn-results", str(data / "drawn" / "0"), "--transfer-results", str(data / "transfer" / "0"),
+                 *settings, "--n-jobs", "1"]) == 0
+    assert main(["--no-mlflow", "scenes", "--results", str(data), "--worlds", str(root / "drawn"), "--output",
+                 str(root / "reports"), *settings]) == 0
 
 
 def test_the_scenes_stage_writes_every_table_over_seeds(benchmark_logs, tmp_path):
@@ -87,8 +100,7 @@ def test_the_scenes_stage_writes_every_table_over_seeds(benchmark_logs, tmp_path
                 *params_with(tmp_path / "p.yaml", full="noise feedback transfer", relations="transfer"),
                 "--set", "noise.rates=0 0.4", "--set", "noise.draws=1", "--set", "feedback.k=2",
                 "--set", "feedback.n=0 all", *LEARN]
-    assert main(["--no-mlflow", "scenes", "--selection", str(tmp_path / "selection.json"), "--paper",
-                 str(tmp_path / "paper"), "--data", str(data), "--output", str(out), *settings, "--n-jobs", "1"]) == 0
+    _scenes(tmp_path, tmp_path / "paper" / "0", settings)
     for name in ("table1.md", "table1.csv", "failures.md", "crossval_means.json", "metrics.json"):
         assert (out / "paper" / name).is_file() and (out / "drawn" / name).is_file(), name
     for name in ("noise.csv", "feedback.csv", "worlds.json", "dataset.json"):
@@ -119,7 +131,8 @@ def test_the_scenes_stage_writes_every_table_over_seeds(benchmark_logs, tmp_path
     for part in ("paper", "drawn"):
         means = json.loads((out / part / "crossval_means.json").read_text())
         assert 0.0 <= means["full"]["sequence_arg"] <= 100.0
-    assert json.loads((data / "drawn" / "0" / "dataset.json").read_text())["environments"] == 3
+    assert json.loads((tmp_path / "drawn" / "0" / "dataset.json").read_text())["environments"] == 3
+    assert json.loads((out / "drawn" / "dataset.json").read_text())["0"]["environments"] == 3
     # whole rooms held out: every room's programs come from one fold, in the paper-shaped and the drawn world
     for part, rooms in (("paper", {"env01", "env04"}), ("drawn", {"proc001", "proc002", "proc003"})):
         programs = list(csv.DictReader((data / part / "0" / "crossval_sequences.csv").open()))
@@ -193,17 +206,17 @@ def test_with_drawn_reported_worlds_the_stage_runs_and_says_no_transfer_was_meas
     settings = ["--set", "world.seeds=[0]", "--set", "crossval.folds=2",
                 *params_with(tmp_path / "p.yaml", full="noise feedback transfer"), "--set", "noise.rates=0",
                 "--set", "noise.draws=1", "--set", "feedback.k=2", "--set", "feedback.n=0", *common]
-    assert main(["--no-mlflow", "scenes", "--selection", str(tmp_path / "selection.json"), "--paper",
-                 str(tmp_path / "worlds"), "--data", str(tmp_path / "data"), "--output", str(out), *settings,
-                 "--n-jobs", "1"]) == 0
+    _scenes(tmp_path, reported, settings)
     assert "Not measured" in (out / "transfer.md").read_text() and "procedural" in (out / "transfer.md").read_text()
     assert list(csv.DictReader((out / "transfer.csv").open())) == []
     assert json.loads((out / "transfer.json").read_text()) == {}
     assert not (tmp_path / "data" / "drawn" / "0" / "transfer.csv").exists()
+    assert not any((tmp_path / "data" / "transfer" / "0").iterdir())  # the declared folder, empty
     for part in ("paper", "drawn"):
         assert 0.0 <= json.loads((out / part / "crossval_means.json").read_text())["full"]["sequence_arg"] <= 100.0
-    assert scenes.settings(Params.load(None, ["world.family=procedural"])).paper_shaped is False
-    assert scenes.settings(Params.load(None, [])).paper_shaped is True
+    for stage in (scenes, scenes_world):
+        assert stage.settings(Params.load(None, ["world.family=procedural"])).paper_shaped is False
+        assert stage.settings(Params.load(None, [])).paper_shaped is True
 
 
 def test_the_summary_names_the_drawn_worlds_size(tmp_path):

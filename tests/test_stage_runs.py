@@ -12,14 +12,14 @@ from params_files import params_with, selection_at
 
 from taskseq.cli import main
 from taskseq.demonstrations.benchmark import load_benchmark
-from taskseq.demonstrations.ingest import load_logs
 from taskseq.demonstrations.records import spec_from_dict, state_from_dict
 from taskseq.experiments import selection
 from taskseq.experiments.selection import best_candidate
 from taskseq.learn.estimator import StepScorer
 from taskseq.plan.planner import feasible, run_loop
+from taskseq.sim.procedural import DrawReport
 from taskseq.sim.tasks import Task
-from taskseq.stages import select as select_stage
+from taskseq.stages import generate as generate_stage
 
 FOLDS = ["--set", "crossval.folds=2", "--set", "crossval.group_by=scenario", "--set", "crossval.seed=0"]
 LEARN = ["--set", "train.tol=0.01", "--set", "train.max_iter=300", "--set", "train.n_slacks=0"]
@@ -242,21 +242,16 @@ def test_aggregate_and_report_over_worlds(evaluated, tiny):
 
 
 def test_select_sees_only_the_development_world(tiny, monkeypatch, tmp_path, capsys):
-    """Through the command line: the world each method's C is chosen on is drawn from dev_seed alone, no reported
-    world reaches the fits or the runs, the file holds per method every C tried and the one the documented rule
-    prefers, and `train` then ships the method ranked first at its own C, with its policy."""
+    """Through the command line: `dev_world` draws the world from dev_seed alone, of its own size, into one folder
+    with its manifest; `select` reads that folder and no reported world reaches the fits or the runs; the file
+    holds per method every C tried and the one the documented rule prefers, and `train` then ships the method
+    ranked first at its own C, with its policy."""
     drawn = []
 
     def spy_generate(world, output):
-        drawn.append((world.seed, world.procedural.environments))
+        drawn.append((world.seed, world.family, world.procedural.environments))
         shutil.copytree(tiny / "raw", output)
-        return {}, None
-
-    read = []
-
-    def spy_load_logs(folder):
-        read.append(Path(folder))
-        return load_logs(folder)
+        return {"env01.jsonl": 1}, DrawReport(environments=2)
 
     seen = []  # the scenarios every fit and every cross-validation of the stage is given
 
@@ -267,19 +262,22 @@ def test_select_sees_only_the_development_world(tiny, monkeypatch, tmp_path, cap
 
         return call
 
-    monkeypatch.setattr(select_stage, "generate", spy_generate)
-    monkeypatch.setattr(select_stage, "load_logs", spy_load_logs)
+    monkeypatch.setattr(generate_stage, "generate", spy_generate)
     monkeypatch.setattr(selection, "train_fold_models", spy(selection.train_fold_models, lambda a: a[3]))
     monkeypatch.setattr(selection, "cross_validate", spy(selection.cross_validate, lambda a: a[3].scenarios))
-    out = tmp_path / "selection.json"
-    assert main(["--no-mlflow", "select", "--set", "world.seeds=[0, 3]", "--set", "world.dev_seed=100",
-                 "--set", "select.C=0.5 2", *params_with(tmp_path / "p.yaml", full="select", relations="select"),
-                 "--set", "select.max_extensions=1", "--set", "procedural.environments=130",
-                 "--set", "select.environments=2", *FOLDS[:2], *LEARN, "--n-jobs", "1", "--data", str(tmp_path / "dev"),
+    out, dev = tmp_path / "selection.json", tmp_path / "dev"
+    worlds = ["--set", "world.seeds=[0, 3]", "--set", "world.dev_seed=100", "--set", "procedural.environments=130",
+              "--set", "select.environments=2"]
+    assert main(["--no-mlflow", "dev_world", *worlds, "--set", "world.family=procedural", "--output", str(dev)]) == 0
+    # the dev world only, of its own size (a large benchmark tunes on a small world)
+    assert drawn == [(100, "procedural", 2)]
+    assert {p.name for p in dev.iterdir()} == {"raw", "processed", "features", "world.json", "dataset.json"}
+    assert json.loads((dev / "world.json").read_text())["seed"] == 100
+    assert main(["--no-mlflow", "select", *worlds, "--set", "select.C=0.5 2",
+                 *params_with(tmp_path / "p.yaml", full="select", relations="select"),
+                 "--set", "select.max_extensions=1", *FOLDS[:2], *LEARN, "--n-jobs", "1", "--world", str(dev),
                  "--output", str(out)]) == 0
-    # C and the shipped method: the dev world only, of its own size (a large benchmark tunes on a small world)
-    assert drawn == [(100, 2)] and read == [tmp_path / "dev" / "raw"]
-    dev_scenarios = frozenset(load_benchmark(tmp_path / "dev" / "processed").scenarios)
+    dev_scenarios = frozenset(load_benchmark(dev / "processed").scenarios)
     assert len(seen) >= 4 and set(seen) == {dev_scenarios}
     result = json.loads(out.read_text())
     assert result["dev_seed"] == 100 and result["grid"] == [0.5, 2.0] and result["max_extensions"] == 1
@@ -295,22 +293,26 @@ def test_select_sees_only_the_development_world(tiny, monkeypatch, tmp_path, cap
     first = result["methods"][0]
     assert result["method"] == first["method"] and first["C"] == result["settings"][first["method"]]["C"]
     assert f"chose method {result['method']} at C={first['C']:g}; written to {out}" in capsys.readouterr().out
-    assert {p.name for p in (tmp_path / "dev").iterdir()} == {"raw", "processed", "features"}
     model = tmp_path / "shipped.npz"
     assert main(["--no-mlflow", "train", "--features", str(tiny / "features"), *LEARN, "--selection", str(out),
                  "--model", str(model)]) == 0
     meta = StepScorer.load(model).meta_
     assert (meta["method"], meta["C"], meta["policy"]) == (first["method"], first["C"], "greedy")
     code = main(["--no-mlflow", "select", *params_with(tmp_path / "p.yaml", full="select", chance="select"),
-                 "--data", str(tmp_path / "d"), "--output", str(tmp_path / "s.json")])
+                 "--world", str(dev), "--output", str(tmp_path / "s.json")])
     assert code == 2 and "chance: not MRF methods" in capsys.readouterr().err
-    assert not (tmp_path / "d").exists()
     code = main(["--no-mlflow", "select", *params_with(tmp_path / "p.yaml", relations="select", dagger="select"),
-                 "--data", str(tmp_path / "d"), "--output", str(tmp_path / "s.json")])
+                 "--world", str(dev), "--output", str(tmp_path / "s.json")])
     assert code == 2 and "methods.full.experiments must include select" in capsys.readouterr().err
-    code = main(["--no-mlflow", "select", "--set", "world.seeds=[0, 100]", "--set", "world.dev_seed=100",
-                 "--data", str(tmp_path / "d"), "--output", str(tmp_path / "s.json")])
+    # a development world that is also reported: refused when it would be drawn, and when it is read
+    code = main(["--no-mlflow", "dev_world", "--set", "world.seeds=[0, 100]", "--set", "world.dev_seed=100",
+                 "--output", str(tmp_path / "d")])
     assert code == 2 and "also a reported seed" in capsys.readouterr().err
+    code = main(["--no-mlflow", "select", "--set", "world.seeds=[0, 100]", "--world", str(dev),
+                 "--output", str(tmp_path / "s.json")])
+    assert code == 2 and "the development world's seed 100 is also a reported seed" in capsys.readouterr().err
+    code = main(["--no-mlflow", "select", "--world", str(tmp_path / "nowhere"), "--output", str(tmp_path / "s.json")])
+    assert code == 1 and "world.json: no such file" in capsys.readouterr().err
     assert not (tmp_path / "d").exists() and not (tmp_path / "s.json").exists()
 
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import json
+import importlib.util
 import re
 import subprocess
 import sys
@@ -19,30 +19,15 @@ from taskseq.stages import STAGES
 
 ROOT = Path(__file__).resolve().parents[1]
 DVC = yaml.safe_load((ROOT / "dvc.yaml").read_text())["stages"]
-
-LOADED = """
-import importlib, json, sys
-importlib.import_module("taskseq.cli")
-importlib.import_module("taskseq.stages." + sys.argv[1])
-print(json.dumps(sorted(m.__file__ for n, m in sys.modules.items()
-                        if (n == "taskseq" or n.startswith("taskseq.")) and getattr(m, "__file__", None))))
-"""
-
-
-def loaded_files(stage: str) -> list[str]:
-    """The project files a fresh interpreter loads to run the stage, relative to the repository."""
-    out = subprocess.run([sys.executable, "-c", LOADED, stage], capture_output=True, text=True, check=True, cwd=ROOT)
-    return [str(Path(f).resolve().relative_to(ROOT)) for f in json.loads(out.stdout)]
+_spec = importlib.util.spec_from_file_location("stage_deps", ROOT / "scripts" / "stage_deps.py")
+stage_deps = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(stage_deps)
 
 
 def dvc_stage(name: str) -> dict:
     """A stage of dvc.yaml by name; a `foreach` stage's template."""
     stage = DVC[name]
     return stage.get("do", stage)
-
-
-def covers(dep: str, path: str) -> bool:
-    return path == dep or path.startswith(dep.rstrip("/") + "/")
 
 
 def test_every_stage_of_dvc_yaml_has_its_module():
@@ -52,15 +37,24 @@ def test_every_stage_of_dvc_yaml_has_its_module():
 @pytest.mark.parametrize("stage", STAGES)
 def test_dvc_deps_are_exactly_the_project_code_a_stage_loads(stage):
     deps = [d for d in dvc_stage(stage)["deps"] if d.startswith("taskseq")]
-    loaded = loaded_files(stage)
-    missing = sorted(f for f in loaded if not any(covers(d, f) for d in deps))
-    assert not missing, f"dvc.yaml stage {stage} misses deps on {missing}"
-    unused = sorted(d for d in deps if not any(covers(d, f) for f in loaded))
-    assert not unused, f"dvc.yaml stage {stage} depends on {unused}, which it never loads"
+    assert deps == stage_deps.code_deps(stage), f"dvc.yaml stage {stage}: run python scripts/stage_deps.py"
     assert f"taskseq/stages/{stage}.py" in deps
 
 
-@pytest.mark.parametrize("stage", ["train", "select", "fold_models", "crossval", "noise", "feedback", "recipes"])
+def test_the_deps_writer_replaces_a_stages_code_deps_and_keeps_everything_else():
+    text = ("stages:\n  a:\n    cmd: x\n    deps:\n      - data/in  # read\n      - taskseq/old.py\n"
+            "      - taskseq/sim\n    outs:\n      - out\n  b:\n    foreach: [1]\n    do:\n      deps:\n"
+            "        - taskseq/cli.py\n")
+    new = stage_deps.rewrite(text, {"a": ["taskseq/learn", "taskseq/stages/a.py"], "b": ["taskseq/b.py"]})
+    assert new == text.replace("      - taskseq/old.py\n      - taskseq/sim\n",
+                               "      - taskseq/learn\n      - taskseq/stages/a.py\n").replace(
+        "        - taskseq/cli.py\n", "        - taskseq/b.py\n")
+    with pytest.raises(ValueError, match="no code deps found for c"):
+        stage_deps.rewrite(text, {"c": ["taskseq/c.py"]})
+
+
+@pytest.mark.parametrize("stage", ["train", "select", "fold_models", "crossval", "noise", "feedback", "recipes",
+                                   "scenes_world"])
 def test_stages_that_load_planners_start_without_scikit_learn(stage):
     # importing scikit-learn takes about a second in every stage process and worker; only the baselines'
     # fits need it, and they import it themselves

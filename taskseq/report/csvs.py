@@ -55,6 +55,8 @@ def sequence_rows(results: list) -> list[dict[str, Any]]:
 
 
 STEP_COLUMNS = ("method", "fold", "scenario", "sequence", "step", "primitive", "prim_correct", "arg_correct")
+# the figures of a method trained on one world and run in another (the scenes stages' transfer), per program kind
+TRANSFER_COLUMNS = ("sequence_arg", "sequence_prim", "success", "goal_reached")
 
 
 def step_rows(results: list, contexts: list, meta: list, predicts_args: dict[str, bool]) -> list[dict[str, Any]]:

@@ -33,7 +33,9 @@ class Stage:
 
 
 STAGES: dict[str, Stage] = {
-    "select": Stage("draw the development world; cross-validate each MRF method there to choose its own C",
+    "dev_world": Stage("draw the development world (logs, tables, features) into one folder",
+                       opts.WorldFolderOptions),
+    "select": Stage("cross-validate each MRF method on the development world to choose its own C; rank them",
                     opts.SelectOptions, True),
     "generate": Stage("simulate the demonstrator and write demonstration logs (JSON Lines)", opts.GenerateOptions,
                       per_world=True),
@@ -54,9 +56,13 @@ STAGES: dict[str, Stage] = {
                       opts.EvaluationOptions, True, True),
     "recipes": Stage("chain programs into recipes in environments held out from training", opts.EvaluationOptions,
                      per_world=True),
-    "scenes": Stage("Table I and failures with whole rooms held out of training, paper-shaped and drawn (noise and "
-                    "feedback there too), and models of the paper-shaped rooms run in drawn ones", opts.ScenesOptions,
-                    True),
+    "drawn_world": Stage("draw a world of rooms by a reported world's seed (logs, tables, features) into one folder",
+                         opts.WorldFolderOptions, per_world=True),
+    "scenes_world": Stage("one world seed with whole rooms held out of training, paper-shaped and drawn (noise and "
+                          "feedback there too), and models of the paper-shaped rooms run in drawn ones",
+                          opts.ScenesWorldOptions, True, True),
+    "scenes": Stage("Table I, failures and the transfer with rooms held out, over the world seeds",
+                    opts.ScenesOptions),
     "people": Stage("check people's demonstrations, count them, and compare the planner with and without them",
                     opts.PeopleOptions),
     "teach": Stage("the shipped planner in drawn rooms it never saw, after a scripted person shows k tasks in each",

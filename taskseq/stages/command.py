@@ -49,8 +49,8 @@ def add_parser(sub: Any, name: str) -> None:
                    help="override one setting, e.g. --set train.tol=1e-4 or --set 'noise.rates=0 0.2' (repeatable)")
     if stage.per_world:
         p.add_argument("--world-seed", type=int, default=None,
-                       help="the world drawn (generate), or the world these data were drawn with: a label of "
-                            "the MLflow runs, so runs of several worlds can be compared (changes no result)")
+                       help="the world drawn (generate, drawn_world), or the world these data were drawn with: a "
+                            "label of the MLflow runs, so runs of several worlds can be compared (changes no result)")
     if stage.parallel:
         p.add_argument("--n-jobs", type=positive, default=None,
                        help="work run in parallel (joblib; default: $TASKSEQ_N_JOBS, else one per CPU); "

@@ -2,11 +2,17 @@
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+from typing import Any
+
 from ..demonstrations.generate import generate
 from ..runtime.atomic import write_json_atomic
 from ..settings import Generate, Params
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .options import GenerateOptions
+
+MANIFEST = "world.json"  # what a world folder says of its world (`stages.world_folder`): family, seed, rooms, cost
 
 
 def settings(params: Params, world_seed: int | None = None) -> Generate:
@@ -27,3 +33,11 @@ def run(settings: Generate, options: GenerateOptions, tracker: Tracker = NO_RUN)
     redrawn = f" ({sum(report.redraws.values())} rooms redrawn)" if report.redraws else ""
     print(f"wrote {sum(counts.values())} demonstrations in {len(counts)} files to {output}{redrawn}")
     return counts
+
+
+def read_manifest(folder: Path) -> dict[str, Any]:
+    """The world.json of a world folder (`stages.world_folder`): the seed and family it was drawn with."""
+    path = folder / MANIFEST
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such file; draw the world first (taskseq dev_world or drawn_world)")
+    return json.loads(path.read_text())

@@ -37,8 +37,18 @@ def _store() -> Any:
 
 
 @dataclass(frozen=True, kw_only=True)
+class WorldFolderOptions:
+    """A whole world drawn into one folder: its logs (raw), tables (processed), features and what drawing it cost
+    (world.json, dataset.json)."""
+
+    output: Path = option("folder for the world's raw, processed and features subfolders, world.json and "
+                          "dataset.json (replaced)")
+
+
+@dataclass(frozen=True, kw_only=True)
 class SelectOptions:
-    data: Path = option("folder for the development world's logs, tables and features (replaced)")
+    world: Path = option("the development world's folder as `taskseq dev_world` writes it (its world.json, "
+                         "processed tables and features)", Path("data/dev"), input=True)
     output: Path = option("the choice (JSON)")
 
 
@@ -120,12 +130,27 @@ class CrossvalOptions(EvaluationOptions):
 
 
 @dataclass(frozen=True, kw_only=True)
-class ScenesOptions:
+class ScenesWorldOptions:
     selection: Path | None = _selection()
-    paper: Path = option("folder of the paper-shaped worlds' data, one subfolder per seed with its features and "
-                         "processed tables (the transfer's training data)", Path("data/worlds"), input=True)
-    data: Path = option("folder for the worlds evaluated with rooms held out: paper/SEED (fold models, results) and "
-                        "drawn/SEED (logs, tables, features, fold models, results)")
+    paper: Path = option("the paper-shaped world's folder: its features and processed tables (its rooms held out "
+                         "in turn, and the transfer's training data)", WORLD, input=True)
+    drawn: Path = option("the drawn world's folder as `taskseq drawn_world` writes it", Path("data/drawn/0"),
+                         input=True)
+    paper_results: Path = option("folder for the paper-shaped world's fold models and results, rooms held out "
+                                 "(replaced)")
+    drawn_results: Path = option("folder for the drawn world's fold models and results, rooms held out, noise and "
+                                 "feedback among them (replaced)")
+    transfer_results: Path = option("folder for the programs and steps of the models trained on the paper-shaped "
+                                    "world and run in the drawn one, as a cross-validation writes them (replaced; "
+                                    "empty when the reported worlds are drawn themselves)")
+
+
+@dataclass(frozen=True, kw_only=True)
+class ScenesOptions:
+    results: Path = option("folder of the per-world results of `taskseq scenes_world`: paper/SEED, drawn/SEED and "
+                           "transfer/SEED", Path("data/scenes"), input=True)
+    worlds: Path = option("folder of the drawn worlds, one subfolder per seed with its world.json and dataset.json",
+                          Path("data/drawn"), input=True)
     output: Path = option("folder for the tables over seeds")
 
 
@@ -139,8 +164,8 @@ class PeopleOptions:
 
 @dataclass(frozen=True, kw_only=True)
 class TeachOptions:
-    worlds: Path = option("folder of the drawn worlds' data (the scenes stage's), one subfolder per seed with its "
-                          "processed tables", Path("data/scenes/drawn"), input=True)
+    worlds: Path = option("folder of the drawn worlds (`taskseq drawn_world`'s), one subfolder per seed with its "
+                          "processed tables", Path("data/drawn"), input=True)
     selection: Path | None = option("the file `taskseq select` wrote: the shipped planner is the method it ranks "
                                     "first, at its C", Path("reports/selection.json"), input=True)
     output: Path = option("folder for teach.{csv,md,png}, teach_seeds.csv and teach_programs.csv")

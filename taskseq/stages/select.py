@@ -1,8 +1,9 @@
-"""Stage `select`: draw the development world, choose each MRF method's C on it by cross-validation, rank them.
+"""Stage `select`: choose each MRF method's C on the development world by cross-validation, and rank them.
 
-The development world goes through the same generate, ingest and feature
-steps as a reported world, into its own folder; only `selection.json` leaves
-it. Every reported figure then uses each method's chosen C, and the `train`
+The development world is drawn by the `dev_world` stage into its own folder
+(the same generate, ingest and features steps as a reported world); this
+stage reads its features and tables, and only `selection.json` leaves it.
+Every reported figure then uses each method's chosen C, and the `train`
 stage ships the method ranked first.
 """
 
@@ -10,26 +11,25 @@ from __future__ import annotations
 
 import tempfile
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..demonstrations.benchmark import Benchmark
-from ..demonstrations.generate import generate
-from ..demonstrations.ingest import load_logs, write_tables
+from ..demonstrations.benchmark import load_benchmark
 from ..experiments.selection import CRITERION, DevData, choose_C, cross_validate_settings, rank_methods
-from ..features.dataset import build_steps, write_features
+from ..features.dataset import read_features
 from ..methods import PAPER_MODEL, Lineup
 from ..runtime.atomic import write_json_atomic
-from ..settings import Folds, Generate, Learner, Methods, Params, Procedural, Select, World
+from ..settings import Folds, Learner, Methods, Params, Procedural, Select
 from ..track.mlflow_runs import NO_RUN, Tracker
+from .generate import read_manifest
 from .options import SelectOptions
 
 
 @dataclass(frozen=True)
 class Settings:
-    world: World
-    procedural: Procedural  # the rooms' distribution, when world.family draws them
+    seeds: tuple[int, ...]  # the reported world seeds, which the development world's may not be
+    procedural: Procedural  # the rooms' distribution (a method trained also on drawn rooms draws them from it)
     select: Select
     learner: Learner  # the structural SVM's settings as `train` sets them; C is the value tried
     folds: Folds
@@ -39,15 +39,16 @@ class Settings:
 
 def settings(params: Params, world_seed: int | None = None) -> Settings:
     c = params.crossval
-    return Settings(params.world, params.procedural, params.select, params.train.learner, c.fold_settings,
+    return Settings(params.world.seeds, params.procedural, params.select, params.train.learner, c.fold_settings,
                     c.max_steps, params.methods)
 
 
 def run(settings: Settings, options: SelectOptions, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> dict[str, Any]:
-    world, select, folds = settings.world, settings.select, settings.folds
-    if world.dev_seed in world.seeds:
-        raise ValueError(f"params.yaml: world.dev_seed {world.dev_seed} is also a reported seed; settings must "
-                         "be chosen on a world that is never reported")
+    select, folds = settings.select, settings.folds
+    dev_seed = read_manifest(options.world)["seed"]
+    if dev_seed in settings.seeds:
+        raise ValueError(f"{options.world}: the development world's seed {dev_seed} is also a reported seed; "
+                         "settings must be chosen on a world that is never reported")
     # a wrong entry stops here, before minutes of work
     lineup = Lineup(settings.methods, learner=settings.learner, procedural=settings.procedural)
     names = lineup.names("select")
@@ -55,17 +56,12 @@ def run(settings: Settings, options: SelectOptions, tracker: Tracker = NO_RUN, n
         raise ValueError(f"params.yaml: methods.{PAPER_MODEL}.experiments must include select: its C is also the "
                          "paper's ablations' (only_edge, only_clique) and the people stage's")
     lineup.mrf(names)
-    data, output = options.data, options.output
-    rooms = replace(settings.procedural, environments=select.environments)  # the development world's own size
-    generate(Generate(world.dev_seed, world.family, rooms), data / "raw")
-    tables, records = load_logs(data / "raw")
-    write_tables(tables, data / "processed")
-    contexts, meta = build_steps([r.record for r in records])
-    write_features(contexts, meta, data / "features")
-    bench = Benchmark.from_records([r.record for r in records])
+    output = options.output
+    contexts, meta = read_features(options.world / "features")
+    bench = load_benchmark(options.world / "processed")
     dev = DevData(contexts, meta, bench, folds, settings.max_steps)
     print(f"choosing C for {', '.join(names)} among {' '.join(f'{c:g}' for c in select.C)} (extended at "
-          f"an edge, {select.max_extensions} times at most) on the development world (seed {world.dev_seed}, "
+          f"an edge, {select.max_extensions} times at most) on the development world (seed {dev_seed}, "
           f"{len(bench.scenarios)} scenarios), {folds.folds} folds, {n_jobs} jobs")
     rounds: list[float] = []  # each round's seconds
     # the rounds' fold models (2.6 MB each, about 100 in the first round) are read by this stage alone: not kept
@@ -82,7 +78,7 @@ def run(settings: Settings, options: SelectOptions, tracker: Tracker = NO_RUN, n
 
         chosen = choose_C(names, select.C, evaluate, select.max_extensions)
     ranking = rank_methods(chosen)
-    result = {"criterion": CRITERION, "dev_seed": world.dev_seed,
+    result = {"criterion": CRITERION, "dev_seed": dev_seed,
               "grid": list(select.C), "max_extensions": select.max_extensions, "settings": chosen,
               "method": ranking[0]["method"], "methods": ranking,
               # the order is now params.yaml's `methods` section's; the words stay, so the file stays the same bytes
