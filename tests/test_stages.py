@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib.util
+import os
 import re
 import subprocess
 import sys
@@ -51,6 +52,40 @@ def test_the_deps_writer_replaces_a_stages_code_deps_and_keeps_everything_else()
         "        - taskseq/cli.py\n", "        - taskseq/b.py\n")
     with pytest.raises(ValueError, match="no code deps found for c"):
         stage_deps.rewrite(text, {"c": ["taskseq/c.py"]})
+
+
+def _stages_a_change_can_rerun(repo, graph, path: str) -> set[str]:
+    """The stages of dvc.yaml that `dvc repro` may re-run after a change to the file `path`, as DVC's own graph
+    has them: those that list it among their deps, and every stage downstream of those (re-run only when an
+    output it reads changed)."""
+    import networkx as nx
+
+    def covers(dep: str) -> bool:
+        return path == dep or path.startswith(dep.rstrip("/") + "/")
+
+    direct = [s for s in graph if s.dvcfile.relpath == "dvc.yaml"
+              and any(covers(os.path.relpath(d.fs_path, repo.root_dir)) for d in s.deps)]
+    return {s.addressing for s in direct} | {a.addressing for s in direct for a in nx.ancestors(graph, s)}
+
+
+@pytest.mark.filterwarnings("ignore::DeprecationWarning")  # DVC's own, from its graph of outputs
+def test_a_change_to_one_stages_code_reaches_only_that_stage_and_what_reads_its_outputs():
+    from dvc.repo import Repo
+
+    repo = Repo(str(ROOT))
+    graph = repo.index.graph
+
+    def reruns(path):
+        return _stages_a_change_can_rerun(repo, graph, path)
+
+    assert reruns("taskseq/stages/teach.py") == {"teach"}
+    assert reruns("taskseq/serve/app.py") == {"teach"}  # the web app's record writer, which teach writes through
+    assert reruns("taskseq/stages/scenes.py") == {"scenes", "report"}
+    assert reruns("taskseq/bench/speed.py") == set()  # a tool's code
+    seeds = Params.load(ROOT / "params.yaml").world.seeds
+    assert reruns("taskseq/stages/drawn_world.py") == {
+        *(f"{stage}@{s}" for stage in ("drawn_world", "scenes_world") for s in seeds), "scenes", "teach",
+        "stats@drawn_rooms", "stats@transfer", "report"}  # the drawn worlds' stages, none of the reported worlds'
 
 
 @pytest.mark.parametrize("stage", ["train", "select", "fold_models", "crossval", "noise", "feedback", "recipes",
