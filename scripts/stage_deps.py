@@ -39,7 +39,11 @@ CODE_DEP = re.compile(r"^(\s+)- taskseq/\S+\s*$")
 
 def loaded_files(stage: str) -> list[str]:
     """The project files a fresh interpreter loads to run the stage, relative to the repository."""
-    out = subprocess.run([sys.executable, "-c", LOADED, stage], capture_output=True, text=True, check=True, cwd=ROOT)
+    out = subprocess.run([sys.executable, "-c", LOADED, stage], capture_output=True, text=True, cwd=ROOT)
+    if out.returncode != 0:
+        last = (out.stderr.strip().splitlines() or ["(no message)"])[-1]
+        raise RuntimeError(f"importing stage {stage} with {sys.executable} failed: {last}; run this script in the "
+                           "project's environment (. .venv/bin/activate)")
     return [str(Path(f).resolve().relative_to(ROOT)) for f in json.loads(out.stdout)]
 
 
@@ -86,7 +90,11 @@ def main(argv: list[str] | None = None) -> int:
     from taskseq.stages import STAGES
 
     text = DVC_YAML.read_text()
-    new = rewrite(text, {stage: code_deps(stage) for stage in STAGES})
+    try:
+        new = rewrite(text, {stage: code_deps(stage) for stage in STAGES})
+    except (RuntimeError, ValueError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
     if new == text:
         print("dvc.yaml: every stage's code deps are the files it loads")
         return 0

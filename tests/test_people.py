@@ -4,6 +4,7 @@ the people stage compares the planner with and without them, and the teach stage
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -109,6 +110,10 @@ def test_the_teach_stage_runs_the_shipped_planner_on_the_same_tasks_for_every_k(
     assert len(held_out) == 1  # one test set for every k
     assert "| 2 |" in (tmp_path / "out" / "teach.md").read_text() and (tmp_path / "out" / "teach.png").exists()
     assert "`full`" in (tmp_path / "out" / "teach.md").read_text()
+    # one job per world and k: two processes write the same bytes as one
+    teach_stage.run(settings, replace(options, output=tmp_path / "out2"), n_jobs=2)
+    for name in ("teach.csv", "teach_seeds.csv", "teach_programs.csv", "teach.md"):
+        assert (tmp_path / "out2" / name).read_bytes() == (tmp_path / "out" / name).read_bytes(), name
     with pytest.raises(ValueError, match="proc099 not among world 0's rooms"):
         teach_stage.run(teach_stage.Settings(World(seeds=(0,)), Teach(environments=("proc099",)), LEARNER, 20,
                                              Methods()), options)

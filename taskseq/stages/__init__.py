@@ -66,7 +66,7 @@ STAGES: dict[str, Stage] = {
     "people": Stage("check people's demonstrations, count them, and compare the planner with and without them",
                     opts.PeopleOptions),
     "teach": Stage("the shipped planner in drawn rooms it never saw, after a scripted person shows k tasks in each",
-                   opts.TeachOptions),
+                   opts.TeachOptions, True),
     "aggregate": Stage("every figure over the world seeds: mean ± sd tables, failures, noise, feedback, recipes",
                        opts.AggregateOptions),
     "stats": Stage("confidence intervals of Table I by a bootstrap over worlds and scenarios; paired tests of methods",

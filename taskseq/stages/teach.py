@@ -35,6 +35,7 @@ from ..report.seeds import mean_sd
 from ..report.stats import mcnemar_exact
 from ..report.stats_tables import p_text
 from ..runtime.atomic import write_text_atomic
+from ..runtime.jobs import Job, run_jobs
 from ..selection import read_selection
 from ..serve.environments import Environment
 from ..serve.writer import RecordWriter, person_record
@@ -73,7 +74,7 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
                     params.methods, params.procedural)
 
 
-def run(settings: Settings, options: TeachOptions, tracker: Tracker = NO_RUN) -> list[dict[str, Any]]:
+def run(settings: Settings, options: TeachOptions, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> list[dict[str, Any]]:
     world, teach, max_steps = settings.world, settings.teach, settings.max_steps
     selection = read_selection(options.selection)
     shipped = selection.method
@@ -81,10 +82,11 @@ def run(settings: Settings, options: TeachOptions, tracker: Tracker = NO_RUN) ->
         raise ValueError(f"{options.selection}: names no method ranked first (the shipped planner); run "
                          "`taskseq select` again")
     make = Lineup(settings.methods, selection, settings.learner, procedural=settings.procedural).mrf([shipped])[shipped]
-    programs = []
-    for seed in world.seeds:
-        programs += teach_world(seed, load_benchmark(Path(options.worlds) / str(seed) / "processed"), teach, make,
-                                max_steps)
+    # one job per world and k: a fit on thousands of steps each, so the jobs share the cores
+    jobs = [job for seed in world.seeds
+            for job in teach_jobs(seed, load_benchmark(Path(options.worlds) / str(seed) / "processed"), teach, make,
+                                  max_steps)]
+    programs = [row for rows in run_jobs(jobs, n_jobs) for row in rows]
     table, per_seed = _over_seeds(programs, teach.k, world.seeds)
     out, label = Path(options.output), method_labels().get(shipped, shipped)
     write_text_atomic(out / "teach_programs.csv", csv_text(list(programs[0]), programs) if programs else "")
@@ -107,9 +109,15 @@ def run(settings: Settings, options: TeachOptions, tracker: Tracker = NO_RUN) ->
     return table
 
 
-def teach_world(seed: int, bench: Benchmark, teach: Teach, make: Any, max_steps: int) -> list[dict[str, Any]]:
+def teach_world(seed: int, bench: Benchmark, teach: Teach, make: Any, max_steps: int,
+                n_jobs: int = 1) -> list[dict[str, Any]]:
     """Every program the planner (`make()`, unfitted) runs in the held-out rooms of world `seed` (its benchmark
     `bench`), for every k: one row each."""
+    return [row for rows in run_jobs(teach_jobs(seed, bench, teach, make, max_steps), n_jobs) for row in rows]
+
+
+def teach_jobs(seed: int, bench: Benchmark, teach: Teach, make: Any, max_steps: int) -> list[Job]:
+    """`teach_world`'s work as one job per k, each giving its rows."""
     rooms: dict[str, Any] = {}
     for scenario in bench.scenarios.values():
         rooms.setdefault(scenario.env_id, scenario.initial)
@@ -117,25 +125,29 @@ def teach_world(seed: int, bench: Benchmark, teach: Teach, make: Any, max_steps:
     if unknown:
         raise ValueError(f"teach.environments: {', '.join(unknown)} not among world {seed}'s rooms "
                          f"({', '.join(sorted(rooms))})")
-    base, base_meta = build_steps([r for r in bench.records if r["env_id"] not in teach.environments])
+    base = build_steps([r for r in bench.records if r["env_id"] not in teach.environments])
     taught = rooms_to_teach({e: rooms[e] for e in teach.environments}, max(teach.k),
                             np.random.default_rng([teach.seed, seed]))
+    return [(_taught, (seed, k, base, taught, bench.scenarios, teach.weight, make, max_steps)) for k in teach.k]
+
+
+def _taught(seed: int, k: int, base: tuple[list, list], taught: list[Any], scenarios: dict[str, Any], weight: int,
+            make: Any, max_steps: int) -> list[dict[str, Any]]:
+    """The rows of one k: the planner trained on `base` plus the first k tasks shown in each room of `taught`."""
+    people = written_and_read_back([person_record(Environment(room.env_id, room.env_id, room.state), task,
+                                                  list(actions), SCRIPTED)
+                                    for room in taught for task, actions in room.shown[:k]])
+    steps, meta = weighted(*base, *build_steps(people), weight) if people else base
+    # a shipped method that rolls out its training scenarios (chained starts, DAgger) finds them here
+    method = make().fit(steps, meta, {**scenarios, **Benchmark.from_records(people).scenarios})
     rows = []
-    for k in teach.k:
-        people = written_and_read_back([person_record(Environment(room.env_id, room.env_id, room.state), task,
-                                                      list(actions), SCRIPTED)
-                                        for room in taught for task, actions in room.shown[:k]])
-        steps, meta = weighted(base, base_meta, *build_steps(people), teach.weight) if people else (base, base_meta)
-        # a shipped method that rolls out its training scenarios (chained starts, DAgger) finds them here
-        method = make().fit(steps, meta, {**bench.scenarios, **Benchmark.from_records(people).scenarios})
-        for room in taught:
-            for outcome in judged(method, room.tested, max_steps):
-                rows.append({"world_seed": seed, "k": k, "room": room.env_id, "scenario": outcome.scenario_id,
-                             "task": outcome.task, "sequence_arg": int(outcome.arg_correct),
-                             "success": int(outcome.success), "failure": outcome.failure})
-        done = [r for r in rows if r["k"] == k]
-        print(f"world {seed}, k = {k}: {sum(r['sequence_arg'] for r in done)} of {len(done)} held-out tasks as "
-              f"demonstrated, {sum(r['success'] for r in done)} succeed")
+    for room in taught:
+        for outcome in judged(method, room.tested, max_steps):
+            rows.append({"world_seed": seed, "k": k, "room": room.env_id, "scenario": outcome.scenario_id,
+                         "task": outcome.task, "sequence_arg": int(outcome.arg_correct),
+                         "success": int(outcome.success), "failure": outcome.failure})
+    print(f"world {seed}, k = {k}: {sum(r['sequence_arg'] for r in rows)} of {len(rows)} held-out tasks as "
+          f"demonstrated, {sum(r['success'] for r in rows)} succeed")
     return rows
 
 
