@@ -191,7 +191,7 @@ def test_a_drawn_objects_logged_attributes_follow_from_its_size_and_flags(tmp_pa
     assert any(len(s) > 1 for s in flag_sets.values())  # one kind, objects with different drawn flags
 
 
-def test_with_drawn_reported_worlds_the_stage_runs_and_says_no_transfer_was_measured(tmp_path):
+def test_with_drawn_reported_worlds_the_stage_runs_and_says_no_transfer_was_measured(tmp_path, capsys):
     """`world.family: procedural` makes the reported world of a seed the very world this stage draws for it, so
     there is nothing to transfer from; the stage still writes every table and says why the transfer is missing."""
     common = ["--set", "world.family=procedural", "--set", "procedural.environments=2", *LEARN]
@@ -212,6 +212,12 @@ def test_with_drawn_reported_worlds_the_stage_runs_and_says_no_transfer_was_meas
     assert json.loads((out / "transfer.json").read_text()) == {}
     assert not (tmp_path / "data" / "drawn" / "0" / "transfer.csv").exists()
     assert not any((tmp_path / "data" / "transfer" / "0").iterdir())  # the declared folder, empty
+    # a drawn world that is not there is named before any work, and nothing is written
+    code = main(["--no-mlflow", "scenes_world", "--paper", str(reported), "--drawn", str(tmp_path / "nowhere"),
+                 "--paper-results", str(tmp_path / "p"), "--drawn-results", str(tmp_path / "d"),
+                 "--transfer-results", str(tmp_path / "t")])
+    assert code == 1 and not any((tmp_path / name).exists() for name in ("p", "d", "t"))
+    assert f"{tmp_path / 'nowhere' / 'features'}: no such folder" in capsys.readouterr().err
     for part in ("paper", "drawn"):
         assert 0.0 <= json.loads((out / part / "crossval_means.json").read_text())["full"]["sequence_arg"] <= 100.0
     for stage in (scenes, scenes_world):

@@ -64,7 +64,13 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
 
 
 def run(settings: Settings, options: ScenesWorldOptions, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> None:
-    _transferred(settings, options)  # a wrong entry or a missing C stops here, before minutes of work
+    # a missing world, a wrong entry or a missing C stops here, before minutes of work
+    for world, made_by in ((options.paper, "taskseq features"), (options.drawn, "taskseq drawn_world")):
+        for part in ("features", "processed"):
+            if not (world / part).is_dir():
+                raise FileNotFoundError(f"{world / part}: no such folder; --paper and --drawn name world folders "
+                                        f"with features and processed tables ({made_by} writes them)")
+    _transferred(settings, options)
     print(f"the paper-shaped rooms of {options.paper}, each held out in turn")
     _held_out_rooms(settings, options, options.paper, options.paper_results, tracker, n_jobs)
     print(f"the drawn rooms of {options.drawn}, each held out in turn")
