@@ -109,11 +109,10 @@ def run(settings: Settings, options: TeachOptions, tracker: Tracker = NO_RUN, n_
     return table
 
 
-def teach_world(seed: int, bench: Benchmark, teach: Teach, make: Any, max_steps: int,
-                n_jobs: int = 1) -> list[dict[str, Any]]:
+def teach_world(seed: int, bench: Benchmark, teach: Teach, make: Any, max_steps: int) -> list[dict[str, Any]]:
     """Every program the planner (`make()`, unfitted) runs in the held-out rooms of world `seed` (its benchmark
     `bench`), for every k: one row each."""
-    return [row for rows in run_jobs(teach_jobs(seed, bench, teach, make, max_steps), n_jobs) for row in rows]
+    return [row for job, args in teach_jobs(seed, bench, teach, make, max_steps) for row in job(*args)]
 
 
 def teach_jobs(seed: int, bench: Benchmark, teach: Teach, make: Any, max_steps: int) -> list[Job]:
