@@ -138,6 +138,8 @@ class Folds:
 class Crossval(Folds):
     chance_seed: int = 0
     multiclass_C: float = 1.0
+    # the multiclass SVM's stopping tolerance, chosen on the development world (scripts/multiclass_tol.py)
+    multiclass_tol: float = 0.01
     ranking_C: float = 1.0  # role-ranking SVMs of symb-plan-svm
     max_steps: int = 20  # step cap of closed-loop runs
 

@@ -96,6 +96,7 @@ class MulticlassMethod:
     """A Crammer-Singer linear SVM over the primitive only; it predicts no arguments."""
 
     C: float = Crossval.multiclass_C
+    tol: float = Crossval.multiclass_tol  # liblinear's stopping tolerance
     name: str = "multiclass"
     predicts_args: bool = False
 
@@ -104,7 +105,8 @@ class MulticlassMethod:
 
         X = np.array([multiclass_features(x) for x in contexts])
         y = np.array([x.gold[0] for x in contexts])
-        self.svm_ = LinearSVC(multi_class="crammer_singer", C=self.C, max_iter=200000, random_state=0).fit(X, y)
+        self.svm_ = LinearSVC(multi_class="crammer_singer", C=self.C, tol=self.tol, max_iter=200000,
+                              random_state=0).fit(X, y)
         return self
 
     def predict_steps(self, contexts: list[StepContext], meta=None, demos=None) -> list[Y]:

@@ -30,7 +30,8 @@ class DaggerSettings:
 
 
 register(MethodSpec("chance", "chance", lambda b: ChanceMethod(seed=b.crossval.chance_seed), C_from=None))
-register(MethodSpec("multiclass", "multiclass", lambda b: MulticlassMethod(C=b.crossval.multiclass_C), C_from=None))
+register(MethodSpec("multiclass", "multiclass", lambda b: MulticlassMethod(C=b.crossval.multiclass_C,
+                                                                          tol=b.crossval.multiclass_tol), C_from=None))
 register(MethodSpec("symb_plan_svm", "symb-plan-svm", lambda b: SymbolicMethod(
     goals="svm", C=b.crossval.ranking_C, horizon=b.horizon, name="symb_plan_svm"), C_from=None))
 register(MethodSpec("symb_plan_manual", "symb-plan-manual", lambda b: SymbolicMethod(
