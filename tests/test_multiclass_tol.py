@@ -48,7 +48,7 @@ def test_the_script_compares_held_out_predictions_on_a_world_and_writes_only_whe
     report = json.loads(out.read_text())
     assert [r["tol"] for r in report["rows"]] == [1e-5, 1e-2]  # the tightest first: the reference
     assert report["rows"][0]["differ_from_tightest"] == 0
-    assert 0 < report["steps"] and all(0 <= r["avg_prim"] <= 100 for r in report["rows"])
+    assert report["steps"] > 0 and all(0 <= r["avg_prim"] <= 100 for r in report["rows"])
     assert report["chosen"] == SCRIPT["choose"](report["rows"])
     assert "chosen: crossval.multiclass_tol" in capsys.readouterr().out
 
