@@ -129,6 +129,7 @@ def runnable_first(policy: Policy, planner: StepScorer, task: Task, initial: Wor
                           "fails, a safety rule would be broken, or it is done before the goal holds)")
         return out
 
+    checked.avoids_revisits = getattr(policy, "avoids_revisits", False)  # type: ignore[attr-defined]
     return checked
 
 

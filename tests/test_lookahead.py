@@ -26,6 +26,7 @@ from taskseq.plan.planner import (
     lookahead,
     run_loop,
 )
+from taskseq.plan.records import STEP_CAP
 from taskseq.sim.catalog import ENVIRONMENTS_BY_ID, build_environment
 from taskseq.sim.demonstrator import demonstrate
 from taskseq.sim.primitives import Action, execute, try_execute
@@ -242,6 +243,7 @@ def _afresh(planner, task, top_k=3, perceive=None, depth=LOOKAHEAD_DEPTH, width=
                      if ctx.action(y).primitive == DONE or not harms(state, history, ctx.action(y))), 0)
         return ([ranked[pick]] + ranked[:pick] + ranked[pick + 1:])[:top_k]
 
+    policy.avoids_revisits = True  # as the lookahead's programs, they go nowhere twice
     return policy
 
 
@@ -384,3 +386,50 @@ def test_methods_run_one_after_another_on_a_scenario_share_its_worlds_and_change
     for sc in scenarios[:3]:
         methods._worlds_met(sc)
     assert len(methods._WORLDS_MET) <= 2
+
+
+CYCLE = {"": ["move_close(obj15)"], "move_close(obj15)": ["move_close(obj21)"],
+         "move_close(obj15) move_close(obj21)": ["move_close(obj15)"],
+         "move_close(obj21) move_close(obj15)": ["move_close(obj21)"]}  # back and forth between glass and carton
+
+
+def test_a_program_that_would_go_back_to_a_world_it_was_in_takes_the_next_proposal_instead(room):
+    # ranked by its last two steps alone, the planner walks between the glass and the carton until the step cap
+    looping = run_loop(feasible(ScriptedScorer(CYCLE)), room, TASK, max_steps=8)
+    assert looping.status == STEP_CAP and len({s.key() for s in looping.states}) == 3
+    # the lookahead's program takes the first proposal that leads somewhere new: at the third step, going back to
+    # the glass is the world after the first, so it takes the next proposal, `done`
+    program = run_loop(lookahead(ScriptedScorer(CYCLE), TASK), room, TASK, max_steps=8)
+    assert [str(a) for a in program.actions] == ["move_close(obj15)", "move_close(obj21)"]
+    assert program.status == DONE
+    assert str(program.steps[-1].action) == "move_close(obj21)"
+    keys = [s.key() for s in program.states]
+    assert len(set(keys)) == len(keys)
+
+
+def test_when_every_proposal_goes_back_the_best_is_taken(room):
+    # only the back-and-forth is proposed (top_k 1): nothing new to go to, so the program loops as before
+    program = run_loop(lookahead(ScriptedScorer(CYCLE), TASK, top_k=1, width=1), room, TASK, max_steps=6)
+    assert program.status == STEP_CAP
+    assert [str(a) for a in program.actions] == ["move_close(obj15)", "move_close(obj21)"] * 3
+
+
+def test_only_the_lookahead_avoids_worlds_it_was_in(room):
+    assert getattr(lookahead(ScriptedScorer(CYCLE), TASK), "avoids_revisits", False)
+    for policy in (greedy(ScriptedScorer(CYCLE)), feasible(ScriptedScorer(CYCLE))):
+        assert not getattr(policy, "avoids_revisits", False)  # Table I's other policies keep their rules
+
+
+def test_the_model_page_shows_the_development_worlds_check_of_the_rule():
+    import json
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    report = json.loads((root / "reports" / "revisits.json").read_text())
+    page = (root / "docs" / "model.md").read_text()
+    assert report["rooms"] == 52 and "python scripts/revisits.py --rooms 52" in page
+    for row in report["table"]:
+        assert (f"| `{row['method']}` | {row['rule']} | {row['sequence_arg']:.1f} | {row['success']:.1f} | "
+                f"{row['step_cap']} |") in page
+    # the rule never made a program of the development world worse
+    assert all(c["with"]["success"] >= c["without"]["success"] for c in report["changed"])

@@ -128,7 +128,7 @@ def test_params_flat_names_every_key_with_its_section(tmp_path):
     assert {k: v for k, v in flat.items() if k.startswith("methods.")} == {
         "methods.full.experiments": "select noise", "methods.noise_trained.experiments": "select",
         "methods.noise_trained.noise_rate": 0.2, "methods.chance.experiments": ""}
-    assert len(flat) == 45 + 4
+    assert len(flat) == 46 + 4
 
 
 # ---- refusals, each naming the file and the key ---------------------------------------------------------------

@@ -107,6 +107,14 @@ def lookahead(planner: StepScorer, task: Task, top_k: int = 3, perceive: Perceiv
     higher, and the robot may stop rather than take it (`tests/test_lookahead.py`
     scripts such a room). A longer `depth` sees more harm and refuses more
     for it; the development world chose 4.
+
+    Nor does the robot go back to a world it has been in during the program:
+    the policy declares `avoids_revisits`, and `run_loop` then takes the first
+    proposal whose step leads to a world the program has not been in (`done`
+    always counts as new), else the best. A policy is a function of the step
+    and the world, so a world met again with the same steps remembered is
+    ranked alike and the program loops until the step cap; the loop, which
+    keeps the program's worlds, breaks the cycle where it would close.
     """
     seen = perceive or (lambda ctx: ctx)
     # The steps the robot imagined, kept for the program's later steps: after it takes a step, the plan it
@@ -141,14 +149,29 @@ def lookahead(planner: StepScorer, task: Task, top_k: int = 3, perceive: Perceiv
     def policy(ctx: StepContext, state: WorldState) -> Ranked:
         history = ctx.history()
         step = steps.get((state.key(), tuple(history)))
+        if step is None and history:  # a step not imagined (the program took another proposal): kept, as imagined
+            step = imagine(state, history)  # ones are, for its imagined plans that come back to it
         if step is None or step.ctx.object_ids != ctx.object_ids or not np.array_equal(step.ctx.objects, ctx.objects):
-            step = _Runnable(planner, ctx, state)  # not imagined, or seen otherwise than the imagined steps
+            step = _Runnable(planner, ctx, state)  # the first step, or seen otherwise than the imagined steps
         runnable = step.first(max(top_k, width))
         pick = next((i for i, (y, _) in enumerate(runnable[:width])
                      if ctx.action(y).primitive == DONE or not harms(state, history, ctx.action(y))), 0)
         return ([runnable[pick]] + runnable[:pick] + runnable[pick + 1:])[:top_k]
 
+    policy.avoids_revisits = True  # type: ignore[attr-defined]  # read by run_loop
     return policy
+
+
+def _first_not_revisiting(ranked: Ranked, ctx: StepContext, state: WorldState, states: list[WorldState]) -> Ranked:
+    """`ranked` with its first step that leads to a world the program has not been in moved to the front (`done`
+    counts as one); as it was when every step leads back."""
+    been = {s.key() for s in states}
+    for i, (y, _) in enumerate(ranked):
+        action = ctx.action(y)
+        after = None if action.primitive == DONE else try_execute(state, action)
+        if action.primitive == DONE or (after is not None and after.key() not in been):
+            return [ranked[i]] + ranked[:i] + ranked[i + 1:]
+    return ranked
 
 
 # The policies a learned planner can run with, by the name a model file records (`policy` in its metadata).
@@ -246,6 +269,8 @@ def run_loop(policy: Policy, state: WorldState, task: Task, max_steps: int = 20,
             ctx, ranked = known
         if isinstance(ranked, str):
             return Program(task, steps, INFEASIBLE, states, ranked)
+        if getattr(policy, "avoids_revisits", False):
+            ranked = _first_not_revisiting(ranked, ctx, state, states)
         if choose is not None:
             pick = choose(list(history), [ctx.action(y) for y, _ in ranked])
             ranked = [ranked[pick]] + ranked[:pick] + ranked[pick + 1 :]

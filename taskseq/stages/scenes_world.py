@@ -14,7 +14,7 @@ together.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -27,7 +27,7 @@ from ..report.csvs import SEQUENCE_COLUMNS, STEP_COLUMNS, csv_text, sequence_row
 from ..report.csvs import TRANSFER_COLUMNS as TRANSFER
 from ..runtime.atomic import write_text_atomic
 from ..selection import read_selection
-from ..settings import Folds, Learner, Methods, Params, Procedural, Replay
+from ..settings import Crossval, Folds, Learner, Methods, Params, Procedural, Replay
 from ..track.mlflow_runs import NO_RUN, Tracker
 from . import crossval, feedback, fold_models, noise
 from .options import CrossvalOptions, EvaluationOptions, FoldModelsOptions, ScenesWorldOptions
@@ -51,8 +51,9 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
     replay = Replay(rooms, c.max_steps, learner)
     return Settings(
         fold_models=fold_models.Settings(rooms, learner, params.methods, False, params.procedural),
-        crossval=crossval.Settings(replace(c, group_by="environment"), learner, params.pddl.horizon, params.methods,
-                                   params.procedural),
+        crossval=crossval.Settings(Crossval(c.folds, "environment", c.seed, c.chance_seed, c.multiclass_C,
+                                            c.multiclass_tol, c.ranking_C, c.max_steps), learner,
+                                   params.pddl.horizon, params.methods, params.procedural),
         noise=noise.Settings(params.noise, replay, params.methods, params.procedural),
         feedback=feedback.Settings(params.feedback, replay, params.methods, params.procedural),
         methods=params.methods,
