@@ -1,22 +1,32 @@
-"""Write the code dependencies of every stage in dvc.yaml: exactly the project files the stage's command loads.
+"""Write the code dependencies of every stage in dvc.yaml and veil/dvc.yaml: exactly the project files it loads.
 
-A stage's `deps` in dvc.yaml list the data it reads (written by hand, with
-the command that reads it) and the project code it runs. The code part is
-generated here: a fresh interpreter imports the command line and the stage's
-module, and every project module it then holds is a dependency, named by its
-subpackage (`taskseq/learn`) or, for the package's own modules and the stage
-modules, by its file (`taskseq/stages/select.py`). So a change to code a stage
-never loads does not re-run it, and one it does load always does.
+A stage's `deps` list the data it reads (written by hand, with the command
+that reads it) and the project code it runs. The code part is generated here:
+a fresh interpreter imports the command line and the stage's entry modules,
+and every project module it then holds is a dependency, named by its
+subpackage (`taskseq/learn`) or, for the package's own modules, the stage
+modules and VEIL's modules, by its file (`taskseq/stages/select.py`). So a
+change to code a stage never loads does not re-run it, and one it does load
+always does.
 
-    python scripts/stage_deps.py           # rewrite dvc.yaml's code deps
-    python scripts/stage_deps.py --check   # exit 1 and name every stage whose code deps differ
+A stage of dvc.yaml enters through its module, `taskseq.stages.<name>`. A
+stage of veil/dvc.yaml is the `taskseq veil` sub-command of its name, which
+imports what it needs when it runs (so that `taskseq --help` stays quick):
+its entry modules are those its function imports, read from the function's
+source, and from the functions of `taskseq/veil/command.py` it calls.
 
-Run it after adding a stage or changing what a stage imports; tests/test_stages.py fails until dvc.yaml agrees.
+    python scripts/stage_deps.py           # rewrite the code deps of both files
+    python scripts/stage_deps.py --check   # exit 1 and name every file whose code deps differ
+
+Run it after adding a stage or changing what a stage imports; tests/test_stages.py fails until both files agree.
 """
 
 from __future__ import annotations
 
 import argparse
+import ast
+import importlib
+import inspect
 import json
 import re
 import subprocess
@@ -25,36 +35,72 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 DVC_YAML = ROOT / "dvc.yaml"
+VEIL_YAML = ROOT / "veil" / "dvc.yaml"
 
 LOADED = """
 import importlib, json, sys
-importlib.import_module("taskseq.cli")
-importlib.import_module("taskseq.stages." + sys.argv[1])
+for name in sys.argv[1:]:
+    importlib.import_module(name)
 print(json.dumps(sorted(m.__file__ for n, m in sys.modules.items()
                         if (n == "taskseq" or n.startswith("taskseq.")) and getattr(m, "__file__", None))))
 """
 STAGE = re.compile(r"^  (\w+):\s*$")
-CODE_DEP = re.compile(r"^(\s+)- taskseq/\S+\s*$")
+CODE_DEP = re.compile(r"^(\s+)- (?:\.\./)?taskseq/\S+\s*$")
+BY_FILE = {"stages", "veil"}  # subpackages whose modules are listed one by one
+VEIL_STAGES = ("import", "evaluate", "train")  # veil/dvc.yaml's stages: `taskseq veil` sub-commands
 
 
-def loaded_files(stage: str) -> list[str]:
-    """The project files a fresh interpreter loads to run the stage, relative to the repository."""
-    out = subprocess.run([sys.executable, "-c", LOADED, stage], capture_output=True, text=True, cwd=ROOT)
+def loaded_files(entries: list[str]) -> list[str]:
+    """The project files a fresh interpreter loads when it imports `entries`, relative to the repository."""
+    out = subprocess.run([sys.executable, "-c", LOADED, *entries], capture_output=True, text=True, cwd=ROOT)
     if out.returncode != 0:
         last = (out.stderr.strip().splitlines() or ["(no message)"])[-1]
-        raise RuntimeError(f"importing stage {stage} with {sys.executable} failed: {last}; run this script in the "
-                           "project's environment (. .venv/bin/activate)")
+        raise RuntimeError(f"importing {', '.join(entries)} with {sys.executable} failed: {last}; run this script in "
+                           "the project's environment (. .venv/bin/activate)")
     return [str(Path(f).resolve().relative_to(ROOT)) for f in json.loads(out.stdout)]
 
 
-def code_deps(stage: str) -> list[str]:
-    """The stage's code dependencies as dvc.yaml lists them: a subpackage whole, the package's own modules and the
-    stage modules by file."""
+def grouped(paths: list[str]) -> list[str]:
+    """Files as dvc.yaml lists them: a subpackage whole, the package's own modules and those of `BY_FILE` by file."""
     deps = set()
-    for path in loaded_files(stage):
+    for path in paths:
         parts = path.split("/")
-        deps.add("/".join(parts[:2]) if len(parts) > 2 and parts[1] != "stages" else path)
+        deps.add("/".join(parts[:2]) if len(parts) > 2 and parts[1] not in BY_FILE else path)
     return sorted(deps)
+
+
+def code_deps(stage: str) -> list[str]:
+    """A stage of dvc.yaml's code dependencies."""
+    return grouped(loaded_files(["taskseq.cli", f"taskseq.stages.{stage}"]))
+
+
+def _imported_when_run(function, module, seen: set[str]) -> set[str]:
+    """The project modules `function` imports in its body, and those of the functions of its module it calls."""
+    seen.add(function.__name__)
+    names = set()
+    for node in ast.walk(ast.parse(inspect.getsource(function))):
+        if isinstance(node, ast.ImportFrom) and node.level:
+            base = importlib.util.resolve_name("." * node.level + (node.module or ""), module.__package__)
+            names.add(base)
+            if importlib.util.find_spec(base).submodule_search_locations:  # a package: its names may be modules
+                names |= {f"{base}.{a.name}" for a in node.names if importlib.util.find_spec(f"{base}.{a.name}")}
+        elif isinstance(node, ast.ImportFrom | ast.Import):
+            names |= {a.name for a in node.names if a.name.startswith("taskseq")}
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("taskseq"):
+                names.add(node.module)
+        elif isinstance(node, ast.Name) and node.id not in seen:
+            called = getattr(module, node.id, None)
+            if inspect.isfunction(called) and called.__module__ == module.__name__:
+                names |= _imported_when_run(called, module, seen)
+    return names
+
+
+def veil_code_deps(stage: str) -> list[str]:
+    """A stage of veil/dvc.yaml's code dependencies, as that file names them (from the folder `veil/`)."""
+    command = importlib.import_module("taskseq.veil.command")
+    entries = sorted(_imported_when_run(command.SUBCOMMANDS[stage].run, command, set()))
+    files = loaded_files(["taskseq.cli", "taskseq.tool_commands", "taskseq.veil.command", *entries])
+    return [f"../{d}" for d in grouped(files)]
 
 
 def rewrite(text: str, deps: dict[str, list[str]]) -> str:
@@ -68,7 +114,7 @@ def rewrite(text: str, deps: dict[str, list[str]]) -> str:
         code = CODE_DEP.match(lines[i])
         if code and stage in deps:
             if stage in done:
-                raise ValueError(f"dvc.yaml: stage {stage} lists its code deps in more than one run of lines")
+                raise ValueError(f"stage {stage} lists its code deps in more than one run of lines")
             while i < len(lines) and CODE_DEP.match(lines[i]):
                 i += 1
             out += [f"{code.group(1)}- {d}\n" for d in deps[stage]]
@@ -78,34 +124,41 @@ def rewrite(text: str, deps: dict[str, list[str]]) -> str:
         i += 1
     missing = sorted(set(deps) - done)
     if missing:
-        raise ValueError(f"dvc.yaml: no code deps found for {', '.join(missing)}; list at least one taskseq/ path")
+        raise ValueError(f"no code deps found for {', '.join(missing)}; list at least one taskseq/ path")
     return "".join(out)
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--check", action="store_true", help="change nothing; exit 1 if dvc.yaml differs")
+    parser.add_argument("--check", action="store_true", help="change nothing; exit 1 if a file differs")
     args = parser.parse_args(argv)
     sys.path.insert(0, str(ROOT))
     from taskseq.stages import STAGES
 
-    text = DVC_YAML.read_text()
-    try:
-        new = rewrite(text, {stage: code_deps(stage) for stage in STAGES})
-    except (RuntimeError, ValueError) as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
-    if new == text:
-        print("dvc.yaml: every stage's code deps are the files it loads")
-        return 0
-    if args.check:
-        print("dvc.yaml: code deps differ from the files the stages load; run python scripts/stage_deps.py",
-              file=sys.stderr)
+    files = {DVC_YAML: lambda: {stage: code_deps(stage) for stage in STAGES},
+             VEIL_YAML: lambda: {stage: veil_code_deps(stage) for stage in VEIL_STAGES}}
+    differ = []
+    for path, deps in files.items():
+        text = path.read_text()
+        try:
+            new = rewrite(text, deps())
+        except (RuntimeError, ValueError) as err:
+            print(f"error: {path.relative_to(ROOT)}: {err}", file=sys.stderr)
+            return 2
+        name = path.relative_to(ROOT)
+        if new == text:
+            print(f"{name}: every stage's code deps are the files it loads")
+            continue
+        differ.append(name)
+        if not args.check:
+            tmp = path.with_suffix(".yaml.tmp")
+            tmp.write_text(new)
+            tmp.replace(path)
+            print(f"{name}: code deps rewritten; review with git diff {name}")
+    if differ and args.check:
+        print(f"{', '.join(map(str, differ))}: code deps differ from the files the stages load; run python "
+              "scripts/stage_deps.py", file=sys.stderr)
         return 1
-    tmp = DVC_YAML.with_suffix(".yaml.tmp")
-    tmp.write_text(new)
-    tmp.replace(DVC_YAML)
-    print("dvc.yaml: code deps rewritten; review with git diff dvc.yaml")
     return 0
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib.util
+import json
 import os
 import re
 import subprocess
@@ -54,7 +55,83 @@ def test_the_deps_writer_replaces_a_stages_code_deps_and_keeps_everything_else()
         stage_deps.rewrite(text, {"c": ["taskseq/c.py"]})
 
 
-def _stages_a_change_can_rerun(repo, graph, path: str) -> set[str]:
+VEIL_DVC = yaml.safe_load((ROOT / "veil" / "dvc.yaml").read_text())["stages"]
+
+
+@pytest.mark.parametrize("stage", stage_deps.VEIL_STAGES)
+def test_veil_deps_are_exactly_the_project_code_its_subcommand_loads(stage):
+    assert sorted(VEIL_DVC) == sorted(stage_deps.VEIL_STAGES)
+    deps = [d for d in VEIL_DVC[stage]["deps"] if d.startswith("../taskseq")]
+    assert deps == stage_deps.veil_code_deps(stage), f"veil/dvc.yaml stage {stage}: run python scripts/stage_deps.py"
+    assert "../taskseq/veil/command.py" in deps and f"taskseq veil {stage} " in VEIL_DVC[stage]["cmd"]
+
+
+LOADED_AT_EXIT = """
+import atexit, json, sys
+from taskseq.cli import main
+atexit.register(lambda: print(json.dumps(sorted(m.__file__ for n, m in sys.modules.items()
+                                                if n.startswith("taskseq") and getattr(m, "__file__", None)))))
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def _other_commands_options() -> list[str]:
+    """The project files that building the command line's parser loads beyond the modules the generator imports:
+    other commands' options (the scaling benchmark names its stages in its help), which change no stage's result."""
+    code = ("import json, sys; from taskseq.cli import build_parser; before = set(sys.modules); build_parser(); "
+            "print(json.dumps(sorted(sys.modules[n].__file__ for n in set(sys.modules) - before "
+            "if n.startswith('taskseq'))))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT)
+    return [str(Path(f).resolve().relative_to(ROOT)) for f in json.loads(out.stdout)]
+
+
+@pytest.mark.parametrize("stage", ["import", "train"])
+def test_a_veil_stage_run_on_a_release_loads_no_project_file_outside_its_deps(stage, tmp_path):
+    """The generator's deps against what the sub-command really loads, run on the fixture release."""
+    params = tmp_path / "params.yaml"
+    params.write_text("veil:\n  folds: 2\n  C_grid: [1.0]\n  max_steps: 10\n  resamples: 10\n"
+                      "  lookahead_widths: [1]\n")
+    release = ROOT / "tests" / "fixtures" / "veil" / "release"
+    argv = {"import": ["--output", str(tmp_path / "processed"), "--quiet"],
+            "train": ["--output", str(tmp_path / "model.npz"), "--params", str(params)]}[stage]
+    out = subprocess.run([sys.executable, "-c", LOADED_AT_EXIT, "--no-mlflow", "veil", stage, "--release",
+                          str(release), *argv], capture_output=True, text=True, cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+    loaded = {str(Path(f).resolve().relative_to(ROOT)) for f in json.loads(out.stdout.strip().splitlines()[-1])}
+    deps = [d.removeprefix("../") for d in stage_deps.veil_code_deps(stage)] + _other_commands_options()
+    outside = sorted(f for f in loaded if not any(f == d or f.startswith(d + "/") for d in deps))
+    assert outside == [], f"taskseq veil {stage} loads files veil/dvc.yaml does not list"
+
+
+def _project_imports_in_functions(path: Path) -> list[str]:
+    """`from .x import y` or `import taskseq...` statements inside a function of the file."""
+    import ast
+
+    found = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+            for inner in ast.walk(node):
+                if (isinstance(inner, ast.ImportFrom) and (inner.level or (inner.module or "").startswith("taskseq"))
+                        or isinstance(inner, ast.Import) and any(a.name.startswith("taskseq") for a in inner.names)):
+                    found.append(f"{path.relative_to(ROOT)}:{inner.lineno} in {node.name}")
+    return found
+
+
+def test_what_a_veil_stage_loads_imports_project_code_when_loaded_so_its_deps_see_it():
+    """The generator reads the imports of the sub-command's function and then lets an interpreter load what they
+    name: a project import inside a function of a module loaded that way would go unseen. The command-line
+    modules, which dispatch to the tools, are the ones allowed to import when a command runs."""
+    dispatchers = {"taskseq/cli.py", "taskseq/tool_commands.py", "taskseq/veil/command.py",
+                   "taskseq/stages/command.py"}
+    for stage in stage_deps.VEIL_STAGES:
+        for dep in stage_deps.veil_code_deps(stage):
+            path = ROOT / dep.removeprefix("../")
+            for file in sorted(path.rglob("*.py")) if path.is_dir() else [path]:
+                if str(file.relative_to(ROOT)) not in dispatchers:
+                    assert _project_imports_in_functions(file) == [], stage
+
+
+def _stages_a_change_can_rerun(repo, graph, path: str, dvcfile: str = "dvc.yaml") -> set[str]:
     """The stages of dvc.yaml that `dvc repro` may re-run after a change to the file `path`, as DVC's own graph
     has them: those that list it among their deps, and every stage downstream of those (re-run only when an
     output it reads changed)."""
@@ -63,7 +140,7 @@ def _stages_a_change_can_rerun(repo, graph, path: str) -> set[str]:
     def covers(dep: str) -> bool:
         return path == dep or path.startswith(dep.rstrip("/") + "/")
 
-    direct = [s for s in graph if s.dvcfile.relpath == "dvc.yaml"
+    direct = [s for s in graph if s.dvcfile.relpath == dvcfile
               and any(covers(os.path.relpath(d.fs_path, repo.root_dir)) for d in s.deps)]
     return {s.addressing for s in direct} | {a.addressing for s in direct for a in nx.ancestors(graph, s)}
 
@@ -82,6 +159,12 @@ def test_a_change_to_one_stages_code_reaches_only_that_stage_and_what_reads_its_
     assert reruns("taskseq/serve/app.py") == {"teach"}  # the web app's record writer, which teach writes through
     assert reruns("taskseq/stages/scenes.py") == {"scenes", "report"}
     assert reruns("taskseq/bench/speed.py") == set()  # a tool's code
+    veil = "veil/dvc.yaml"
+    for path in ("taskseq/stages/teach.py", "taskseq/evaluate/methods.py", "taskseq/experiments/crossval.py",
+                 "taskseq/methods/choice.py", "taskseq/serve/app.py"):
+        assert _stages_a_change_can_rerun(repo, graph, path, veil) == set(), path  # none of VEIL's code
+    assert _stages_a_change_can_rerun(repo, graph, "taskseq/veil/ingest.py", veil) == {
+        "veil/dvc.yaml:import", "veil/dvc.yaml:evaluate", "veil/dvc.yaml:train"}
     seeds = Params.load(ROOT / "params.yaml").world.seeds
     assert reruns("taskseq/stages/drawn_world.py") == {
         *(f"{stage}@{s}" for stage in ("drawn_world", "scenes_world") for s in seeds), "scenes", "teach",
