@@ -14,6 +14,7 @@ from taskseq.cli import main
 from taskseq.demonstrations.benchmark import Benchmark
 from taskseq.demonstrations.generate import generate
 from taskseq.demonstrations.ingest import load_logs
+from taskseq.evaluate.methods import ScorerMethod
 from taskseq.experiments.transfer import transfer
 from taskseq.features.dataset import build_steps
 from taskseq.settings import Generate, Params, Procedural
@@ -49,19 +50,42 @@ class _Spy:
         return None  # as a method that runs no programs
 
 
-def test_transfer_trains_on_the_first_world_only_and_tests_every_scenario_of_the_second(tmp_path):
+def test_transfer_trains_on_the_first_world_only_and_tests_every_scenario_of_the_second(tmp_path, monkeypatch):
+    """The models are trained once, as fold models, on every step of the first world and no other; the fold then
+    loads them (no second fit) and tests every scenario of the second world; a DAgger model starts from its base
+    model, trained once for both."""
+    import taskseq.experiments.transfer as transfer_module
+    from taskseq.learn.estimator import StepScorer
+
     paper = _world(tmp_path / "paper", Generate(seed=0))
     drawn = _world(tmp_path / "drawn", Generate(seed=0, family="procedural", procedural=Procedural(environments=2)))
-    spy = _Spy()
-    results, contexts, meta = transfer({"spy": lambda: spy}, paper, drawn, max_steps=5)
-    assert spy.seen["trained"] == set(paper[2].scenarios)
-    assert spy.seen["predicted"] == set(drawn[2].scenarios) >= spy.seen["run"]  # a method running no programs
-    assert results[0].sequences is None  # stops at the first
-    assert len(contexts) == len(paper[0]) + len(drawn[0])
-    assert [contexts[i] for i in results[0].step_index] == drawn[0]
-    assert [meta[i] for i in results[0].step_index] == drawn[1] and len(meta) == len(contexts)
+    trained, fits = [], []
+    real_train, real_fit = transfer_module.train_fold_models, StepScorer.fit
+
+    def spy_train(methods, contexts, meta, scenarios, jobs, output, n_jobs=1):
+        trained.append(([m.scenario_id for m in meta], {j.method: j.index for j in jobs}, set(scenarios)))
+        return real_train(methods, contexts, meta, scenarios, jobs, output, n_jobs)
+
+    def spy_fit(self, contexts, *args, **kwargs):
+        fits.append(len(contexts))
+        return real_fit(self, contexts, *args, **kwargs)
+
+    monkeypatch.setattr(transfer_module, "train_fold_models", spy_train)
+    monkeypatch.setattr(StepScorer, "fit", spy_fit)
+    small = {"tol": 0.05, "max_iter": 30}
+    methods = {"plain": lambda: ScorerMethod("edge", C=1.0, name="plain", **small),
+               "dagger": lambda: ScorerMethod("edge", C=1.0, name="dagger", dagger_rounds=1, **small)}
+    results, contexts, meta = transfer(methods, paper, drawn, max_steps=5)
+    (seen, jobs, scenarios), = trained
+    assert seen == [m.scenario_id for m in paper[1]] and scenarios == set(paper[2].scenarios)
+    assert jobs == dict.fromkeys(methods, tuple(range(len(paper[0]))))
+    assert len(fits) == 2  # the plain model, which is DAgger's base, and DAgger's refit: none in the fold
+    for result in results:
+        assert {s.scenario_id for s in result.sequences} == set(drawn[2].scenarios)
+        assert [contexts[i] for i in result.step_index] == drawn[0]
+        assert [meta[i] for i in result.step_index] == drawn[1] and len(meta) == len(contexts)
     with pytest.raises(ValueError, match="share scenario ids"):
-        transfer({"spy": lambda: spy}, paper, paper, max_steps=5)
+        transfer(methods, paper, paper, max_steps=5)
 
 
 def test_scenes_hold_out_whole_rooms_whatever_crossval_group_by_says():

@@ -1,26 +1,39 @@
 """Models trained on one world and run on another's scenarios: the paper-shaped rooms against drawn ones.
 
-Both worlds' steps and scenarios go into one pool whose single fold tests
-every scenario of the second world, so training sees exactly the first
-world's steps and the same fold machinery (fit, teacher-forced steps,
-closed-loop programs, judging) runs as in cross-validation.
+The models are trained as the fold models are (`fold_models.train_fold_models`,
+one training set: every step of the first world), so the methods that share
+a feature set start where a neighbour ended and DAgger starts from its base
+model instead of fitting it again. Then both worlds' steps and scenarios go
+into one pool whose single fold tests every scenario of the second world, so
+training sees exactly the first world's steps and the same fold machinery
+(teacher-forced steps, closed-loop programs, judging) runs as in
+cross-validation, each method loading its model from the store.
 """
 
 from __future__ import annotations
 
+import tempfile
 from collections.abc import Callable
+from dataclasses import replace
+from functools import partial
+from pathlib import Path
 
 from ..demonstrations.benchmark import Benchmark
-from ..evaluate.methods import Method
+from ..evaluate.methods import ScorerMethod
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
 from ..runtime.jobs import Shared, run_jobs
 from .crossval import FoldResult, run_fold
+from .fold_models import TrainingJob, train_fold_models
 
 World = tuple[list[StepContext], list[StepMeta], Benchmark]
 
 
-def transfer(methods: dict[str, Callable[[], Method]], train: World, test: World, max_steps: int,
+def _stored(make: Callable[[], ScorerMethod], store: str) -> ScorerMethod:
+    return replace(make(), store=store)
+
+
+def transfer(methods: dict[str, Callable[[], ScorerMethod]], train: World, test: World, max_steps: int,
              n_jobs: int = 1) -> tuple[list[FoldResult], list[StepContext], list[StepMeta]]:
     """Each method fitted on every step of `train` and run on every scenario of `test`; the results, and the pooled
     steps and their metadata that their `step_index` points into (for `metrics.summarize`, `report.csvs.step_rows`)."""
@@ -33,7 +46,12 @@ def transfer(methods: dict[str, Callable[[], Method]], train: World, test: World
     bench = Benchmark([], {**train_bench.scenarios, **test_bench.scenarios},
                       {**train_bench.states, **test_bench.states}, {**train_bench.actions, **test_bench.actions})
     tested = frozenset(test_bench.scenarios)
-    steps, shared_meta, scenarios, demos = Shared(contexts), Shared(meta), Shared(bench.scenarios), Shared(bench)
-    results = run_jobs([(run_fold, (make, 0, steps, shared_meta, scenarios, tested, max_steps, demos))
-                        for make in methods.values()], n_jobs)
+    every_step = tuple(range(len(train_contexts)))
+    with tempfile.TemporaryDirectory(prefix="taskseq-transfer-") as tmp:
+        store = str(Path(tmp) / "models")
+        train_fold_models(methods, train_contexts, train_meta, train_bench.scenarios,
+                          [TrainingJob(name, "transfer", every_step) for name in methods], store, n_jobs)
+        steps, shared_meta, scenarios, demos = Shared(contexts), Shared(meta), Shared(bench.scenarios), Shared(bench)
+        results = run_jobs([(run_fold, (partial(_stored, make, store), 0, steps, shared_meta, scenarios, tested,
+                                        max_steps, demos)) for make in methods.values()], n_jobs)
     return results, contexts, meta
