@@ -10,7 +10,10 @@
   the timings of `reports/bench.json` and `reports/scaling.json`, the mutation scores of
   `reports/mutation/`, the development world's ranking in `reports/selection.json`, the `teach`
   stage's tables of `reports/teach/`, the VEIL pipeline's timing of `reports/veil_timing.json`,
-  and the package's layout from its modules' docstrings.
+  Table I's means and per-seed figures (`reports/crossval_means.json`, `crossval_seeds.csv`), the
+  development world's checks of the scripts (`multiclass_tol.json`, `revisits.json`,
+  `drawn_rooms_choice.json`, `teach_weight.json`), and the package's layout from its modules'
+  docstrings.
 
 Nothing is copied by hand, so a build after `dvc repro` (or `taskseq bench`, `taskseq
 scaling`, `scripts/mutation.py`) shows that run's numbers.
@@ -465,6 +468,90 @@ def teach_weight() -> str:
             + _rows(["weight", "sequence arg", "success"], "rrr", rows))
 
 
+MULTICLASS_TOL_COMMAND = "python scripts/multiclass_tol.py --world data/dev --output reports/multiclass_tol.json"
+
+
+def multiclass_tol() -> str:
+    """The multiclass baseline's tolerances as `scripts/multiclass_tol.py` compared them on the development world."""
+    report = _json("multiclass_tol.json")
+    if report is None:
+        return _missing("multiclass_tol.json", MULTICLASS_TOL_COMMAND)
+    rows = [[f"**{r['tol']:g} (chosen)**" if r["tol"] == report["chosen"] else f"{r['tol']:g}",
+             f"{r['cpu_seconds']:.2f}", f"{r['avg_prim']:.2f}", f"{r['differ_from_tightest']} of {report['steps']}"]
+            for r in report["rows"]]
+    return (f"`{MULTICLASS_TOL_COMMAND}`: the folds of `{report['world']}`, C = {report['C']:g}; the fits' CPU "
+            "seconds vary from run to run, the predictions do not.\n\n"
+            + _rows(["tolerance", "fits' CPU-s", "avg prim", f"held-out steps that differ from "
+                     f"{report['rows'][0]['tol']:g}"], "rrrr", rows))
+
+
+REVISITS_COMMAND = "python scripts/revisits.py --rooms 52 --output reports/revisits.json"
+
+
+def revisits() -> str:
+    """The lookahead's programs with and without the rule against going back to a world, on the development world
+    (`scripts/revisits.py`), and every program that differs."""
+    report = _json("revisits.json")
+    if report is None:
+        return _missing("revisits.json", REVISITS_COMMAND)
+    rows = [[f"`{r['method']}`", r["rule"], f"{r['sequence_arg']:.1f}", f"{r['success']:.1f}", r["step_cap"]]
+            for r in report["table"]]
+    changed = "".join(f"- `{c['method']}` on `{c['scenario']}`: without the rule {c['without']['status']}, "
+                      f"{'a success' if c['without']['success'] else 'no success'}; with it {c['with']['status']}, "
+                      f"{'a success' if c['with']['success'] else 'no success'}.\n" for c in report["changed"])
+    return (f"`{REVISITS_COMMAND}`: the development world {report['dev_seed']} drawn with {report['rooms']} rooms, "
+            f"6 folds holding out whole rooms, {report['table'][0]['programs']} programs per method.\n\n"
+            + _rows(["method", "rule", "sequence arg", "success", "programs at the step cap"], "llrrr", rows)
+            + (f"\nThe programs that differ:\n\n{changed}" if changed else "\nNo program differs.\n"))
+
+
+TABLE1_COLUMNS = ("average_prim", "average_arg", "sequence_prim", "sequence_arg", "goal_reached", "success")
+
+
+def table1_means() -> str:
+    """Table I's columns, mean ± sd over the world seeds (`reports/crossval_means.json`), each method added beyond
+    the paper in italics, and the paper's figures for its three rows."""
+    means = _json("crossval_means.json")
+    if means is None:
+        return _missing("crossval_means.json", "dvc repro aggregate")
+    from taskseq.methods import PAPER_METHODS, method_labels
+    from taskseq.report.paper import TABLE1
+
+    rows = []
+    for name, label in method_labels().items():
+        if name not in means:
+            continue
+        m = means[name]
+        cells = [f"{m[c]:.1f} ± {m[c + '_sd']:.1f}" if c in m else "-" for c in TABLE1_COLUMNS]
+        rows.append([label if name in PAPER_METHODS else f"*{label} (added)*", *cells])
+    paper = [TABLE1[label] for label in ("symb-plan-svm", "symb-plan-manual", "ours - full")]
+    rows.append(["*paper: symb-plan-svm / -manual / ours - full*",
+                 *(f"*{' / '.join(f'{p[k]:.1f}' for p in paper)}*" for k in range(4)), "", ""])
+    return _rows(["method", "average prim", "average arg", "sequence prim", "sequence arg", "goal reached",
+                  "success"], "lrrrrrr", rows)
+
+
+def table1_seeds() -> str:
+    """Sequence arg and success of every method per world seed (`reports/crossval_seeds.csv`)."""
+    path = REPORTS / "crossval_seeds.csv"
+    if not path.is_file():
+        return _missing("crossval_seeds.csv", "dvc repro aggregate")
+    from taskseq.methods import method_labels
+
+    with open(path, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    seeds = sorted({int(r["world_seed"]) for r in rows})
+    got = {(r["method"], int(r["world_seed"])): r for r in rows}
+    def per_seed(name: str, figure: str) -> str:
+        values = [got[name, s][figure] for s in seeds]
+        return " / ".join(f"{float(v):.1f}" for v in values) if all(values) else "-"
+
+    table = [[label, per_seed(name, "sequence_arg"), per_seed(name, "success")]
+             for name, label in method_labels().items() if (name, seeds[0]) in got]
+    seeds_text = " / ".join(map(str, seeds))
+    return _rows(["method", f"sequence arg ({seeds_text})", f"success ({seeds_text})"], "lrr", table)
+
+
 GENERATED = {
     "teach-results": teach_results,
     "teach-weight": teach_weight,
@@ -479,6 +566,10 @@ GENERATED = {
     "veil-results": veil_results,
     "veil-timing": veil_timing,
     "drawn-rooms-choice": drawn_rooms_choice,
+    "multiclass-tol": multiclass_tol,
+    "revisits": revisits,
+    "table1-means": table1_means,
+    "table1-seeds": table1_seeds,
 }
 
 
