@@ -552,6 +552,27 @@ def table1_seeds() -> str:
     return _rows(["method", f"sequence arg ({seeds_text})", f"success ({seeds_text})"], "lrr", table)
 
 
+def _table_rows(name: str, keep=lambda row: True) -> str:
+    """The Markdown table of a report (`reports/<name>`), its header and the rows `keep` accepts."""
+    path = REPORTS / name
+    if not path.is_file():
+        return _missing(name, "dvc repro stats")
+    lines = [line for line in path.read_text().splitlines() if line.startswith("|")]
+    return "\n".join(lines[:2] + [row for row in lines[2:] if keep(row)]) + "\n"
+
+
+def table1_ci() -> str:
+    """Table I with its 95% intervals (`reports/table1_ci.md`), as `taskseq stats` wrote it."""
+    return _table_rows("table1_ci.md")
+
+
+def comparisons_excerpt() -> str:
+    """The paired comparisons of the relations row and the choice-cue lookahead row against the paper's model and
+    the best baseline (`reports/comparisons.md`)."""
+    rows = ("| ours + relations |", "| ours + relations + choice cues + safety lookahead |")
+    return _table_rows("comparisons.md", lambda row: row.startswith(rows) and "(the shipped planner)" not in row)
+
+
 GENERATED = {
     "teach-results": teach_results,
     "teach-weight": teach_weight,
@@ -570,6 +591,8 @@ GENERATED = {
     "revisits": revisits,
     "table1-means": table1_means,
     "table1-seeds": table1_seeds,
+    "table1-ci": table1_ci,
+    "comparisons-excerpt": comparisons_excerpt,
 }
 
 
