@@ -494,14 +494,16 @@ def revisits() -> str:
     report = _json("revisits.json")
     if report is None:
         return _missing("revisits.json", REVISITS_COMMAND)
-    rows = [[f"`{r['method']}`", r["rule"], f"{r['sequence_arg']:.1f}", f"{r['success']:.1f}", r["step_cap"]]
-            for r in report["table"]]
+    rows = [[f"`{r['method']}`", r["rule"], f"{r['sequence_arg']:.1f}", f"{r['success']:.1f}", r["step_cap"],
+             r["unsafe"]] for r in report["table"]]
     changed = "".join(f"- `{c['method']}` on `{c['scenario']}`: without the rule {c['without']['status']}, "
                       f"{'a success' if c['without']['success'] else 'no success'}; with it {c['with']['status']}, "
                       f"{'a success' if c['with']['success'] else 'no success'}.\n" for c in report["changed"])
     return (f"`{REVISITS_COMMAND}`: the development world {report['dev_seed']} drawn with {report['rooms']} rooms, "
-            f"6 folds holding out whole rooms, {report['table'][0]['programs']} programs per method.\n\n"
-            + _rows(["method", "rule", "sequence arg", "success", "programs at the step cap"], "llrrr", rows)
+            f"{report['folds']} folds holding out whole rooms, {report['table'][0]['programs']} programs per "
+            "method.\n\n"
+            + _rows(["method", "rule", "sequence arg", "success", "programs at the step cap", "unsafe programs"],
+                    "llrrrr", rows)
             + (f"\nThe programs that differ:\n\n{changed}" if changed else "\nNo program differs.\n"))
 
 
@@ -522,7 +524,7 @@ def table1_means() -> str:
         if name not in means:
             continue
         m = means[name]
-        cells = [f"{m[c]:.1f} ± {m[c + '_sd']:.1f}" if c in m else "-" for c in TABLE1_COLUMNS]
+        cells = [f"{m[c]:.1f} ± {m.get(c + '_sd', 0.0):.1f}" if c in m else "-" for c in TABLE1_COLUMNS]
         rows.append([label if name in PAPER_METHODS else f"*{label} (added)*", *cells])
     paper = [TABLE1[label] for label in ("symb-plan-svm", "symb-plan-manual", "ours - full")]
     rows.append(["*paper: symb-plan-svm / -manual / ours - full*",
@@ -543,7 +545,7 @@ def table1_seeds() -> str:
     seeds = sorted({int(r["world_seed"]) for r in rows})
     got = {(r["method"], int(r["world_seed"])): r for r in rows}
     def per_seed(name: str, figure: str) -> str:
-        values = [got[name, s][figure] for s in seeds]
+        values = [got[name, s][figure] if (name, s) in got else "" for s in seeds]
         return " / ".join(f"{float(v):.1f}" for v in values) if all(values) else "-"
 
     table = [[label, per_seed(name, "sequence_arg"), per_seed(name, "success")]

@@ -19,6 +19,7 @@ Run it after `dvc repro` has run `dev_world` (it reads the world's features and 
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from pathlib import Path
@@ -68,8 +69,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--params", type=Path, default=ROOT / "params.yaml")
     parser.add_argument("--output", type=Path, help="also write the table as JSON here")
     args = parser.parse_args(argv)
-    if any(t <= 0 for t in args.tols):
-        parser.error("--tols: every tolerance must be above 0")
+    if not all(math.isfinite(t) and t > 0 for t in args.tols):
+        parser.error("--tols: every tolerance must be a number above 0")
     for part in ("features", "processed"):
         if not (args.world / part).is_dir():
             parser.error(f"--world: {args.world / part} is not a folder (`dvc repro dev_world` writes data/dev)")

@@ -1,13 +1,15 @@
 """Check on the development world what the lookahead's rule against going back to a world changes.
 
-The `lookahead` policy declares `avoids_revisits`: its programs take the
-first proposal whose step leads to a world the program has not been in
-(`taskseq.plan.planner.run_loop`). Without it, a program that comes back to a
-world with the same steps remembered ranks it alike and loops until the step
-cap. This script draws the development world (`world.dev_seed`, never
-reported) as a world of drawn rooms with `--rooms` rooms, cross-validates
-every method whose policy is `lookahead` with whole rooms held out (C from the
-selection file), and runs each fold's programs twice, with the rule and
+The `lookahead` policy ranks again when its first proposal leads back to a
+world the program has been in (`without_revisits`, which
+`taskseq.plan.planner.run_loop` calls): it takes the first of its best
+runnable candidates whose step leads somewhere new and whose imagined steps
+break no rule. Without it, a program that comes back to a world with the same
+steps remembered ranks it alike and loops until the step cap. This script
+draws the development world (`world.dev_seed`, never reported) as a world
+of drawn rooms with `--rooms` rooms, cross-validates every method whose
+policy is `lookahead` with whole rooms held out (C from the selection file),
+and runs each fold's programs twice, with the rule and
 without, from the same fitted models. It prints the figures of both and every
 program that differs; docs/model.md shows the table this writes.
 
@@ -52,10 +54,10 @@ def _fold(make, contexts, meta, bench, test, max_steps) -> list[dict]:
         for rule in RULES:
             policy = learned_policy(method.policy, method.planner_, scenario.task)
             if rule == "without":
-                policy = (lambda p: lambda ctx, state: p(ctx, state))(policy)  # the same ranking, no declaration
+                policy = (lambda p: lambda ctx, state: p(ctx, state))(policy)  # the same ranking, no second ranking
             outcome = judge(scenario, run_loop(policy, scenario.initial, scenario.task, max_steps))
-            row[rule] = {"arg": outcome.arg_correct, "success": outcome.success, "status": outcome.status,
-                         "actions": list(outcome.actions)}
+            row[rule] = {"arg": outcome.arg_correct, "success": outcome.success, "safe": outcome.safe,
+                         "status": outcome.status, "actions": list(outcome.actions)}
         rows.append(row)
     return rows
 
@@ -69,10 +71,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--output", type=Path, help="also write the table as JSON here")
     parser.add_argument("--n-jobs", type=int, default=2)
     args = parser.parse_args(argv)
-    if args.rooms < 2:
-        parser.error("--rooms: at least 2, so that a room can be held out and others trained on")
     params = Params.load(args.params)
     c = params.crossval
+    if args.rooms < c.folds:
+        parser.error(f"--rooms: at least crossval.folds ({c.folds}), so that every fold holds out a room")
     lineup = Lineup(params.methods, read_selection(args.selection), params.train.learner,
                     procedural=params.procedural)
     methods = [name for name, _ in params.methods.entries if specs()[name].policy == "lookahead"]
@@ -93,19 +95,21 @@ def main(argv: list[str] | None = None) -> int:
             table.append({"method": name, "rule": rule, "programs": len(rows),
                           "sequence_arg": round(100 * sum(r[rule]["arg"] for r in rows) / len(rows), 2),
                           "success": round(100 * sum(r[rule]["success"] for r in rows) / len(rows), 2),
-                          "step_cap": sum(r[rule]["status"] == "step_cap" for r in rows)})
+                          "step_cap": sum(r[rule]["status"] == "step_cap" for r in rows),
+                          "unsafe": sum(not r[rule]["safe"] for r in rows)})
         changed += [{"method": name, **r} for r in rows if r["with"]["actions"] != r["without"]["actions"]]
-    print("| method | rule | sequence arg | success | programs at the step cap |")
-    print("|---|---|---:|---:|---:|")
+    print("| method | rule | sequence arg | success | programs at the step cap | unsafe programs |")
+    print("|---|---|---:|---:|---:|---:|")
     for row in table:
         print(f"| {row['method']} | {row['rule']} | {row['sequence_arg']:.1f} | {row['success']:.1f} | "
-              f"{row['step_cap']} |")
+              f"{row['step_cap']} | {row['unsafe']} |")
     for r in changed:
         print(f"{r['method']} {r['scenario']}: without {r['without']['status']} (success {r['without']['success']}),"
               f" with {r['with']['status']} (success {r['with']['success']})")
     print(f"{len(changed)} programs differ")
     if args.output:
-        write_json_atomic(args.output, {"dev_seed": params.world.dev_seed, "rooms": args.rooms, "table": table,
+        write_json_atomic(args.output, {"dev_seed": params.world.dev_seed, "rooms": args.rooms, "folds": c.folds,
+                                        "table": table,
                                         "changed": changed})
     return 0
 

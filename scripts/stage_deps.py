@@ -26,6 +26,7 @@ from __future__ import annotations
 import argparse
 import ast
 import importlib
+import importlib.util
 import inspect
 import json
 import re
@@ -82,7 +83,8 @@ def _imported_when_run(function, module, seen: set[str]) -> set[str]:
         if isinstance(node, ast.ImportFrom) and node.level:
             base = importlib.util.resolve_name("." * node.level + (node.module or ""), module.__package__)
             names.add(base)
-            if importlib.util.find_spec(base).submodule_search_locations:  # a package: its names may be modules
+            spec = importlib.util.find_spec(base)
+            if spec is not None and spec.submodule_search_locations:  # a package: its names may be modules
                 names |= {f"{base}.{a.name}" for a in node.names if importlib.util.find_spec(f"{base}.{a.name}")}
         elif isinstance(node, ast.ImportFrom | ast.Import):
             names |= {a.name for a in node.names if a.name.startswith("taskseq")}

@@ -114,7 +114,9 @@ def runnable_first(policy: Policy, planner: StepScorer, task: Task, initial: Wor
         return try_execute(state, action) is not None and not violations(state, action)
 
     def checked(ctx: StepContext, state: WorldState) -> Ranked:
-        ranked = policy(ctx, state)
+        return filled(ctx, state, policy(ctx, state))
+
+    def filled(ctx: StepContext, state: WorldState, ranked: Ranked) -> Ranked:
         out = [(y, score) for y, score in ranked if runs(state, ctx.action(y))]
         offered = {y for y, _ in ranked}
         more = planner.ranked(ctx)
@@ -129,7 +131,17 @@ def runnable_first(policy: Policy, planner: StepScorer, task: Task, initial: Wor
                           "fails, a safety rule would be broken, or it is done before the goal holds)")
         return out
 
-    checked.avoids_revisits = getattr(policy, "avoids_revisits", False)  # type: ignore[attr-defined]
+    again = getattr(policy, "without_revisits", None)
+    if again is not None:  # the lookahead's rule against going back to a world, through the same filter
+        def without_revisits(ctx: StepContext, state: WorldState,
+                             leads_back: Callable[[Action], bool]) -> Ranked | None:
+            ranked = again(ctx, state, leads_back)
+            out = filled(ctx, state, policy(ctx, state) if ranked is None else ranked)
+            new = next((i for i, (y, _) in enumerate(out)
+                        if ctx.action(y).primitive == DONE or not leads_back(ctx.action(y))), None)
+            return None if new is None else [out[new]] + out[:new] + out[new + 1:]
+
+        checked.without_revisits = without_revisits  # type: ignore[attr-defined]
     return checked
 
 

@@ -237,13 +237,22 @@ def _afresh(planner, task, top_k=3, perceive=None, depth=LOOKAHEAD_DEPTH, width=
                 return False
         return bool(violations(state, action))
 
-    def policy(ctx, state):
+    def pick(ctx, state, leads_back=lambda action: False):
         ranked, history = runnable(ctx, state, max(top_k, width)), ctx.history()
-        pick = next((i for i, (y, _) in enumerate(ranked[:width])
-                     if ctx.action(y).primitive == DONE or not harms(state, history, ctx.action(y))), 0)
-        return ([ranked[pick]] + ranked[:pick] + ranked[pick + 1:])[:top_k]
+        first = next((i for i, (y, _) in enumerate(ranked[:width]) if ctx.action(y).primitive == DONE
+                      or not leads_back(ctx.action(y)) and not harms(state, history, ctx.action(y))), None)
+        return ranked, first
 
-    policy.avoids_revisits = True  # as the lookahead's programs, they go nowhere twice
+    def policy(ctx, state):
+        ranked, first = pick(ctx, state)
+        first = first or 0
+        return ([ranked[first]] + ranked[:first] + ranked[first + 1:])[:top_k]
+
+    def without_revisits(ctx, state, leads_back):
+        ranked, first = pick(ctx, state, leads_back)
+        return None if first is None else ([ranked[first]] + ranked[:first] + ranked[first + 1:])[:top_k]
+
+    policy.without_revisits = without_revisits  # as the lookahead's programs, they go nowhere twice
     return policy
 
 
@@ -415,9 +424,43 @@ def test_when_every_proposal_goes_back_the_best_is_taken(room):
 
 
 def test_only_the_lookahead_avoids_worlds_it_was_in(room):
-    assert getattr(lookahead(ScriptedScorer(CYCLE), TASK), "avoids_revisits", False)
+    assert callable(getattr(lookahead(ScriptedScorer(CYCLE), TASK), "without_revisits", None))
     for policy in (greedy(ScriptedScorer(CYCLE)), feasible(ScriptedScorer(CYCLE))):
-        assert not getattr(policy, "avoids_revisits", False)  # Table I's other policies keep their rules
+        assert not hasattr(policy, "without_revisits")  # Table I's other policies keep their rules
+        program = run_loop(policy, room, TASK, max_steps=6)
+        assert program.status == STEP_CAP  # they loop as they always did
+
+
+def test_going_somewhere_new_never_takes_a_step_the_lookahead_refused(room):
+    """After the hold above the glass the planner proposes a move that changes nothing (back to the same world),
+    then the pour over the shelf: the rule passes over the move, and the pour is refused by the lookahead, so the
+    robot stops rather than pour."""
+    script = {"": ["move_close(obj15)"], "move_close(obj15)": ["grasp(obj21)"],
+              "move_close(obj15) grasp(obj21)": ["hold_above(obj21,obj15)"],
+              "grasp(obj21) hold_above(obj21,obj15)": ["move_close(obj15)", "follow_traj_pour(obj21,obj15)"]}
+    program = run_loop(lookahead(ScriptedScorer(script), TASK, depth=1), room, TASK)
+    assert "follow_traj_pour(obj21,obj15)" not in [str(a) for a in program.actions]
+    assert program.safe and program.status == DONE
+
+
+def test_the_products_filter_keeps_the_rule_and_its_own_checks(room):
+    """`taskseq plan` wraps the policy (`product.runnable_first`): the program still leaves the loop, never by a
+    `done` before the goal holds, and goes back to a world only when none of its proposals leads elsewhere."""
+    from taskseq.product import runnable_first
+
+    scorer = ScriptedScorer(CYCLE)
+    policy = runnable_first(lookahead(scorer, TASK), scorer, TASK, room, 3)
+    assert callable(getattr(policy, "without_revisits", None))
+    program = run_loop(policy, room, TASK, max_steps=8)
+    assert [str(a) for a in program.actions[:2]] == ["move_close(obj15)", "move_close(obj21)"]
+    assert str(program.actions[2]) != "move_close(obj15)"  # out of the loop the script walks
+    keys = [s.key() for s in program.states]
+    for i, step in enumerate(program.steps):  # a step back to a world met is taken only when every proposal is one
+        if keys[i + 1] in keys[:i + 1]:
+            for action, _ in step.alternatives:
+                after = try_execute(program.states[i], action)
+                assert action.primitive != DONE and (after is None or after.key() in keys[:i + 1])
+    assert program.status != DONE or program.goal_reached
 
 
 def test_the_development_worlds_check_of_the_rule_is_on_the_model_page_and_made_no_program_worse():
@@ -429,3 +472,5 @@ def test_the_development_worlds_check_of_the_rule_is_on_the_model_page_and_made_
     assert "<!-- generated: revisits -->" in (root / "docs" / "model.md").read_text()
     assert {r["rule"] for r in report["table"]} == {"with", "without"}
     assert all(c["with"]["success"] >= c["without"]["success"] for c in report["changed"])
+    unsafe = {(r["method"], r["rule"]): r["unsafe"] for r in report["table"]}
+    assert all(unsafe[m, "with"] <= unsafe[m, "without"] for m, _ in unsafe)

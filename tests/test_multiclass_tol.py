@@ -55,7 +55,8 @@ def test_the_script_compares_held_out_predictions_on_a_world_and_writes_only_whe
 
 @pytest.mark.parametrize(("argv", "message"), [
     (["--world", "no/such/world"], "no/such/world/features is not a folder"),
-    (["--tols", "0", "1e-3"], "every tolerance must be above 0"),
+    (["--tols", "0", "1e-3"], "every tolerance must be a number above 0"),
+    (["--tols", "nan"], "every tolerance must be a number above 0"),
 ])
 def test_bad_arguments_are_named(argv, message, capsys):
     with pytest.raises(SystemExit):

@@ -108,13 +108,16 @@ def lookahead(planner: StepScorer, task: Task, top_k: int = 3, perceive: Perceiv
     scripts such a room). A longer `depth` sees more harm and refuses more
     for it; the development world chose 4.
 
-    Nor does the robot go back to a world it has been in during the program:
-    the policy declares `avoids_revisits`, and `run_loop` then takes the first
-    proposal whose step leads to a world the program has not been in (`done`
-    always counts as new), else the best. A policy is a function of the step
-    and the world, so a world met again with the same steps remembered is
-    ranked alike and the program loops until the step cap; the loop, which
-    keeps the program's worlds, breaks the cycle where it would close.
+    Nor does the robot go back to a world it has been in during the program
+    while a safe step leads elsewhere. A policy is a function of the step and
+    the world, so a world met again with the same steps remembered is ranked
+    alike and the program loops until the step cap. The loop keeps the
+    program's worlds: when the first proposal leads back to one of them,
+    `run_loop` asks the policy again (`without_revisits`), and the policy
+    takes the first of the `width` best runnable candidates whose step leads
+    somewhere new and whose imagined steps break no rule (`done` always
+    qualifies); when none does, the proposals stay as they were. So the rule
+    never takes a step the lookahead refused.
     """
     seen = perceive or (lambda ctx: ctx)
     # The steps the robot imagined, kept for the program's later steps: after it takes a step, the plan it
@@ -146,7 +149,11 @@ def lookahead(planner: StepScorer, task: Task, top_k: int = 3, perceive: Perceiv
                 return False
         return bool(violations(state, action))
 
-    def policy(ctx: StepContext, state: WorldState) -> Ranked:
+    def proposals(ctx: StepContext, state: WorldState,
+                  leads_back: Callable[[Action], bool] | None) -> tuple[Ranked, int | None]:
+        """The runnable candidates, best first, and the position of the first of the `width` best whose imagined
+        steps break no rule (and, given `leads_back`, that does not lead back to a world the program was in), or
+        None when no candidate is such. `done` always is."""
         history = ctx.history()
         step = steps.get((state.key(), tuple(history)))
         if step is None and history:  # a step not imagined (the program took another proposal): kept, as imagined
@@ -154,24 +161,48 @@ def lookahead(planner: StepScorer, task: Task, top_k: int = 3, perceive: Perceiv
         if step is None or step.ctx.object_ids != ctx.object_ids or not np.array_equal(step.ctx.objects, ctx.objects):
             step = _Runnable(planner, ctx, state)  # the first step, or seen otherwise than the imagined steps
         runnable = step.first(max(top_k, width))
-        pick = next((i for i, (y, _) in enumerate(runnable[:width])
-                     if ctx.action(y).primitive == DONE or not harms(state, history, ctx.action(y))), 0)
+
+        def taken(action: Action) -> bool:
+            if action.primitive == DONE:
+                return True
+            return not (leads_back is not None and leads_back(action)) and not harms(state, history, action)
+
+        return runnable, next((i for i, (y, _) in enumerate(runnable[:width]) if taken(ctx.action(y))), None)
+
+    def first(runnable: Ranked, pick: int) -> Ranked:
         return ([runnable[pick]] + runnable[:pick] + runnable[pick + 1:])[:top_k]
 
-    policy.avoids_revisits = True  # type: ignore[attr-defined]  # read by run_loop
+    def policy(ctx: StepContext, state: WorldState) -> Ranked:
+        runnable, pick = proposals(ctx, state, None)
+        return first(runnable, 0 if pick is None else pick)
+
+    def without_revisits(ctx: StepContext, state: WorldState, leads_back: Callable[[Action], bool]) -> Ranked | None:
+        runnable, pick = proposals(ctx, state, leads_back)
+        return None if pick is None else first(runnable, pick)
+
+    policy.without_revisits = without_revisits  # type: ignore[attr-defined]  # read by run_loop
     return policy
 
 
-def _first_not_revisiting(ranked: Ranked, ctx: StepContext, state: WorldState, states: list[WorldState]) -> Ranked:
-    """`ranked` with its first step that leads to a world the program has not been in moved to the front (`done`
-    counts as one); as it was when every step leads back."""
+def _away_from_worlds_met(policy: Policy, ranked: Ranked, ctx: StepContext, state: WorldState,
+                          states: list[WorldState]) -> Ranked:
+    """`ranked`, or, when its first step leads back to a world of `states` and the policy can rank again
+    (`without_revisits`), its proposals with a step that leads somewhere new first; as they were when it has
+    none."""
+    again = getattr(policy, "without_revisits", None)
+    if again is None:
+        return ranked
     been = {s.key() for s in states}
-    for i, (y, _) in enumerate(ranked):
-        action = ctx.action(y)
-        after = None if action.primitive == DONE else try_execute(state, action)
-        if action.primitive == DONE or (after is not None and after.key() not in been):
-            return [ranked[i]] + ranked[:i] + ranked[i + 1:]
-    return ranked
+
+    def leads_back(action: Action) -> bool:
+        after = try_execute(state, action)
+        return after is None or after.key() in been
+
+    first = ctx.action(ranked[0][0])
+    if first.primitive == DONE or not leads_back(first):
+        return ranked
+    elsewhere = again(ctx, state, leads_back)
+    return ranked if elsewhere is None else elsewhere
 
 
 # The policies a learned planner can run with, by the name a model file records (`policy` in its metadata).
@@ -269,8 +300,7 @@ def run_loop(policy: Policy, state: WorldState, task: Task, max_steps: int = 20,
             ctx, ranked = known
         if isinstance(ranked, str):
             return Program(task, steps, INFEASIBLE, states, ranked)
-        if getattr(policy, "avoids_revisits", False):
-            ranked = _first_not_revisiting(ranked, ctx, state, states)
+        ranked = _away_from_worlds_met(policy, ranked, ctx, state, states)
         if choose is not None:
             pick = choose(list(history), [ctx.action(y) for y, _ in ranked])
             ranked = [ranked[pick]] + ranked[:pick] + ranked[pick + 1 :]
