@@ -1,11 +1,11 @@
-"""Check on the development world what the lookahead's rule against going back to a world changes.
+"""Check on the development world what the lookahead's rule against loops changes.
 
-The `lookahead` policy ranks again when its first proposal leads back to a
-world the program has been in (`without_revisits`, which
-`taskseq.plan.planner.run_loop` calls): it takes the first of its best
-runnable candidates whose step leads somewhere new and whose imagined steps
-break no rule. Without it, a program that comes back to a world with the same
-steps remembered ranks it alike and loops until the step cap. This script
+The `lookahead` policy ranks again when its first proposal would close a
+loop, leading back to a world the program was in with the same two steps
+remembered (`without_revisits`, which `taskseq.plan.planner.run_loop`
+calls): it takes the first of its best runnable candidates that leads out of
+the loop and whose imagined steps break no rule. Without it, such a program
+repeats itself until the step cap. This script
 draws the development world (`world.dev_seed`, never reported) as a world
 of drawn rooms with `--rooms` rooms, cross-validates every method whose
 policy is `lookahead` with whole rooms held out (C from the selection file),

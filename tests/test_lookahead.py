@@ -402,18 +402,23 @@ CYCLE = {"": ["move_close(obj15)"], "move_close(obj15)": ["move_close(obj21)"],
          "move_close(obj21) move_close(obj15)": ["move_close(obj21)"]}  # back and forth between glass and carton
 
 
-def test_a_program_that_would_go_back_to_a_world_it_was_in_takes_the_next_proposal_instead(room):
+def _loops(program) -> list[tuple]:
+    """Each world of the program with the two steps remembered on reaching it: what a policy reads."""
+    actions = program.actions
+    return [(s.key(), tuple(actions[max(0, i - 2):i])) for i, s in enumerate(program.states)]
+
+
+def test_a_program_about_to_close_a_loop_takes_the_next_proposal_instead(room):
     # ranked by its last two steps alone, the planner walks between the glass and the carton until the step cap
     looping = run_loop(feasible(ScriptedScorer(CYCLE)), room, TASK, max_steps=8)
     assert looping.status == STEP_CAP and len({s.key() for s in looping.states}) == 3
-    # the lookahead's program takes the first proposal that leads somewhere new: at the third step, going back to
-    # the glass is the world after the first, so it takes the next proposal, `done`
+    # the lookahead's program goes back to the glass (the same world as after the first step, but with other steps
+    # remembered: no loop yet); going back to the carton would be the world after the second step with the same
+    # two steps remembered, from where it would repeat itself, so it takes the next proposal, `done`
     program = run_loop(lookahead(ScriptedScorer(CYCLE), TASK), room, TASK, max_steps=8)
-    assert [str(a) for a in program.actions] == ["move_close(obj15)", "move_close(obj21)"]
+    assert [str(a) for a in program.actions] == ["move_close(obj15)", "move_close(obj21)", "move_close(obj15)"]
     assert program.status == DONE
-    assert str(program.steps[-1].action) == "move_close(obj21)"
-    keys = [s.key() for s in program.states]
-    assert len(set(keys)) == len(keys)
+    assert len(set(_loops(program))) == len(program.states)
 
 
 def test_when_every_proposal_goes_back_the_best_is_taken(room):
@@ -445,21 +450,22 @@ def test_going_somewhere_new_never_takes_a_step_the_lookahead_refused(room):
 
 def test_the_products_filter_keeps_the_rule_and_its_own_checks(room):
     """`taskseq plan` wraps the policy (`product.runnable_first`): the program still leaves the loop, never by a
-    `done` before the goal holds, and goes back to a world only when none of its proposals leads elsewhere."""
+    `done` before the goal holds, and closes a loop only when every one of its proposals would."""
     from taskseq.product import runnable_first
 
     scorer = ScriptedScorer(CYCLE)
     policy = runnable_first(lookahead(scorer, TASK), scorer, TASK, room, 3)
     assert callable(getattr(policy, "without_revisits", None))
     program = run_loop(policy, room, TASK, max_steps=8)
-    assert [str(a) for a in program.actions[:2]] == ["move_close(obj15)", "move_close(obj21)"]
-    assert str(program.actions[2]) != "move_close(obj15)"  # out of the loop the script walks
-    keys = [s.key() for s in program.states]
-    for i, step in enumerate(program.steps):  # a step back to a world met is taken only when every proposal is one
-        if keys[i + 1] in keys[:i + 1]:
+    assert [str(a) for a in program.actions[:3]] == ["move_close(obj15)", "move_close(obj21)", "move_close(obj15)"]
+    assert str(program.actions[3]) != "move_close(obj21)"  # out of the loop the script walks
+    met = _loops(program)
+    for i, step in enumerate(program.steps):  # a loop is closed only when every proposal closes one
+        if met[i + 1] in met[:i + 1]:
             for action, _ in step.alternatives:
                 after = try_execute(program.states[i], action)
-                assert action.primitive != DONE and (after is None or after.key() in keys[:i + 1])
+                remembered = tuple([*program.actions[max(0, i - 1):i], action])
+                assert action.primitive != DONE and (after is None or (after.key(), remembered) in met[:i + 1])
     assert program.status != DONE or program.goal_reached
 
 

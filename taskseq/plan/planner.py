@@ -108,16 +108,17 @@ def lookahead(planner: StepScorer, task: Task, top_k: int = 3, perceive: Perceiv
     scripts such a room). A longer `depth` sees more harm and refuses more
     for it; the development world chose 4.
 
-    Nor does the robot go back to a world it has been in during the program
-    while a safe step leads elsewhere. A policy is a function of the step and
-    the world, so a world met again with the same steps remembered is ranked
-    alike and the program loops until the step cap. The loop keeps the
-    program's worlds: when the first proposal leads back to one of them,
+    Nor does a program go round a loop. A policy is a function of the step
+    and the world, so a program that comes back to a world with the same two
+    steps remembered (all `step_context` reads of the past) ranks it as
+    before and repeats itself until the step cap. The loop keeps the
+    program's worlds: when the first proposal would close such a loop,
     `run_loop` asks the policy again (`without_revisits`), and the policy
-    takes the first of the `width` best runnable candidates whose step leads
-    somewhere new and whose imagined steps break no rule (`done` always
-    qualifies); when none does, the proposals stay as they were. So the rule
-    never takes a step the lookahead refused.
+    takes the first of the `width` best runnable candidates that leads out
+    of it and whose imagined steps break no rule (`done` always qualifies);
+    when none does, the proposals stay as they were. So the rule never takes
+    a step the lookahead refused, and it changes only programs that would
+    have looped to the step cap.
     """
     seen = perceive or (lambda ctx: ctx)
     # The steps the robot imagined, kept for the program's later steps: after it takes a step, the plan it
@@ -184,19 +185,22 @@ def lookahead(planner: StepScorer, task: Task, top_k: int = 3, perceive: Perceiv
     return policy
 
 
-def _away_from_worlds_met(policy: Policy, ranked: Ranked, ctx: StepContext, state: WorldState,
-                          states: list[WorldState]) -> Ranked:
-    """`ranked`, or, when its first step leads back to a world of `states` and the policy can rank again
-    (`without_revisits`), its proposals with a step that leads somewhere new first; as they were when it has
-    none."""
+def _out_of_loops(policy: Policy, ranked: Ranked, ctx: StepContext, state: WorldState, states: list[WorldState],
+                  history: tuple[Action, ...]) -> Ranked:
+    """`ranked`, or, when its first step would close a loop and the policy can rank again (`without_revisits`), its
+    proposals with a step that leads out of it first; as they were when it has none.
+
+    A step closes a loop when it leads to a world the program was in with the same two steps remembered, which is
+    all a policy reads of the past (`step_context`): from there the program would repeat itself to the step cap.
+    A world met again after other steps is no loop, and is left alone."""
     again = getattr(policy, "without_revisits", None)
     if again is None:
         return ranked
-    been = {s.key() for s in states}
+    met = {(s.key(), history[max(0, i - 2):i]) for i, s in enumerate(states)}
 
     def leads_back(action: Action) -> bool:
         after = try_execute(state, action)
-        return after is None or after.key() in been
+        return after is None or (after.key(), (*history, action)[-2:]) in met
 
     first = ctx.action(ranked[0][0])
     if first.primitive == DONE or not leads_back(first):
@@ -300,7 +304,7 @@ def run_loop(policy: Policy, state: WorldState, task: Task, max_steps: int = 20,
             ctx, ranked = known
         if isinstance(ranked, str):
             return Program(task, steps, INFEASIBLE, states, ranked)
-        ranked = _away_from_worlds_met(policy, ranked, ctx, state, states)
+        ranked = _out_of_loops(policy, ranked, ctx, state, states, history)
         if choose is not None:
             pick = choose(list(history), [ctx.action(y) for y, _ in ranked])
             ranked = [ranked[pick]] + ranked[:pick] + ranked[pick + 1 :]
