@@ -48,7 +48,7 @@ class LookaheadAt(ScorerMethod):
     width: int = 3
 
     def run(self, scenario: Scenario, max_steps: int) -> Program:
-        policy = lookahead(self.planner_, scenario.task, depth=self.depth, width=self.width)
+        policy = lookahead(self.planner_, scenario.task, scenario.initial, depth=self.depth, width=self.width)
         return run_loop(policy, scenario.initial, scenario.task, max_steps)
 
 

@@ -52,7 +52,7 @@ def _fold(make, contexts, meta, bench, test, max_steps) -> list[dict]:
         scenario = bench.scenarios[sid]
         row = {"scenario": sid}
         for rule in RULES:
-            policy = learned_policy(method.policy, method.planner_, scenario.task)
+            policy = learned_policy(method.policy, method.planner_, scenario.task, scenario.initial)
             if rule == "without":
                 policy = (lambda p: lambda ctx, state: p(ctx, state))(policy)  # the same ranking, no second ranking
             outcome = judge(scenario, run_loop(policy, scenario.initial, scenario.task, max_steps))

@@ -95,8 +95,8 @@ def recorded_policy(planner: StepScorer, model_path: Path, top_k: int) -> Callab
     name = policy_of(planner.meta_)
     if name not in POLICIES:
         raise ValueError(f"{model_path}: policy {name!r} is not one this version plans with ({', '.join(POLICIES)})")
-    return lambda task, initial: runnable_first(learned_policy(name, planner, task, top_k), planner, task, initial,
-                                                top_k)
+    return lambda task, initial: runnable_first(learned_policy(name, planner, task, initial, top_k), planner, task,
+                                                initial, top_k)
 
 
 def runnable_first(policy: Policy, planner: StepScorer, task: Task, initial: WorldState, top_k: int) -> Policy:

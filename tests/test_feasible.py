@@ -38,7 +38,7 @@ def test_a_precondition_aware_planner_never_proposes_a_step_that_cannot_run(scen
         for state, task in scenarios:
             greedy_infeasible += run_loop(greedy(scorer), state, task, 8).status == INFEASIBLE
             for name in ("feasible", "lookahead"):  # the policies that ask the controllers
-                program = run_loop(learned_policy(name, scorer, task), state, task, 8)
+                program = run_loop(learned_policy(name, scorer, task, state), state, task, 8)
                 assert program.status != INFEASIBLE
                 for before, step in zip(program.states, program.steps, strict=False):
                     for action in [step.action, *(a for a, _ in step.alternatives)]:

@@ -303,14 +303,16 @@ def test_noise_draws_depend_on_the_scenario_not_on_the_fold_layout(two_scenarios
 
 
 def test_each_program_gets_its_policy_for_its_task_seen_as_its_condition_says(two_scenarios, monkeypatch):
-    """A lookahead needs the program's task and its perception (under noise it imagines with the same errors)."""
+    """A lookahead needs the program's task, the world it began in (where the goal is judged from) and its
+    perception (under noise it imagines with the same errors)."""
     from taskseq.experiments import robustness
 
     calls = []
 
-    def spy(name, planner, task, top_k=3, perceive=None):
+    def spy(name, planner, task, start, top_k=3, perceive=None):
+        assert any(start is sc.initial and task == sc.task for sc in two_scenarios.values())
         calls.append((task, top_k, perceive))
-        return real(name, planner, task, top_k, perceive)
+        return real(name, planner, task, start, top_k, perceive)
 
     real = robustness.learned_policy
     monkeypatch.setattr(robustness, "learned_policy", spy)

@@ -27,11 +27,12 @@ from taskseq.plan.planner import (
     run_loop,
 )
 from taskseq.plan.records import STEP_CAP
+from taskseq.settings import Generate, Procedural
 from taskseq.sim.catalog import ENVIRONMENTS_BY_ID, build_environment
 from taskseq.sim.demonstrator import demonstrate
 from taskseq.sim.primitives import Action, execute, try_execute
 from taskseq.sim.safety import violations
-from taskseq.sim.tasks import Task
+from taskseq.sim.tasks import Task, goal_reached
 
 GLASS, CARTON, COUNTER = "obj15", "obj21", "obj03"
 TASK = Task.parse("pour(obj28)")  # the milk, in the carton; the glass stands on a shelf
@@ -88,7 +89,7 @@ def test_the_script_rushes_into_a_pour_over_the_shelf_when_each_step_is_taken_al
 
 def test_the_lookahead_fetches_the_glass_off_the_shelf_first(room):
     # depth 2: grasping the carton is followed by the hold and the pour, which breaks a rule
-    program = run_loop(lookahead(ScriptedScorer(_script()), TASK, depth=2), room, TASK)
+    program = run_loop(lookahead(ScriptedScorer(_script()), TASK, room, depth=2), room, TASK)
     assert [str(a) for a in program.actions] == FETCH
     assert program.safe and program.success
     # it refused the carton at step 1 and took the next runnable step; the carton is still offered, second
@@ -98,7 +99,7 @@ def test_the_lookahead_fetches_the_glass_off_the_shelf_first(room):
 def test_a_lookahead_too_short_to_reach_the_pour_sees_it_too_late(room):
     # one imagined step after grasping the carton is the hold above the glass, so the carton is grasped; at the
     # hold, the pour is one step on, and the safe choice left among the three best is to stop
-    program = run_loop(lookahead(ScriptedScorer(_script()), TASK, depth=1), room, TASK)
+    program = run_loop(lookahead(ScriptedScorer(_script()), TASK, room, depth=1), room, TASK)
     assert [str(a) for a in program.actions] == RUSH[:2] and program.status == DONE
     assert program.safe and not program.success
 
@@ -107,15 +108,15 @@ def test_a_longer_lookahead_sees_the_harm_from_the_first_step_and_stops_rather_t
     # imagined with the planner's best runnable steps, the first step leads to the pour over the shelf (four
     # steps on); of the three best runnable candidates, `done` is the one that breaks no rule
     for depth in (3, 4):
-        program = run_loop(lookahead(ScriptedScorer(_script()), TASK, depth=depth), room, TASK)
+        program = run_loop(lookahead(ScriptedScorer(_script()), TASK, room, depth=depth), room, TASK)
         assert program.actions == [] and program.status == DONE and program.safe
 
 
 def test_only_the_width_best_candidates_are_considered_and_the_best_is_taken_when_none_is_safe(room):
     # width 1: the best runnable candidate is the only one, so its unsafe plan is taken all the same
-    program = run_loop(lookahead(ScriptedScorer(_script()), TASK, depth=2, width=1), room, TASK)
+    program = run_loop(lookahead(ScriptedScorer(_script()), TASK, room, depth=2, width=1), room, TASK)
     assert [str(a) for a in program.actions] == RUSH
-    program = run_loop(lookahead(ScriptedScorer(_script()), TASK, depth=2, width=2), room, TASK)
+    program = run_loop(lookahead(ScriptedScorer(_script()), TASK, room, depth=2, width=2), room, TASK)
     assert [str(a) for a in program.actions] == FETCH
 
 
@@ -123,7 +124,7 @@ def test_it_proposes_only_runnable_steps_in_score_order_after_its_pick(room):
     scorer = ScriptedScorer(_script())
     state = execute(room, Action.parse(FETCH[0]))
     ctx = step_context(state, TASK, [Action.parse(FETCH[0])])
-    picked = lookahead(scorer, TASK, top_k=3, depth=2)(ctx, state)
+    picked = lookahead(scorer, TASK, room, top_k=3, depth=2)(ctx, state)
     runnable = feasible(scorer, top_k=3)(ctx, state)
     assert [str(ctx.action(y)) for y, _ in picked] == [FETCH[1], RUSH[1], str(ctx.action(runnable[2][0]))]
     assert sorted(picked) == sorted(runnable)  # the same three, the safe one moved to the front
@@ -139,7 +140,7 @@ def test_imagined_steps_are_seen_through_the_programs_perception(room):
         return perceived[-1]
 
     scorer = ScriptedScorer(_script())
-    program = run_loop(learned_policy("lookahead", scorer, TASK, perceive=perceive), room, TASK,
+    program = run_loop(learned_policy("lookahead", scorer, TASK, room, perceive=perceive), room, TASK,
                        perceive=perceive)
     assert program.status == DONE
     # every context the scorer saw, imagined ones too, is one perception returned
@@ -159,7 +160,7 @@ def test_a_candidate_that_itself_breaks_a_rule_is_refused_and_stopping_is_never_
     script = _script()
     script[f"{RUSH[2]} done()"] = [RUSH[3]]  # were stopping imagined on, the pour would follow it
     for depth in (0, 1):
-        ranked = lookahead(ScriptedScorer(script), TASK, depth=depth)(ctx, state)
+        ranked = lookahead(ScriptedScorer(script), TASK, room, depth=depth)(ctx, state)
         assert [str(ctx.action(y)) for y, _ in ranked[:2]] == ["done()", RUSH[3]]
 
 
@@ -169,14 +170,14 @@ def test_imagining_stops_at_an_imagined_done(room):
     script[f"{RUSH[2]} done()"] = [RUSH[3]]
     script[" ".join(RUSH[1:3])] = ["done"]
     state, ctx = _at(RUSH[:2], room)
-    ranked = lookahead(ScriptedScorer(script), TASK, depth=4)(ctx, state)
+    ranked = lookahead(ScriptedScorer(script), TASK, room, depth=4)(ctx, state)
     assert str(ctx.action(ranked[0][0])) == RUSH[2]
 
 
 def test_a_safe_candidate_beyond_the_proposals_shown_is_still_found(room):
     # one proposal shown (top_k 1), three candidates checked: the glass, second by score, is taken
     state, ctx = _at(RUSH[:1], room)
-    ranked = lookahead(ScriptedScorer(_script()), TASK, top_k=1, depth=2, width=3)(ctx, state)
+    ranked = lookahead(ScriptedScorer(_script()), TASK, room, top_k=1, depth=2, width=3)(ctx, state)
     assert [str(ctx.action(y)) for y, _ in ranked] == [FETCH[1]]
 
 
@@ -197,21 +198,21 @@ def test_a_policy_is_built_by_name_and_an_unknown_name_is_refused(room):
     ctx = step_context(room, TASK, [])
     state = execute(room, Action.parse(FETCH[0]))
     later = step_context(state, TASK, [Action.parse(FETCH[0])])
-    made = {name: [learned_policy(name, scorer, TASK)(c, s) for c, s in ((ctx, room), (later, state))]
+    made = {name: [learned_policy(name, scorer, TASK, room)(c, s) for c, s in ((ctx, room), (later, state))]
             for name in POLICIES}
     assert made["greedy"] == [greedy(scorer)(c, s) for c, s in ((ctx, room), (later, state))]
     assert made["feasible"] == [feasible(scorer)(c, s) for c, s in ((ctx, room), (later, state))]
-    assert made["lookahead"] == [lookahead(scorer, TASK)(c, s) for c, s in ((ctx, room), (later, state))]
+    assert made["lookahead"] == [lookahead(scorer, TASK, room)(c, s) for c, s in ((ctx, room), (later, state))]
     assert made["lookahead"][0] != made["feasible"][0]  # at the start the lookahead stops (see above)
     for k in (1, 2):  # each offers as many proposals as asked for
-        assert [len(learned_policy(name, scorer, TASK, top_k=k)(later, state)) for name in POLICIES] == [k] * 3
+        assert [len(learned_policy(name, scorer, TASK, room, top_k=k)(later, state)) for name in POLICIES] == [k] * 3
     with pytest.raises(ValueError, match="unknown policy 'cautious'; known: greedy, feasible, lookahead"):
-        learned_policy("cautious", scorer, TASK)
+        learned_policy("cautious", scorer, TASK, room)
 
 
 # --- the policy's memory of imagined steps ---------------------------------------------------------------------
 
-def _afresh(planner, task, top_k=3, perceive=None, depth=LOOKAHEAD_DEPTH, width=LOOKAHEAD_WIDTH):
+def _afresh(planner, task, start, top_k=3, perceive=None, depth=LOOKAHEAD_DEPTH, width=LOOKAHEAD_WIDTH):
     """The lookahead as its docstring says it, every imagined step built and ranked afresh: what the policy's
     memory of the steps it imagined must not change."""
     seen = perceive or (lambda ctx: ctx)
@@ -231,6 +232,8 @@ def _afresh(planner, task, top_k=3, perceive=None, depth=LOOKAHEAD_DEPTH, width=
             if violations(state, action):
                 return True
             state, history = execute(state, action), [*history[-1:], action]
+            if goal_reached(task, start, state):
+                return False
             imagined = seen(step_context(state, task, history))
             action = imagined.action(runnable(imagined, state, 1)[0][0])
             if action.primitive == DONE:
@@ -244,6 +247,10 @@ def _afresh(planner, task, top_k=3, perceive=None, depth=LOOKAHEAD_DEPTH, width=
         return ranked, first
 
     def policy(ctx, state):
+        if goal_reached(task, start, state):
+            ranked = runnable(ctx, state, top_k)
+            stop = next(c for c in planner.ranked(ctx) if ctx.action(c[0]).primitive == DONE)
+            return ([stop] + [c for c in ranked if c != stop])[:top_k]
         ranked, first = pick(ctx, state)
         first = first or 0
         return ([ranked[first]] + ranked[:first] + ranked[first + 1:])[:top_k]
@@ -306,8 +313,8 @@ def test_remembering_imagined_steps_changes_no_program(rollouts, seeing):
         perceive = None if seeing == "as it is" else noisy_perception(masks)
         imagined_as = perceive if seeing == "noisy" else None
         for planner in planners:
-            remembered = run_loop(lookahead(planner, task, perceive=imagined_as), state, task, 12, perceive)
-            afresh = run_loop(_afresh(planner, task, perceive=imagined_as), state, task, 12, perceive)
+            remembered = run_loop(lookahead(planner, task, state, perceive=imagined_as), state, task, 12, perceive)
+            afresh = run_loop(_afresh(planner, task, state, perceive=imagined_as), state, task, 12, perceive)
             assert _steps(remembered) == _steps(afresh), (n, task)
             greedy_first = run_loop(feasible(planner), state, task, 12, perceive)
             harmful += _steps(greedy_first) != _steps(afresh)
@@ -320,8 +327,8 @@ def test_a_program_ranks_each_step_it_imagines_once(rollouts):
     for state, task in starts:
         for planner in planners:
             remembered, afresh = CountingScorer(planner), CountingScorer(planner)
-            program = run_loop(lookahead(remembered, task), state, task, 12)
-            assert _steps(program) == _steps(run_loop(_afresh(afresh, task), state, task, 12))
+            program = run_loop(lookahead(remembered, task, state), state, task, 12)
+            assert _steps(program) == _steps(run_loop(_afresh(afresh, task, state), state, task, 12))
             ranked = [_content(c) for c in remembered.contexts]
             assert len(set(ranked)) == len(ranked)
             saved += len(afresh.contexts) - len(ranked)
@@ -345,7 +352,7 @@ def test_a_program_imagines_each_world_once(rollouts, monkeypatch):
     for state, task in starts:
         for planner in planners:
             calls.clear()
-            program = run_loop(lookahead(planner, task), state, task, 12)
+            program = run_loop(lookahead(planner, task, state), state, task, 12)
             assert len(calls) - len(set(calls)) <= len(program.steps)
             imagined += len(calls) - len(program.steps)
     assert imagined > 100  # the lookahead did imagine: the test saw its worlds
@@ -415,7 +422,7 @@ def test_a_program_about_to_close_a_loop_takes_the_next_proposal_instead(room):
     # the lookahead's program goes back to the glass (the same world as after the first step, but with other steps
     # remembered: no loop yet); going back to the carton would be the world after the second step with the same
     # two steps remembered, from where it would repeat itself, so it takes the next proposal, `done`
-    program = run_loop(lookahead(ScriptedScorer(CYCLE), TASK), room, TASK, max_steps=8)
+    program = run_loop(lookahead(ScriptedScorer(CYCLE), TASK, room), room, TASK, max_steps=8)
     assert [str(a) for a in program.actions] == ["move_close(obj15)", "move_close(obj21)", "move_close(obj15)"]
     assert program.status == DONE
     assert len(set(_loops(program))) == len(program.states)
@@ -423,13 +430,13 @@ def test_a_program_about_to_close_a_loop_takes_the_next_proposal_instead(room):
 
 def test_when_every_proposal_goes_back_the_best_is_taken(room):
     # only the back-and-forth is proposed (top_k 1): nothing new to go to, so the program loops as before
-    program = run_loop(lookahead(ScriptedScorer(CYCLE), TASK, top_k=1, width=1), room, TASK, max_steps=6)
+    program = run_loop(lookahead(ScriptedScorer(CYCLE), TASK, room, top_k=1, width=1), room, TASK, max_steps=6)
     assert program.status == STEP_CAP
     assert [str(a) for a in program.actions] == ["move_close(obj15)", "move_close(obj21)"] * 3
 
 
 def test_only_the_lookahead_avoids_worlds_it_was_in(room):
-    assert callable(getattr(lookahead(ScriptedScorer(CYCLE), TASK), "without_revisits", None))
+    assert callable(getattr(lookahead(ScriptedScorer(CYCLE), TASK, room), "without_revisits", None))
     for policy in (greedy(ScriptedScorer(CYCLE)), feasible(ScriptedScorer(CYCLE))):
         assert not hasattr(policy, "without_revisits")  # Table I's other policies keep their rules
         program = run_loop(policy, room, TASK, max_steps=6)
@@ -445,7 +452,7 @@ def test_the_way_out_of_a_loop_is_never_a_step_the_lookahead_refused(room):
               " ".join(hold[1:]): ["move_close(obj15)"],
               "hold_above(obj21,obj15) move_close(obj15)": ["move_close(obj15)"],
               "move_close(obj15) move_close(obj15)": ["move_close(obj15)", "follow_traj_pour(obj21,obj15)"]}
-    program = run_loop(lookahead(ScriptedScorer(script), TASK, depth=1), room, TASK)
+    program = run_loop(lookahead(ScriptedScorer(script), TASK, room, depth=1), room, TASK)
     assert [str(a) for a in program.actions] == [*hold, "move_close(obj15)", "move_close(obj15)"]
     assert program.safe and program.status == DONE
 
@@ -456,7 +463,7 @@ def test_the_products_filter_keeps_the_rule_and_its_own_checks(room):
     from taskseq.product import runnable_first
 
     scorer = ScriptedScorer(CYCLE)
-    policy = runnable_first(lookahead(scorer, TASK), scorer, TASK, room, 3)
+    policy = runnable_first(lookahead(scorer, TASK, room), scorer, TASK, room, 3)
     assert callable(getattr(policy, "without_revisits", None))
     program = run_loop(policy, room, TASK, max_steps=8)
     assert [str(a) for a in program.actions[:3]] == ["move_close(obj15)", "move_close(obj21)", "move_close(obj15)"]
@@ -482,3 +489,60 @@ def test_the_development_worlds_check_of_the_rule_is_on_the_model_page_and_made_
     assert all(c["with"]["success"] >= c["without"]["success"] for c in report["changed"])
     unsafe = {(r["method"], r["rule"]): r["unsafe"] for r in report["table"]}
     assert all(unsafe[m, "with"] <= unsafe[m, "without"] for m, _ in unsafe)
+
+
+# --- stopping once the goal holds ------------------------------------------------------------------------------
+
+def _fetch_then(*after: str) -> dict[str, list[str]]:
+    """A script of the demonstration alone, then the steps `after`, one after another, once the milk is poured."""
+    plan = [*FETCH, *after]
+    return {" ".join(plan[max(0, k - 2):k]): [plan[k]] for k in range(len(plan))}
+
+
+def test_once_the_goal_holds_the_lookahead_stops_though_the_planner_ranks_another_step_first(room):
+    # after the pour (the goal: the milk left its carton for a vessel) the script moves on to the counter
+    script = _fetch_then("move_close(obj03)")
+    going_on = run_loop(feasible(ScriptedScorer(script)), room, TASK, max_steps=12)
+    assert [str(a) for a in going_on.actions] == [*FETCH, "move_close(obj03)"]  # without the rule it goes on
+    program = run_loop(lookahead(ScriptedScorer(script), TASK, room), room, TASK, max_steps=12)
+    assert [str(a) for a in program.actions] == FETCH and program.status == DONE and program.success
+    without = run_loop(lookahead(ScriptedScorer(script), TASK, room, stop_at_goal=False), room, TASK, max_steps=12)
+    assert [str(a) for a in without.actions] == [*FETCH, "move_close(obj03)"]  # the rule taken away, for measuring
+    state, ctx = _at(FETCH, room)
+    ranked = lookahead(ScriptedScorer(script), TASK, room)(ctx, state)
+    assert [str(ctx.action(y)) for y, _ in ranked][:2] == ["done()", "move_close(obj03)"] and len(ranked) == 3
+    assert ranked[0][1] == -1.0  # `done` keeps its score (second in the script's ranking), so the page can show it
+
+
+def test_imagined_steps_end_where_the_goal_holds(room):
+    # past the pour the script would set the carton down and grasp the milk itself, which breaks a rule; the robot
+    # stops at the goal, so that harm is never imagined and the pour is taken
+    script = _fetch_then("place_above(obj21,obj03)", "release(obj21)", "grasp(obj28)")
+    state = room
+    for text in [*FETCH, "place_above(obj21,obj03)", "release(obj21)"]:
+        state = execute(state, Action.parse(text))
+    assert violations(state, Action.parse("grasp(obj28)")) == ["liquid_grasped"]  # were it imagined, it would harm
+    state, ctx = _at(FETCH[:-1], room)
+    ranked = lookahead(ScriptedScorer(script), TASK, room, depth=4)(ctx, state)
+    assert str(ctx.action(ranked[0][0])) == FETCH[-1]
+    program = run_loop(lookahead(ScriptedScorer(script), TASK, room), room, TASK, max_steps=12)
+    assert [str(a) for a in program.actions] == FETCH and program.success
+
+
+@pytest.mark.parametrize("world", [Generate(seed=0), Generate(seed=5, family="procedural",
+                                                              procedural=Procedural(environments=4))])
+def test_no_demonstration_reaches_its_goal_before_its_last_step(world):
+    """Why the rule changes no program that matches a demonstration: the demonstrator stops at the goal, in the
+    paper-shaped rooms and in drawn ones."""
+    from taskseq.sim.scenarios import world_scenarios
+    from taskseq.sim.tasks import goal_reached
+
+    scenarios, _ = world_scenarios(world)
+    for scenario in scenarios:
+        for demonstration in scenario.demonstrations:
+            state = scenario.initial
+            for action in demonstration:
+                assert not goal_reached(scenario.task, scenario.initial, state), scenario.id
+                state = execute(state, action)
+            assert goal_reached(scenario.task, scenario.initial, state), scenario.id
+    assert sum(len(s.demonstrations) for s in scenarios) > 30

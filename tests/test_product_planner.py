@@ -58,7 +58,7 @@ def test_the_first_proposal_always_runs_in_the_simulator(scenarios, policy, tmp_
         policy_for = recorded_policy(planner, path, 3)
         for scenario in scenarios:
             task, initial = scenario.task, scenario.initial
-            checked, raw = policy_for(task, initial), learned_policy(policy, planner, task, 3)
+            checked, raw = policy_for(task, initial), learned_policy(policy, planner, task, initial, 3)
             state, history = initial, []
             for _ in range(STEPS):
                 ctx = step_context(state, task, history)

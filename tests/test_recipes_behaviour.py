@@ -114,20 +114,24 @@ def test_a_planner_that_follows_the_demonstrator_completes_every_recipe(recipe):
 
 
 def test_each_program_builds_the_methods_policy_for_its_own_task(monkeypatch):
-    """A policy that imagines steps (the lookahead) needs the program's task: each program passes its own."""
+    """A policy that imagines steps (the lookahead) needs the program's task and the world it begins in (where its
+    goal is judged from): each program passes its own."""
     import taskseq.experiments.recipes as recipes_module
 
-    built, real = [], recipes_module.learned_policy
+    built, starts, real = [], [], recipes_module.learned_policy
 
-    def spy(name, planner, task, top_k=3, perceive=None):
+    def spy(name, planner, task, start, top_k=3, perceive=None):
         built.append((name, str(task), top_k))
-        return real(name, planner, task, top_k, perceive)
+        starts.append(start.key())
+        return real(name, planner, task, start, top_k, perceive)
 
     monkeypatch.setattr(recipes_module, "learned_policy", spy)
     recipe = next(r for r in RECIPES if r.name == "serve-sweet-tea")
     out = run_recipe(Method(Scripted(script_of(recipe)), "feasible"), recipe, feedback=False, observer_k=2)
     assert out.success
     assert built == [("feasible", task, 2) for task, _ in demonstrated(recipe)]
+    assert starts[0] == build_environment(ENVIRONMENTS_BY_ID[recipe.env_id]).key()
+    assert len(set(starts)) == len(starts)  # each program from where the last one left the world
 
 
 def test_each_program_of_a_recipe_starts_where_the_last_one_left_the_world():

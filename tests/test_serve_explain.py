@@ -60,7 +60,7 @@ def proposals_at_the_glass():
     first = Action.parse(RUSH[0])
     state = execute(room, first)
     ctx = step_context(state, TASK, [first])
-    ranked = runnable_first(lookahead(scorer, TASK, 3), scorer, TASK, room, 3)(ctx, state)
+    ranked = runnable_first(lookahead(scorer, TASK, room, 3), scorer, TASK, room, 3)(ctx, state)
     return room, state, ctx, ranked, explain(scorer, "lookahead", TASK, room, ctx, state, ranked)
 
 
@@ -84,3 +84,20 @@ def test_reasons_use_names_never_ids_or_none_and_count_what_cannot_run():
     assert why[2] == "moved up: a step scored above it cannot run here (done: the goal of pour(milk) does not hold yet)"
     for text in why:
         assert text and not re.search(r"\bobj\d+\b", text) and "None" not in text
+
+
+def test_done_above_better_scored_steps_says_the_goal_holds():
+    # the milk is poured; the script would move on to the counter, scored above `done`
+    room = build_environment(ENVIRONMENTS_BY_ID["env02"])
+    plan = [*FETCH, "move_close(obj03)"]
+    scorer = ScriptedScorer({" ".join(plan[max(0, k - 2):k]): [plan[k]] for k in range(len(plan))})
+    state, history = room, []
+    for text in FETCH:
+        state, history = execute(state, Action.parse(text)), [*history, Action.parse(text)]
+    ctx = step_context(state, TASK, history)
+    ranked = runnable_first(lookahead(scorer, TASK, room, 3), scorer, TASK, room, 3)(ctx, state)
+    why = explain(scorer, "lookahead", TASK, room, ctx, state, ranked)
+    assert [str(ctx.action(y)) for y, _ in ranked][:2] == ["done()", "move_close(obj03)"]
+    counter = room.specs["obj03"].name
+    assert why[0].startswith(f"moved up above move_close({counter}) (0.00): the goal holds, and the lookahead stops")
+    assert why[1] == "below done: the goal holds, and the robot stops once it does"

@@ -209,7 +209,7 @@ class ScorerMethod:
         return self.planner_.predict(contexts)
 
     def run(self, scenario: Scenario, max_steps: int) -> Program:
-        policy = learned_policy(self.policy, self.planner_, scenario.task)
+        policy = learned_policy(self.policy, self.planner_, scenario.task, scenario.initial)
         return run_loop(policy, scenario.initial, scenario.task, max_steps, memo=Memo(worlds=_worlds_met(scenario)))
 
 

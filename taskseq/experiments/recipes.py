@@ -110,8 +110,8 @@ def run_recipe(method: ScorerMethod, recipe: Recipe, feedback: bool, max_steps: 
             except (NoDemonstration, PreconditionError):
                 demos = ()
             choose = observer(demos, 1)
-        program = run_loop(learned_policy(method.policy, method.planner_, task, observer_k), state, task, max_steps,
-                           choose=choose)
+        policy = learned_policy(method.policy, method.planner_, task, state, observer_k)
+        program = run_loop(policy, state, task, max_steps, choose=choose)
         programs.append((str(task), program.status, program.success))
         state = program.final
         if not program.success:

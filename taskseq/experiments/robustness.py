@@ -91,7 +91,7 @@ def _replay(make, contexts, meta, scenarios, test, conditions, max_steps, seed):
             # what a program sees and what it offers; the observer changes which step is taken, not what it offers
             view = (top_k, flips)
             # as the method's own programs pick steps, imagined ones seen through the same perception
-            policy = learned_policy(method.policy, method.planner_, sc.task, top_k, perceive)
+            policy = learned_policy(method.policy, method.planner_, sc.task, sc.initial, top_k, perceive)
             program = run_loop(policy, sc.initial, sc.task, max_steps, perceive, choose, memo.seen_as(view))
             outcome[c, sid] = judge(sc, program)
     return [(c, outcome[c, sid]) for c in conditions for sid in sorted(test)]

@@ -17,7 +17,7 @@ from ..features.context import StepContext, step_context
 from ..sim.primitives import Action, PreconditionError, execute, try_execute
 from ..sim.safety import violations
 from ..sim.state import WorldState
-from ..sim.tasks import Task
+from ..sim.tasks import Task, goal_reached
 from .records import DONE, INFEASIBLE, STEP_CAP, PlanStep, Program
 
 if TYPE_CHECKING:  # only named in hints: the stages that read programs need not import the learner (Numba, scipy)
@@ -62,6 +62,16 @@ class _Runnable:
                 self._found.append(candidate)
         return self._found[:limit]
 
+    def stop(self) -> tuple[Y, float] | None:
+        """`done` with its score, read down the same ranking (None when the planner does not rank it)."""
+        limit = 1
+        while True:
+            found = self.first(limit)
+            stop = next((c for c in found if self.ctx.action(c[0]).primitive == DONE), None)
+            if stop is not None or len(found) < limit:
+                return stop
+            limit *= 2
+
 
 def _runnable(planner: StepScorer, ctx: StepContext, state: WorldState, limit: int) -> Ranked:
     """The planner's best `limit` candidates among `done` and the steps whose preconditions hold, best first."""
@@ -85,9 +95,10 @@ LOOKAHEAD_DEPTH = 4
 LOOKAHEAD_WIDTH = 3
 
 
-def lookahead(planner: StepScorer, task: Task, top_k: int = 3, perceive: Perceive | None = None,
-              depth: int = LOOKAHEAD_DEPTH, width: int = LOOKAHEAD_WIDTH) -> Policy:
-    """`feasible`, but a step is taken only if the plan it starts breaks no safety rule in the next `depth` steps.
+def lookahead(planner: StepScorer, task: Task, start: WorldState, top_k: int = 3, perceive: Perceive | None = None,
+              depth: int = LOOKAHEAD_DEPTH, width: int = LOOKAHEAD_WIDTH, stop_at_goal: bool = True) -> Policy:
+    """`feasible`, but a step is taken only if the plan it starts breaks no safety rule in the next `depth` steps,
+    and the robot stops once the task's goal holds.
 
     The learned score picks each step by itself, so it can walk into a state
     where its best continuation is unsafe (a cup left on a shelf, then poured
@@ -100,6 +111,21 @@ def lookahead(planner: StepScorer, task: Task, top_k: int = 3, perceive: Perceiv
     Imagined steps are seen through `perceive` as real ones are (attribute
     noise flips an object's attributes alike at every step). The other
     proposals follow in score order, so an observer still sees `top_k`.
+
+    The robot that imagines with its model of the primitives also checks the
+    task's goal (`sim.tasks.goal_reached`, judged against `start`, the world
+    the program began in): once it holds, `done` is proposed first, in real
+    steps and imagined ones. The learned score decides when to stop only from
+    the step and the last two steps, and after a release it cannot tell
+    setting the task's object down on its target from setting down a load
+    cleared out of the way, so in rooms it never saw it went on moving things
+    after the goal held, and came back to the goal by a longer route. A
+    demonstration never goes on past the goal (no demonstration of the
+    development or reported worlds reaches it before its last step), so the
+    rule changes no program that matches one. The rule is the lookahead's, not
+    the learned score's: Table I's paper rows keep their policies.
+    `stop_at_goal=False` takes it away, for measuring what it changes
+    (`scripts/goal_stop.py`).
 
     The imagined continuation is the planner's plain best runnable step, not
     this policy's own later choices, and stopping counts as safe: a step that
@@ -143,6 +169,8 @@ def lookahead(planner: StepScorer, task: Task, top_k: int = 3, perceive: Perceiv
             if after is None:
                 after = worlds[state.key(), action] = execute(state, action)
             state = after
+            if stop_at_goal and goal_reached(task, start, state):  # the robot stops here, and stopping is safe
+                return False
             history = [*history[-1:], action]
             step = imagine(state, history)
             action = step.ctx.action(step.first(1)[0][0])
@@ -150,18 +178,23 @@ def lookahead(planner: StepScorer, task: Task, top_k: int = 3, perceive: Perceiv
                 return False
         return bool(violations(state, action))
 
-    def proposals(ctx: StepContext, state: WorldState,
-                  leads_back: Callable[[Action], bool] | None) -> tuple[Ranked, int | None]:
-        """The runnable candidates, best first, and the position of the first of the `width` best whose imagined
-        steps break no rule (and, given `leads_back`, that does not lead back to a world the program was in), or
-        None when no candidate is such. `done` always is."""
+    def ranking(ctx: StepContext, state: WorldState) -> _Runnable:
+        """The step's runnable candidates as ranked for real: the imagined step when it is the same."""
         history = ctx.history()
         step = steps.get((state.key(), tuple(history)))
         if step is None and history:  # a step not imagined (the program took another proposal): kept, as imagined
             step = imagine(state, history)  # ones are, for its imagined plans that come back to it
         if step is None or step.ctx.object_ids != ctx.object_ids or not np.array_equal(step.ctx.objects, ctx.objects):
             step = _Runnable(planner, ctx, state)  # the first step, or seen otherwise than the imagined steps
-        runnable = step.first(max(top_k, width))
+        return step
+
+    def proposals(ctx: StepContext, state: WorldState,
+                  leads_back: Callable[[Action], bool] | None) -> tuple[Ranked, int | None]:
+        """The runnable candidates, best first, and the position of the first of the `width` best whose imagined
+        steps break no rule (and, given `leads_back`, that does not lead back to a world the program was in), or
+        None when no candidate is such. `done` always is."""
+        history = ctx.history()
+        runnable = ranking(ctx, state).first(max(top_k, width))
 
         def taken(action: Action) -> bool:
             if action.primitive == DONE:
@@ -173,7 +206,15 @@ def lookahead(planner: StepScorer, task: Task, top_k: int = 3, perceive: Perceiv
     def first(runnable: Ranked, pick: int) -> Ranked:
         return ([runnable[pick]] + runnable[:pick] + runnable[pick + 1:])[:top_k]
 
+    def stopping(ctx: StepContext, state: WorldState) -> Ranked:
+        """`done` first, with its score, then the best runnable steps: the goal holds."""
+        step = ranking(ctx, state)
+        stop, runnable = step.stop(), step.first(top_k)
+        return runnable if stop is None else ([stop] + [c for c in runnable if c[0] != stop[0]])[:top_k]
+
     def policy(ctx: StepContext, state: WorldState) -> Ranked:
+        if stop_at_goal and goal_reached(task, start, state):
+            return stopping(ctx, state)
         runnable, pick = proposals(ctx, state, None)
         return first(runnable, 0 if pick is None else pick)
 
@@ -213,19 +254,20 @@ def _out_of_loops(policy: Policy, ranked: Ranked, ctx: StepContext, state: World
 POLICIES = ("greedy", "feasible", "lookahead")
 
 
-def learned_policy(name: str, planner: StepScorer, task: Task, top_k: int = 3,
+def learned_policy(name: str, planner: StepScorer, task: Task, start: WorldState, top_k: int = 3,
                    perceive: Perceive | None = None) -> Policy:
-    """The policy called `name` (one of `POLICIES`) for one program of `task`, offering `top_k` candidates.
+    """The policy called `name` (one of `POLICIES`) for one program of `task` begun in `start`, offering `top_k`
+    candidates.
 
-    `perceive` is the hook the program's steps are seen through; only a policy
-    that imagines steps of its own (`lookahead`) needs it.
+    `perceive` is the hook the program's steps are seen through, and `start` the world the task's goal is judged
+    against; only the policy that imagines steps of its own and checks the goal (`lookahead`) needs them.
     """
     if name == "greedy":
         return greedy(planner, top_k)
     if name == "feasible":
         return feasible(planner, top_k)
     if name == "lookahead":
-        return lookahead(planner, task, top_k, perceive)
+        return lookahead(planner, task, start, top_k, perceive)
     raise ValueError(f"unknown policy {name!r}; known: {', '.join(POLICIES)}")
 
 

@@ -49,11 +49,12 @@ class Imagined:
         return f"{lead}{words[-1]}, where {unsafe_reason(state, action)}"
 
 
-def imagine(planner: StepScorer, task: Task, state: WorldState, history: list[Action], action: Action,
-            depth: int = LOOKAHEAD_DEPTH) -> Imagined:
+def imagine(planner: StepScorer, task: Task, start: WorldState, state: WorldState, history: list[Action],
+            action: Action, depth: int = LOOKAHEAD_DEPTH) -> Imagined:
     """The steps `plan.planner.lookahead` imagines after taking `action`, step for step as its `harms` walks them:
-    from the state the step leads to, each next step the planner's best runnable one, until `done`, a step that
-    breaks a safety rule, or `depth` steps."""
+    from the state the step leads to, each next step the planner's best runnable one, until `done`, a world where
+    the task's goal holds (judged against `start`, where the task began; the robot stops there), a step that breaks
+    a safety rule, or `depth` steps."""
     steps: list[tuple[WorldState, Action]] = []
     if action.primitive == DONE:  # stopping imagines nothing and counts as safe
         return Imagined([(state, action)], False)
@@ -62,6 +63,9 @@ def imagine(planner: StepScorer, task: Task, state: WorldState, history: list[Ac
         if violations(state, action):
             return Imagined(steps, True)
         state = execute(state, action)
+        if goal_reached(task, start, state):
+            steps.append((state, Action(DONE)))
+            return Imagined(steps, False)
         history = [*history[-1:], action]
         step = _Runnable(planner, step_context(state, task, history), state)
         action = step.ctx.action(step.first(1)[0][0])
@@ -121,13 +125,14 @@ def explain(planner: StepScorer, policy: str, task: Task, initial: WorldState, c
 
     def plan(y: Y) -> Imagined:
         if y not in plans:
-            plans[y] = imagine(planner, task, state, history, ctx.action(y))
+            plans[y] = imagine(planner, task, initial, state, history, ctx.action(y))
         return plans[y]
 
     def words(y: Y) -> str:
         return _step(state, ctx.action(y))
 
     looks_ahead = policy == "lookahead"
+    stops = looks_ahead and goal_reached(task, initial, state)  # the lookahead proposes `done` first
     out: list[str] = []
     demoted: set[Y] = set()
     explained: set[Y] = set()
@@ -139,7 +144,9 @@ def explain(planner: StepScorer, policy: str, task: Task, initial: WorldState, c
         hidden = [z for z in above if z not in place and z not in explained]  # each said once, on the first row
         explained.update(hidden)
         parts: list[str] = []
-        if y in demoted:
+        if y in demoted and stops:
+            parts.append("below done: the goal holds, and the robot stops once it does")
+        elif y in demoted:
             found = plan(y) if looks_ahead else None
             if found is not None and found.harmful:
                 parts.append(f"demoted: its plan would {found.text()}")
@@ -152,8 +159,11 @@ def explain(planner: StepScorer, policy: str, task: Task, initial: WorldState, c
         if below:
             demoted.update(below)
             listed = "; ".join(f"{words(z)} ({score_of[z]:.2f})" for z in below)
-            cause = ("the lookahead found its plan breaks a safety rule" if len(below) == 1
-                     else "the lookahead found their plans break a safety rule")
+            if stops and ctx.action(y).primitive == DONE:
+                cause = "the goal holds, and the lookahead stops once it does"
+            else:
+                cause = ("the lookahead found its plan breaks a safety rule" if len(below) == 1
+                         else "the lookahead found their plans break a safety rule")
             parts.append(f"moved up above {listed}: {cause if looks_ahead else 'the policy put it first'}")
         if hidden:
             reasons, runnable = [], []

@@ -130,15 +130,22 @@ def teach_jobs(seed: int, bench: Benchmark, teach: Teach, make: Any, max_steps: 
     return [(_taught, (seed, k, base, taught, bench.scenarios, teach.weight, make, max_steps)) for k in teach.k]
 
 
-def _taught(seed: int, k: int, base: tuple[list, list], taught: list[Any], scenarios: dict[str, Any], weight: int,
-            make: Any, max_steps: int) -> list[dict[str, Any]]:
-    """The rows of one k: the planner trained on `base` plus the first k tasks shown in each room of `taught`."""
+def taught_method(k: int, base: tuple[list, list], taught: list[Any], scenarios: dict[str, Any], weight: int,
+                  make: Any) -> Any:
+    """The planner (`make()`) fitted on `base` plus the first k tasks shown in each room of `taught`, as a person's
+    records are written and read back, each taught step counted `weight` times."""
     people = written_and_read_back([person_record(Environment(room.env_id, room.env_id, room.state), task,
                                                   list(actions), SCRIPTED)
                                     for room in taught for task, actions in room.shown[:k]])
     steps, meta = weighted(*base, *build_steps(people), weight) if people else base
     # a shipped method that rolls out its training scenarios (chained starts, DAgger) finds them here
-    method = make().fit(steps, meta, {**scenarios, **Benchmark.from_records(people).scenarios})
+    return make().fit(steps, meta, {**scenarios, **Benchmark.from_records(people).scenarios})
+
+
+def _taught(seed: int, k: int, base: tuple[list, list], taught: list[Any], scenarios: dict[str, Any], weight: int,
+            make: Any, max_steps: int) -> list[dict[str, Any]]:
+    """The rows of one k: the planner trained on `base` plus the first k tasks shown in each room of `taught`."""
+    method = taught_method(k, base, taught, scenarios, weight, make)
     rows = []
     for room in taught:
         for outcome in judged(method, room.tested, max_steps):
