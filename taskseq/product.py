@@ -23,7 +23,18 @@ from .demonstrations.validate import _field as field_name  # the log checks' way
 from .features.context import StepContext
 from .learn.estimator import StepScorer
 from .learn.persist import describe, policy_of
-from .plan.planner import DONE, POLICIES, Abstain, Policy, Program, Ranked, learned_policy, run_loop
+from .plan.planner import (
+    DONE,
+    POLICIES,
+    Abstain,
+    LeadsBack,
+    LoopAware,
+    Policy,
+    Program,
+    Ranked,
+    learned_policy,
+    run_loop,
+)
 from .sim.primitives import Action, try_execute
 from .sim.safety import violations
 from .sim.state import WorldState
@@ -131,17 +142,15 @@ def runnable_first(policy: Policy, planner: StepScorer, task: Task, initial: Wor
                           "fails, a safety rule would be broken, or it is done before the goal holds)")
         return out
 
-    again = getattr(policy, "without_revisits", None)
-    if again is not None:  # the lookahead's rule against going back to a world, through the same filter
-        def without_revisits(ctx: StepContext, state: WorldState,
-                             leads_back: Callable[[Action], bool]) -> Ranked | None:
-            ranked = again(ctx, state, leads_back)
+    if isinstance(policy, LoopAware):  # the lookahead's rule against loops, through the same filter
+        def without_revisits(ctx: StepContext, state: WorldState, leads_back: LeadsBack) -> Ranked | None:
+            ranked = policy.without_revisits(ctx, state, leads_back)
             out = filled(ctx, state, policy(ctx, state) if ranked is None else ranked)
             new = next((i for i, (y, _) in enumerate(out)
                         if ctx.action(y).primitive == DONE or not leads_back(ctx.action(y))), None)
             return None if new is None else [out[new]] + out[:new] + out[new + 1:]
 
-        checked.without_revisits = without_revisits  # type: ignore[attr-defined]
+        return LoopAware(checked, without_revisits)
     return checked
 
 

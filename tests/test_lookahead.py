@@ -20,6 +20,7 @@ from taskseq.plan.planner import (
     LOOKAHEAD_DEPTH,
     LOOKAHEAD_WIDTH,
     POLICIES,
+    LoopAware,
     feasible,
     greedy,
     learned_policy,
@@ -259,8 +260,7 @@ def _afresh(planner, task, start, top_k=3, perceive=None, depth=LOOKAHEAD_DEPTH,
         ranked, first = pick(ctx, state, leads_back)
         return None if first is None else ([ranked[first]] + ranked[:first] + ranked[first + 1:])[:top_k]
 
-    policy.without_revisits = without_revisits  # as the lookahead's programs, they go nowhere twice
-    return policy
+    return LoopAware(policy, without_revisits)  # as the lookahead's programs, they go nowhere twice
 
 
 class CountingScorer:
@@ -436,9 +436,9 @@ def test_when_every_proposal_goes_back_the_best_is_taken(room):
 
 
 def test_only_the_lookahead_avoids_worlds_it_was_in(room):
-    assert callable(getattr(lookahead(ScriptedScorer(CYCLE), TASK, room), "without_revisits", None))
+    assert isinstance(lookahead(ScriptedScorer(CYCLE), TASK, room), LoopAware)
     for policy in (greedy(ScriptedScorer(CYCLE)), feasible(ScriptedScorer(CYCLE))):
-        assert not hasattr(policy, "without_revisits")  # Table I's other policies keep their rules
+        assert not isinstance(policy, LoopAware)  # Table I's other policies keep their rules
         program = run_loop(policy, room, TASK, max_steps=6)
         assert program.status == STEP_CAP  # they loop as they always did
 
@@ -464,7 +464,7 @@ def test_the_products_filter_keeps_the_rule_and_its_own_checks(room):
 
     scorer = ScriptedScorer(CYCLE)
     policy = runnable_first(lookahead(scorer, TASK, room), scorer, TASK, room, 3)
-    assert callable(getattr(policy, "without_revisits", None))
+    assert isinstance(policy, LoopAware)
     program = run_loop(policy, room, TASK, max_steps=8)
     assert [str(a) for a in program.actions[:3]] == ["move_close(obj15)", "move_close(obj21)", "move_close(obj15)"]
     assert str(program.actions[3]) != "move_close(obj21)"  # out of the loop the script walks

@@ -7,7 +7,7 @@ is run closed-loop in the simulator from a scenario's initial state.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from typing import Any, Protocol
 
@@ -211,6 +211,12 @@ class ScorerMethod:
     def run(self, scenario: Scenario, max_steps: int) -> Program:
         policy = learned_policy(self.policy, self.planner_, scenario.task, scenario.initial)
         return run_loop(policy, scenario.initial, scenario.task, max_steps, memo=Memo(worlds=_worlds_met(scenario)))
+
+def configured(make: Callable[[], ScorerMethod], **changes: Any) -> ScorerMethod:
+    """The unfitted method `make()` makes, with `changes` to its fields (another name, a model store): a
+    module-level function, so `functools.partial(configured, make, ...)` goes to a worker process."""
+    return replace(make(), **changes)
+
 
 
 # The worlds and step contexts the programs of a scenario met, by history, kept per process across methods: the

@@ -14,13 +14,13 @@ listed first); the `train` stage ships the first of them.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
 from typing import Any
 
 from ..demonstrations.benchmark import Benchmark
-from ..evaluate.methods import ScorerMethod
+from ..evaluate.methods import ScorerMethod, configured
 from ..evaluate.metrics import summarize
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
@@ -89,11 +89,6 @@ def _choice(tried: Mapping[float, Mapping[str, float]]) -> float:
     return best_candidate(_rows(tried))["C"]
 
 
-def _named(make: Callable[[], ScorerMethod], name: str, store: str | None) -> ScorerMethod:
-    """An unfitted method under another name (a method at one C of several), loading its fits from `store`."""
-    return replace(make(), name=name, store=store)
-
-
 @dataclass(frozen=True)
 class DevData:
     """The development world's steps and scenarios, and how they are cross-validated."""
@@ -116,12 +111,12 @@ def cross_validate_settings(pending: dict[str, tuple[float, ...]],
     makes = {}
     for method, values in pending.items():
         for c in values:
-            makes[(method, c)] = partial(_named, make(method, c), f"{method} C={c:g}", None)
+            makes[(method, c)] = partial(configured, make(method, c), name=f"{method} C={c:g}", store=None)
     by_name = {make().name: make for make in makes.values()}
     folds = data.folds
     jobs = training_jobs(by_name, data.meta, data.bench.scenarios, folds.folds, folds.seed, folds.group_by, ())
     train_fold_models(by_name, data.contexts, data.meta, data.bench.scenarios, jobs, store, n_jobs, verbose)
-    stored = {name: partial(_named, make, name, str(store)) for name, make in by_name.items()}
+    stored = {name: partial(configured, make, name=name, store=str(store)) for name, make in by_name.items()}
     results = cross_validate(stored, data.contexts, data.meta, data.bench, n_folds=folds.folds, seed=folds.seed,
                              group_by=folds.group_by, max_steps=data.max_steps, n_jobs=n_jobs, verbose=verbose)
     summary = summarize(results, data.contexts, dict.fromkeys(stored, True))

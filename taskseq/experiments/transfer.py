@@ -14,12 +14,11 @@ from __future__ import annotations
 
 import tempfile
 from collections.abc import Callable
-from dataclasses import replace
 from functools import partial
 from pathlib import Path
 
 from ..demonstrations.benchmark import Benchmark
-from ..evaluate.methods import ScorerMethod
+from ..evaluate.methods import ScorerMethod, configured
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
 from ..runtime.jobs import Shared, run_jobs
@@ -27,10 +26,6 @@ from .crossval import FoldResult, run_fold
 from .fold_models import TrainingJob, train_fold_models
 
 World = tuple[list[StepContext], list[StepMeta], Benchmark]
-
-
-def _stored(make: Callable[[], ScorerMethod], store: str) -> ScorerMethod:
-    return replace(make(), store=store)
 
 
 def transfer(methods: dict[str, Callable[[], ScorerMethod]], train: World, test: World, max_steps: int,
@@ -52,6 +47,7 @@ def transfer(methods: dict[str, Callable[[], ScorerMethod]], train: World, test:
         train_fold_models(methods, train_contexts, train_meta, train_bench.scenarios,
                           [TrainingJob(name, "transfer", every_step) for name in methods], store, n_jobs)
         steps, shared_meta, scenarios, demos = Shared(contexts), Shared(meta), Shared(bench.scenarios), Shared(bench)
-        results = run_jobs([(run_fold, (partial(_stored, make, store), 0, steps, shared_meta, scenarios, tested,
-                                        max_steps, demos)) for make in methods.values()], n_jobs)
+        jobs = [(run_fold, (partial(configured, make, store=store), 0, steps, shared_meta, scenarios, tested, max_steps,
+                            demos)) for make in methods.values()]
+        results = run_jobs(jobs, n_jobs)
     return results, contexts, meta

@@ -30,6 +30,20 @@ Ranked = list[tuple[Y, float]]
 Policy = Callable[[StepContext, WorldState], Ranked]
 Perceive = Callable[[StepContext], StepContext]
 Choose = Callable[[list[Action], list[Action]], int]
+LeadsBack = Callable[[Action], bool]  # whether a step would close a loop of the program
+
+
+@dataclass(frozen=True)
+class LoopAware:
+    """A policy that can rank a step again without the steps that would close a loop: `run_loop` asks
+    `without_revisits` when the first proposal would (see `lookahead`). It ranks as `rank` does; `without_revisits`
+    gives its proposals with a step that leads out first, or None when it has none to offer."""
+
+    rank: Policy
+    without_revisits: Callable[[StepContext, WorldState, LeadsBack], Ranked | None]
+
+    def __call__(self, ctx: StepContext, state: WorldState) -> Ranked:
+        return self.rank(ctx, state)
 
 
 class Abstain(Exception):
@@ -189,7 +203,7 @@ def lookahead(planner: StepScorer, task: Task, start: WorldState, top_k: int = 3
         return step
 
     def proposals(ctx: StepContext, state: WorldState,
-                  leads_back: Callable[[Action], bool] | None) -> tuple[Ranked, int | None]:
+                  leads_back: LeadsBack | None) -> tuple[Ranked, int | None]:
         """The runnable candidates, best first, and the position of the first of the `width` best whose imagined
         steps break no rule (and, given `leads_back`, that does not lead back to a world the program was in), or
         None when no candidate is such. `done` always is."""
@@ -218,12 +232,11 @@ def lookahead(planner: StepScorer, task: Task, start: WorldState, top_k: int = 3
         runnable, pick = proposals(ctx, state, None)
         return first(runnable, 0 if pick is None else pick)
 
-    def without_revisits(ctx: StepContext, state: WorldState, leads_back: Callable[[Action], bool]) -> Ranked | None:
+    def without_revisits(ctx: StepContext, state: WorldState, leads_back: LeadsBack) -> Ranked | None:
         runnable, pick = proposals(ctx, state, leads_back)
         return None if pick is None else first(runnable, pick)
 
-    policy.without_revisits = without_revisits  # type: ignore[attr-defined]  # read by run_loop
-    return policy
+    return LoopAware(policy, without_revisits)
 
 
 def _out_of_loops(policy: Policy, ranked: Ranked, ctx: StepContext, state: WorldState, states: list[WorldState],
@@ -234,8 +247,7 @@ def _out_of_loops(policy: Policy, ranked: Ranked, ctx: StepContext, state: World
     A step closes a loop when it leads to a world the program was in with the same two steps remembered, which is
     all a policy reads of the past (`step_context`): from there the program would repeat itself to the step cap.
     A world met again after other steps is no loop, and is left alone."""
-    again = getattr(policy, "without_revisits", None)
-    if again is None:
+    if not isinstance(policy, LoopAware):
         return ranked
     met = {(s.key(), history[max(0, i - 2):i]) for i, s in enumerate(states)}
 
@@ -246,7 +258,7 @@ def _out_of_loops(policy: Policy, ranked: Ranked, ctx: StepContext, state: World
     first = ctx.action(ranked[0][0])
     if first.primitive == DONE or not leads_back(first):
         return ranked
-    elsewhere = again(ctx, state, leads_back)
+    elsewhere = policy.without_revisits(ctx, state, leads_back)
     return ranked if elsewhere is None else elsewhere
 
 
