@@ -552,17 +552,18 @@ def table1_means() -> str:
                   "success"], "lrrrrrr", rows)
 
 
-def table1_seeds() -> str:
-    """Sequence arg and success of every method per world seed (`reports/crossval_seeds.csv`)."""
-    path = REPORTS / "crossval_seeds.csv"
+def _seeds_table(name: str, command: str) -> str:
+    """Sequence arg and success of every method per world seed, from a `*_seeds.csv` report (`reports/<name>`)."""
+    path = REPORTS / name
     if not path.is_file():
-        return _missing("crossval_seeds.csv", "dvc repro aggregate")
+        return _missing(name, command)
     from taskseq.methods import method_labels
 
     with open(path, newline="") as fh:
         rows = list(csv.DictReader(fh))
     seeds = sorted({int(r["world_seed"]) for r in rows})
     got = {(r["method"], int(r["world_seed"])): r for r in rows}
+
     def per_seed(name: str, figure: str) -> str:
         values = [got[name, s][figure] if (name, s) in got else "" for s in seeds]
         return " / ".join(f"{float(v):.1f}" for v in values) if all(values) else "-"
@@ -571,6 +572,21 @@ def table1_seeds() -> str:
              for name, label in method_labels().items() if (name, seeds[0]) in got]
     seeds_text = " / ".join(map(str, seeds))
     return _rows(["method", f"sequence arg ({seeds_text})", f"success ({seeds_text})"], "lrr", table)
+
+
+def table1_seeds() -> str:
+    """Table I's scenario folds per world seed (`reports/crossval_seeds.csv`)."""
+    return _seeds_table("crossval_seeds.csv", "dvc repro aggregate")
+
+
+def drawn_seeds() -> str:
+    """The drawn worlds with whole rooms held out, per world seed (`reports/scenes/drawn/crossval_seeds.csv`)."""
+    return _seeds_table("scenes/drawn/crossval_seeds.csv", "dvc repro scenes")
+
+
+def transfer_seeds() -> str:
+    """Trained on the paper-shaped world, run in the drawn one of its seed (`reports/scenes/transfer_seeds.csv`)."""
+    return _seeds_table("scenes/transfer_seeds.csv", "dvc repro scenes")
 
 
 def _table_rows(name: str, keep=lambda row: True) -> str:
@@ -613,6 +629,8 @@ GENERATED = {
     "revisits": revisits,
     "table1-means": table1_means,
     "table1-seeds": table1_seeds,
+    "drawn-seeds": drawn_seeds,
+    "transfer-seeds": transfer_seeds,
     "table1-ci": table1_ci,
     "comparisons-excerpt": comparisons_excerpt,
 }
