@@ -101,3 +101,40 @@ def test_done_above_better_scored_steps_says_the_goal_holds():
     counter = room.specs["obj03"].name
     assert why[0].startswith(f"moved up above move_close({counter}) (0.00): the goal holds, and the lookahead stops")
     assert why[1] == "below done: the goal holds, and the robot stops once it does"
+
+
+
+CYCLE = {"": ["move_close(obj15)"], "move_close(obj15)": ["move_close(obj21)"],
+         "move_close(obj15) move_close(obj21)": ["move_close(obj15)"],
+         "move_close(obj21) move_close(obj15)": ["move_close(obj21)"]}  # back and forth between glass and carton
+
+
+def test_the_assist_table_passes_over_a_step_that_would_close_a_loop_and_says_why(tmp_path):
+    """The web app ranks as `taskseq plan` runs (`plan.planner.out_of_loops`): the script walks between the glass
+    and the carton, and where going back to the carton would close a loop the page proposes another step first,
+    naming the loop as the reason."""
+    from taskseq.serve.app import Served
+    from taskseq.serve.environments import Environment
+    from taskseq.serve.sessions import Activity
+
+    room = build_environment(ENVIRONMENTS_BY_ID["env02"])
+    scorer = ScriptedScorer(CYCLE)
+    served = Served(tmp_path, tmp_path / "model.npz", 3)
+    served._policy_for = lambda task, initial: runnable_first(lookahead(scorer, task, initial, 3), scorer, task,
+                                                              initial, 3)
+    served._planner, served._policy_name = scorer, "lookahead"
+    activity = Activity(Environment("env02", "env02", room), TASK, "assist", None)
+    for text in ["move_close(obj15)", "move_close(obj21)"]:
+        shown, _ = served.candidates(activity)
+        assert str(shown[0].action) == text  # no loop yet: the script's step comes first
+        activity.step(Action.parse(text))
+    shown, _ = served.candidates(activity)
+    assert str(shown[0].action) == "move_close(obj15)"  # the glass again: a world met, but with other steps before
+    activity.step(Action.parse("move_close(obj15)"))
+    shown, _ = served.candidates(activity)
+    carton = room.specs[CARTON].name
+    assert str(shown[0].action) != "move_close(obj21)"  # back to the carton would close the loop
+    assert shown[0].why.startswith(f"moved up above move_close({carton}) (0.00): it would lead back to where this "
+                                   "task already was, with the same last two steps")
+    looped = next(c for c in shown if str(c.action) == "move_close(obj21)")
+    assert looped.why.startswith("demoted: it leads back to where this task already was")

@@ -239,26 +239,34 @@ def lookahead(planner: StepScorer, task: Task, start: WorldState, top_k: int = 3
     return LoopAware(policy, without_revisits)
 
 
-def _out_of_loops(policy: Policy, ranked: Ranked, ctx: StepContext, state: WorldState, states: list[WorldState],
-                  history: tuple[Action, ...]) -> Ranked:
-    """`ranked`, or, when its first step would close a loop and the policy can rank again (`without_revisits`), its
-    proposals with a step that leads out of it first; as they were when it has none.
-
-    A step closes a loop when it leads to a world the program was in with the same two steps remembered, which is
-    all a policy reads of the past (`step_context`): from there the program would repeat itself to the step cap.
-    A world met again after other steps is no loop, and is left alone."""
-    if not isinstance(policy, LoopAware):
-        return ranked
+def closes_loop(states: list[WorldState], history: tuple[Action, ...]) -> LeadsBack:
+    """Whether a step from the last of `states` (the program's worlds, one before each step of `history` and one
+    after the last) closes a loop: it leads to a world the program was in with the same two steps remembered,
+    which is all a policy reads of the past (`step_context`), so from there the program would repeat itself to the
+    step cap. A world met again after other steps is no loop. A step that cannot run counts as closing one: it
+    leads nowhere new."""
     met = {(s.key(), history[max(0, i - 2):i]) for i, s in enumerate(states)}
+    state = states[-1]
 
     def leads_back(action: Action) -> bool:
         after = try_execute(state, action)
         return after is None or (after.key(), (*history, action)[-2:]) in met
 
+    return leads_back
+
+
+def out_of_loops(policy: Policy, ranked: Ranked, ctx: StepContext, states: list[WorldState],
+                 history: tuple[Action, ...]) -> Ranked:
+    """`ranked`, or, when its first step would close a loop (`closes_loop`) and the policy can rank again
+    (`LoopAware`), its proposals with a step that leads out of it first; as they were when it has none. `run_loop`
+    applies it to every step, and the web app's assist table to the step it shows."""
+    if not isinstance(policy, LoopAware):
+        return ranked
+    leads_back = closes_loop(states, history)
     first = ctx.action(ranked[0][0])
     if first.primitive == DONE or not leads_back(first):
         return ranked
-    elsewhere = policy.without_revisits(ctx, state, leads_back)
+    elsewhere = policy.without_revisits(ctx, states[-1], leads_back)
     return ranked if elsewhere is None else elsewhere
 
 
@@ -358,7 +366,7 @@ def run_loop(policy: Policy, state: WorldState, task: Task, max_steps: int = 20,
             ctx, ranked = known
         if isinstance(ranked, str):
             return Program(task, steps, INFEASIBLE, states, ranked)
-        ranked = _out_of_loops(policy, ranked, ctx, state, states, history)
+        ranked = out_of_loops(policy, ranked, ctx, states, history)
         if choose is not None:
             pick = choose(list(history), [ctx.action(y) for y, _ in ranked])
             ranked = [ranked[pick]] + ranked[:pick] + ranked[pick + 1 :]

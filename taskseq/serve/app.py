@@ -19,7 +19,7 @@ from flask import Flask, Response, g, redirect, render_template, request
 from ..features.context import step_context
 from ..learn.estimator import StepScorer
 from ..learn.persist import policy_of
-from ..plan.planner import Abstain, Policy
+from ..plan.planner import Abstain, Policy, closes_loop, out_of_loops
 from ..product import LIQUID_TASKS, parse_task, recorded_policy
 from ..sim.catalog import ENVIRONMENTS, OBJECTS_BY_ID
 from ..sim.primitives import ALL_PRIMITIVES, ARITY, Action, PreconditionError
@@ -116,14 +116,17 @@ class Served:
                     raise Refused(f"the planner cannot be loaded: {err}", 503) from None
                 self._planner, self._policy_name = planner, policy_of(planner.meta_)
             ctx = step_context(activity.state, activity.task, activity.actions)
+            history = tuple(activity.actions)
             try:
-                ranked = self._policy_for(activity.task, activity.states[0])(ctx, activity.state)
+                policy = self._policy_for(activity.task, activity.states[0])
+                # as `taskseq plan` runs it: the lookahead passes over a step that would close a loop of the task
+                ranked = out_of_loops(policy, policy(ctx, activity.state), ctx, activity.states, history)
             except Abstain as why:
                 found: tuple[list[Candidate], str | None] = ([], str(why))
             else:
                 assert self._planner is not None
                 reasons = explain(self._planner, self._policy_name, activity.task, activity.states[0], ctx,
-                                  activity.state, ranked)
+                                  activity.state, ranked, closes_loop(activity.states, history))
                 found = ([Candidate(ctx.action(y), float(score), why)
                           for (y, score), why in zip(ranked, reasons, strict=True)], None)
         activity.offers[tuple(activity.actions)] = found

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 from ..features.context import StepContext, step_context
 from ..learn.estimator import StepScorer
-from ..plan.planner import DONE, LOOKAHEAD_DEPTH, Ranked, _Runnable
+from ..plan.planner import DONE, LOOKAHEAD_DEPTH, LeadsBack, Ranked, _Runnable
 from ..sim.primitives import Action, PreconditionError, execute
 from ..sim.safety import violations
 from ..sim.state import WorldState
@@ -29,6 +29,8 @@ from .rules import named, step_text, unsafe_reason
 
 Y = tuple[int, int, int]
 SHOWN_REASONS = 3  # steps that cannot run named per row; the rest are counted
+LOOP = ("it leads back to where this task already was, with the same last two steps, from where the planner would "
+        "go round the same loop")
 
 
 @dataclass(frozen=True)
@@ -105,10 +107,12 @@ def _task_text(state: WorldState, task: Task) -> str:
 
 
 def explain(planner: StepScorer, policy: str, task: Task, initial: WorldState, ctx: StepContext, state: WorldState,
-            offered: Ranked) -> list[str]:
-    """For each proposal of `offered` (the policy's order, after `product.runnable_first`), why it is where it is:
-    its place in the model's scores, every better-scored step it stands above or in place of and why that step
-    is not above it, and what the lookahead found for the steps it imagined (`policy` is the model file's)."""
+            offered: Ranked, closes_loop: LeadsBack | None = None) -> list[str]:
+    """For each proposal of `offered` (the policy's order, after `product.runnable_first` and
+    `plan.planner.out_of_loops`), why it is where it is: its place in the model's scores, every better-scored step
+    it stands above or in place of and why that step is not above it, and what the lookahead found for the steps
+    it imagined (`policy` is the model file's). `closes_loop` says which steps would close a loop of the task so far
+    (`plan.planner.closes_loop`), which the lookahead passes over."""
     if not offered:
         return []
     shown = [y for y, _ in offered]
@@ -133,6 +137,9 @@ def explain(planner: StepScorer, policy: str, task: Task, initial: WorldState, c
 
     looks_ahead = policy == "lookahead"
     stops = looks_ahead and goal_reached(task, initial, state)  # the lookahead proposes `done` first
+
+    def loops(y: Y) -> bool:
+        return looks_ahead and closes_loop is not None and closes_loop(ctx.action(y))
     out: list[str] = []
     demoted: set[Y] = set()
     explained: set[Y] = set()
@@ -146,6 +153,8 @@ def explain(planner: StepScorer, policy: str, task: Task, initial: WorldState, c
         parts: list[str] = []
         if y in demoted and stops:
             parts.append("below done: the goal holds, and the robot stops once it does")
+        elif y in demoted and loops(y):
+            parts.append(f"demoted: {LOOP}")
         elif y in demoted:
             found = plan(y) if looks_ahead else None
             if found is not None and found.harmful:
@@ -158,13 +167,19 @@ def explain(planner: StepScorer, policy: str, task: Task, initial: WorldState, c
             parts.append("the next score down of the steps that can be proposed")
         if below:
             demoted.update(below)
-            listed = "; ".join(f"{words(z)} ({score_of[z]:.2f})" for z in below)
-            if stops and ctx.action(y).primitive == DONE:
-                cause = "the goal holds, and the lookahead stops once it does"
-            else:
-                cause = ("the lookahead found its plan breaks a safety rule" if len(below) == 1
-                         else "the lookahead found their plans break a safety rule")
-            parts.append(f"moved up above {listed}: {cause if looks_ahead else 'the policy put it first'}")
+            looping = [z for z in below if loops(z)] if not stops else []
+            for group in (looping, [z for z in below if z not in looping]):
+                if not group:
+                    continue
+                listed = "; ".join(f"{words(z)} ({score_of[z]:.2f})" for z in group)
+                if stops and ctx.action(y).primitive == DONE:
+                    cause = "the goal holds, and the lookahead stops once it does"
+                elif group is looping:
+                    cause = LOOP.replace("it leads", "it would lead" if len(group) == 1 else "they would lead")
+                else:
+                    cause = ("the lookahead found its plan breaks a safety rule" if len(group) == 1
+                             else "the lookahead found their plans break a safety rule")
+                parts.append(f"moved up above {listed}: {cause if looks_ahead else 'the policy put it first'}")
         if hidden:
             reasons, runnable = [], []
             for z in hidden:
