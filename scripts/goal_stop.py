@@ -50,13 +50,15 @@ def _both(seed, k, base, taught, scenarios, weight, make, max_steps) -> list[dic
             for rule, stops in RULES.items():
                 policy = lookahead(planner, scenario.task, scenario.initial, stop_at_goal=stops)
                 outcome = judge(scenario, run_loop(policy, scenario.initial, scenario.task, max_steps, memo=Memo()))
-                row[rule] = {"arg": outcome.arg_correct, "success": outcome.success, "status": outcome.status}
+                row[rule] = {"arg": outcome.arg_correct, "success": outcome.success, "status": outcome.status,
+                             "actions": list(outcome.actions)}
             rows.append(row)
     return rows
 
 
 def summary(rows: list[dict], ks: list[int]) -> list[dict]:
-    """Per rule and k: % sequence arg and success, the misses of sequence arg, the share of k = 0's removed."""
+    """Per rule and k: % sequence arg and success, the misses of sequence arg, the share of the first k's
+    (`teach.k`'s first, 0 in params.yaml) that k removes."""
     out = []
     for rule in RULES:
         zero = sum(not r[rule]["arg"] for r in rows if r["k"] == ks[0])
@@ -66,7 +68,7 @@ def summary(rows: list[dict], ks: list[int]) -> list[dict]:
             out.append({"rule": rule, "k": k, "programs": len(mine),
                         "sequence_arg": 100.0 * sum(o["arg"] for o in mine) / len(mine),
                         "success": 100.0 * sum(o["success"] for o in mine) / len(mine), "misses": misses,
-                        "misses_removed": 100.0 * (zero - misses) / zero if zero else 0.0})
+                        "misses_removed": 100.0 * (zero - misses) / zero if zero else 0.0, "against_k": ks[0]})
     return out
 
 
@@ -94,12 +96,12 @@ def main(argv: list[str] | None = None) -> int:
     rows = [row for job, job_args in stage.teach_jobs(world.dev_seed, bench, teach, make, params.crossval.max_steps)
             for row in _both(*job_args)]
     table = summary(rows, list(teach.k))
-    print("| rule | k | sequence arg | success | misses | misses removed |")
+    print(f"| rule | k | sequence arg | success | misses | k = {teach.k[0]}'s misses removed |")
     print("|---|---:|---:|---:|---:|---:|")
     for r in table:
         print(f"| {r['rule']} | {r['k']} | {r['sequence_arg']:.1f} | {r['success']:.1f} | {r['misses']} | "
               f"{r['misses_removed']:.0f}% |")
-    changed = [r for r in rows if r["with"] != r["without"]]
+    changed = [r for r in rows if r["with"]["actions"] != r["without"]["actions"]]
     print(f"{len(changed)} of {len(rows)} programs differ", file=sys.stderr)
     if args.output:
         write_json_atomic(args.output, {"dev_seed": world.dev_seed, "method": shipped, "C": selection.of(shipped),

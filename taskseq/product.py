@@ -144,8 +144,13 @@ def runnable_first(policy: Policy, planner: StepScorer, task: Task, initial: Wor
 
     if isinstance(policy, LoopAware):  # the lookahead's rule against loops, through the same filter
         def without_revisits(ctx: StepContext, state: WorldState, leads_back: LeadsBack) -> Ranked | None:
+            """The lookahead's way out, filtered; none when it has none. Where its way out is `done` before the
+            goal holds, which the simulator refuses, the next filtered proposal that leads out comes first: the
+            lookahead ranked it, but did not check what it leads to."""
             ranked = policy.without_revisits(ctx, state, leads_back)
-            out = filled(ctx, state, policy(ctx, state) if ranked is None else ranked)
+            if ranked is None:
+                return None
+            out = filled(ctx, state, ranked)
             new = next((i for i, (y, _) in enumerate(out)
                         if ctx.action(y).primitive == DONE or not leads_back(ctx.action(y))), None)
             return None if new is None else [out[new]] + out[:new] + out[new + 1:]

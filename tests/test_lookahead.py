@@ -535,7 +535,6 @@ def test_no_demonstration_reaches_its_goal_before_its_last_step(world):
     """Why the rule changes no program that matches a demonstration: the demonstrator stops at the goal, in the
     paper-shaped rooms and in drawn ones."""
     from taskseq.sim.scenarios import world_scenarios
-    from taskseq.sim.tasks import goal_reached
 
     scenarios, _ = world_scenarios(world)
     for scenario in scenarios:
@@ -546,3 +545,17 @@ def test_no_demonstration_reaches_its_goal_before_its_last_step(world):
                 state = execute(state, action)
             assert goal_reached(scenario.task, scenario.initial, state), scenario.id
     assert sum(len(s.demonstrations) for s in scenarios) > 30
+
+
+def test_the_products_filter_adds_no_way_out_the_lookahead_did_not_take(room):
+    """Width 1: the lookahead checks only its best candidate, which closes the loop, so it offers no way out; the
+    filter of `taskseq plan` then keeps the proposals as they were rather than promote a step the lookahead never
+    checked, and the program loops as the lookahead's own does."""
+    from taskseq.product import runnable_first
+
+    scorer = ScriptedScorer(CYCLE)
+    alone = run_loop(lookahead(scorer, TASK, room, width=1), room, TASK, max_steps=6)
+    filtered = run_loop(runnable_first(lookahead(scorer, TASK, room, width=1), scorer, TASK, room, 3), room, TASK,
+                        max_steps=6)
+    assert alone.status == filtered.status == STEP_CAP
+    assert [str(a) for a in filtered.actions] == [str(a) for a in alone.actions]

@@ -138,3 +138,30 @@ def test_the_assist_table_passes_over_a_step_that_would_close_a_loop_and_says_wh
                                    "task already was, with the same last two steps")
     looped = next(c for c in shown if str(c.action) == "move_close(obj21)")
     assert looped.why.startswith("demoted: it leads back to where this task already was")
+
+
+def test_a_step_demoted_for_its_unsafe_plan_is_not_said_to_close_a_loop(tmp_path):
+    """Going back to the carton would close a loop, but the lookahead demotes it already for the pour over the
+    shelf its plan leads to, so the rule against loops never acts: the page gives the safety reason only."""
+    from taskseq.serve.app import Served
+    from taskseq.serve.environments import Environment
+    from taskseq.serve.sessions import Activity
+
+    walk = ["move_close(obj15)", "move_close(obj21)", "move_close(obj15)"]
+    script = {**CYCLE, "move_close(obj21) move_close(obj15)": ["move_close(obj21)", "grasp(obj15)"],
+              "move_close(obj15) move_close(obj21)": ["grasp(obj21)"],
+              "move_close(obj21) grasp(obj21)": ["hold_above(obj21,obj15)"],
+              "grasp(obj21) hold_above(obj21,obj15)": ["follow_traj_pour(obj21,obj15)"]}
+    room = build_environment(ENVIRONMENTS_BY_ID["env02"])
+    scorer = ScriptedScorer(script)
+    served = Served(tmp_path, tmp_path / "model.npz", 3)
+    served._policy_for = lambda task, initial: runnable_first(lookahead(scorer, task, initial, 3), scorer, task,
+                                                              initial, 3)
+    served._planner, served._policy_name = scorer, "lookahead"
+    activity = Activity(Environment("env02", "env02", room), TASK, "assist", None)
+    for text in walk:
+        activity.step(Action.parse(text))
+    shown, _ = served.candidates(activity)
+    assert [str(c.action) for c in shown[:2]] == ["grasp(obj15)", "move_close(obj21)"]
+    assert "the lookahead found its plan breaks a safety rule" in shown[0].why and "loop" not in shown[0].why
+    assert shown[1].why.startswith("demoted: its plan would") and "loop" not in shown[1].why

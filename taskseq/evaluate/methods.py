@@ -212,11 +212,11 @@ class ScorerMethod:
         policy = learned_policy(self.policy, self.planner_, scenario.task, scenario.initial)
         return run_loop(policy, scenario.initial, scenario.task, max_steps, memo=Memo(worlds=_worlds_met(scenario)))
 
+
 def configured(make: Callable[[], ScorerMethod], **changes: Any) -> ScorerMethod:
     """The unfitted method `make()` makes, with `changes` to its fields (another name, a model store): a
     module-level function, so `functools.partial(configured, make, ...)` goes to a worker process."""
     return replace(make(), **changes)
-
 
 
 # The worlds and step contexts the programs of a scenario met, by history, kept per process across methods: the

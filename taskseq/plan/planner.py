@@ -224,19 +224,26 @@ def lookahead(planner: StepScorer, task: Task, start: WorldState, top_k: int = 3
         """`done` first, with its score, then the best runnable steps: the goal holds."""
         step = ranking(ctx, state)
         stop, runnable = step.stop(), step.first(top_k)
-        return runnable if stop is None else ([stop] + [c for c in runnable if c[0] != stop[0]])[:top_k]
+        if stop is None:  # a planner that never ranks `done` (none of this package's): the proposals as always
+            return first(*_picked(proposals(ctx, state, None)))
+        return ([stop] + [c for c in runnable if c[0] != stop[0]])[:top_k]
 
     def policy(ctx: StepContext, state: WorldState) -> Ranked:
         if stop_at_goal and goal_reached(task, start, state):
             return stopping(ctx, state)
-        runnable, pick = proposals(ctx, state, None)
-        return first(runnable, 0 if pick is None else pick)
+        return first(*_picked(proposals(ctx, state, None)))
 
     def without_revisits(ctx: StepContext, state: WorldState, leads_back: LeadsBack) -> Ranked | None:
         runnable, pick = proposals(ctx, state, leads_back)
         return None if pick is None else first(runnable, pick)
 
     return LoopAware(policy, without_revisits)
+
+
+def _picked(found: tuple[Ranked, int | None]) -> tuple[Ranked, int]:
+    """The lookahead's proposals and the one it takes: the first whose plan breaks no rule, else the best."""
+    runnable, pick = found
+    return runnable, 0 if pick is None else pick
 
 
 def closes_loop(states: list[WorldState], history: tuple[Action, ...]) -> LeadsBack:

@@ -120,13 +120,15 @@ class Served:
             try:
                 policy = self._policy_for(activity.task, activity.states[0])
                 # as `taskseq plan` runs it: the lookahead passes over a step that would close a loop of the task
-                ranked = out_of_loops(policy, policy(ctx, activity.state), ctx, activity.states, history)
+                proposed = policy(ctx, activity.state)
+                ranked = out_of_loops(policy, proposed, ctx, activity.states, history)
             except Abstain as why:
                 found: tuple[list[Candidate], str | None] = ([], str(why))
             else:
                 assert self._planner is not None
                 reasons = explain(self._planner, self._policy_name, activity.task, activity.states[0], ctx,
-                                  activity.state, ranked, closes_loop(activity.states, history))
+                                  activity.state, ranked,
+                                  closes_loop(activity.states, history) if ranked != proposed else None)
                 found = ([Candidate(ctx.action(y), float(score), why)
                           for (y, score), why in zip(ranked, reasons, strict=True)], None)
         activity.offers[tuple(activity.actions)] = found

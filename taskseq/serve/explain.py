@@ -112,7 +112,8 @@ def explain(planner: StepScorer, policy: str, task: Task, initial: WorldState, c
     `plan.planner.out_of_loops`), why it is where it is: its place in the model's scores, every better-scored step
     it stands above or in place of and why that step is not above it, and what the lookahead found for the steps
     it imagined (`policy` is the model file's). `closes_loop` says which steps would close a loop of the task so far
-    (`plan.planner.closes_loop`), which the lookahead passes over."""
+    (`plan.planner.closes_loop`); give it only when the rule against loops reordered the proposals, since a step
+    that would close a loop is passed over for it only then."""
     if not offered:
         return []
     shown = [y for y, _ in offered]
@@ -153,14 +154,13 @@ def explain(planner: StepScorer, policy: str, task: Task, initial: WorldState, c
         parts: list[str] = []
         if y in demoted and stops:
             parts.append("below done: the goal holds, and the robot stops once it does")
-        elif y in demoted and loops(y):
-            parts.append(f"demoted: {LOOP}")
         elif y in demoted:
             found = plan(y) if looks_ahead else None
+            said = [LOOP] if loops(y) else []
             if found is not None and found.harmful:
-                parts.append(f"demoted: its plan would {found.text()}")
-            else:
-                parts.append("placed below better-scored steps by the policy")
+                said.append(f"its plan would {found.text()}")
+            parts.append(f"demoted: {'; and '.join(said)}" if said
+                         else "placed below better-scored steps by the policy")
         elif not above:
             parts.append("the best score of all the steps" if rank[y] == 0 else "the next score down")
         elif not below and not hidden:
