@@ -103,27 +103,32 @@ def test_done_above_better_scored_steps_says_the_goal_holds():
     assert why[1] == "below done: the goal holds, and the robot stops once it does"
 
 
-
 CYCLE = {"": ["move_close(obj15)"], "move_close(obj15)": ["move_close(obj21)"],
          "move_close(obj15) move_close(obj21)": ["move_close(obj15)"],
          "move_close(obj21) move_close(obj15)": ["move_close(obj21)"]}  # back and forth between glass and carton
+
+
+def assisted(script: dict[str, list[str]], tmp_path):
+    """The web app's planner (`Served`) ranking with a scripted lookahead, as `taskseq serve` runs a model file's, and
+    an assist activity of pour(milk) in env02 at its start."""
+    from taskseq.serve.app import Served
+    from taskseq.serve.environments import Environment
+    from taskseq.serve.sessions import Activity
+
+    room = build_environment(ENVIRONMENTS_BY_ID["env02"])
+    scorer = ScriptedScorer(script)
+    served = Served(tmp_path, tmp_path / "model.npz", 3)
+    served._policy_for = lambda task, initial: runnable_first(lookahead(scorer, task, initial, 3), scorer, task,
+                                                              initial, 3)
+    served._planner, served._policy_name = scorer, "lookahead"
+    return served, Activity(Environment("env02", "env02", room), TASK, "assist", None)
 
 
 def test_the_assist_table_passes_over_a_step_that_would_close_a_loop_and_says_why(tmp_path):
     """The web app ranks as `taskseq plan` runs (`plan.planner.out_of_loops`): the script walks between the glass
     and the carton, and where going back to the carton would close a loop the page proposes another step first,
     naming the loop as the reason."""
-    from taskseq.serve.app import Served
-    from taskseq.serve.environments import Environment
-    from taskseq.serve.sessions import Activity
-
-    room = build_environment(ENVIRONMENTS_BY_ID["env02"])
-    scorer = ScriptedScorer(CYCLE)
-    served = Served(tmp_path, tmp_path / "model.npz", 3)
-    served._policy_for = lambda task, initial: runnable_first(lookahead(scorer, task, initial, 3), scorer, task,
-                                                              initial, 3)
-    served._planner, served._policy_name = scorer, "lookahead"
-    activity = Activity(Environment("env02", "env02", room), TASK, "assist", None)
+    served, activity = assisted(CYCLE, tmp_path)
     for text in ["move_close(obj15)", "move_close(obj21)"]:
         shown, _ = served.candidates(activity)
         assert str(shown[0].action) == text  # no loop yet: the script's step comes first
@@ -132,7 +137,7 @@ def test_the_assist_table_passes_over_a_step_that_would_close_a_loop_and_says_wh
     assert str(shown[0].action) == "move_close(obj15)"  # the glass again: a world met, but with other steps before
     activity.step(Action.parse("move_close(obj15)"))
     shown, _ = served.candidates(activity)
-    carton = room.specs[CARTON].name
+    carton = activity.env.state.specs[CARTON].name
     assert str(shown[0].action) != "move_close(obj21)"  # back to the carton would close the loop
     assert shown[0].why.startswith(f"moved up above move_close({carton}) (0.00): it would lead back to where this "
                                    "task already was, with the same last two steps")
@@ -143,22 +148,12 @@ def test_the_assist_table_passes_over_a_step_that_would_close_a_loop_and_says_wh
 def test_a_step_demoted_for_its_unsafe_plan_is_not_said_to_close_a_loop(tmp_path):
     """Going back to the carton would close a loop, but the lookahead demotes it already for the pour over the
     shelf its plan leads to, so the rule against loops never acts: the page gives the safety reason only."""
-    from taskseq.serve.app import Served
-    from taskseq.serve.environments import Environment
-    from taskseq.serve.sessions import Activity
-
     walk = ["move_close(obj15)", "move_close(obj21)", "move_close(obj15)"]
     script = {**CYCLE, "move_close(obj21) move_close(obj15)": ["move_close(obj21)", "grasp(obj15)"],
               "move_close(obj15) move_close(obj21)": ["grasp(obj21)"],
               "move_close(obj21) grasp(obj21)": ["hold_above(obj21,obj15)"],
               "grasp(obj21) hold_above(obj21,obj15)": ["follow_traj_pour(obj21,obj15)"]}
-    room = build_environment(ENVIRONMENTS_BY_ID["env02"])
-    scorer = ScriptedScorer(script)
-    served = Served(tmp_path, tmp_path / "model.npz", 3)
-    served._policy_for = lambda task, initial: runnable_first(lookahead(scorer, task, initial, 3), scorer, task,
-                                                              initial, 3)
-    served._planner, served._policy_name = scorer, "lookahead"
-    activity = Activity(Environment("env02", "env02", room), TASK, "assist", None)
+    served, activity = assisted(script, tmp_path)
     for text in walk:
         activity.step(Action.parse(text))
     shown, _ = served.candidates(activity)

@@ -76,14 +76,16 @@ class _Runnable:
                 self._found.append(candidate)
         return self._found[:limit]
 
-    def stop(self) -> tuple[Y, float] | None:
-        """`done` with its score, read down the same ranking (None when the planner does not rank it)."""
+    def stop(self) -> tuple[Y, float]:
+        """`done` with its score, read down the same ranking (every step's candidates include `done`)."""
         limit = 1
         while True:
             found = self.first(limit)
             stop = next((c for c in found if self.ctx.action(c[0]).primitive == DONE), None)
-            if stop is not None or len(found) < limit:
+            if stop is not None:
                 return stop
+            if len(found) < limit:
+                raise ValueError("the planner ranks no `done` among the step's candidates")
             limit *= 2
 
 
@@ -224,26 +226,19 @@ def lookahead(planner: StepScorer, task: Task, start: WorldState, top_k: int = 3
         """`done` first, with its score, then the best runnable steps: the goal holds."""
         step = ranking(ctx, state)
         stop, runnable = step.stop(), step.first(top_k)
-        if stop is None:  # a planner that never ranks `done` (none of this package's): the proposals as always
-            return first(*_picked(proposals(ctx, state, None)))
         return ([stop] + [c for c in runnable if c[0] != stop[0]])[:top_k]
 
     def policy(ctx: StepContext, state: WorldState) -> Ranked:
         if stop_at_goal and goal_reached(task, start, state):
             return stopping(ctx, state)
-        return first(*_picked(proposals(ctx, state, None)))
+        runnable, pick = proposals(ctx, state, None)
+        return first(runnable, 0 if pick is None else pick)
 
     def without_revisits(ctx: StepContext, state: WorldState, leads_back: LeadsBack) -> Ranked | None:
         runnable, pick = proposals(ctx, state, leads_back)
         return None if pick is None else first(runnable, pick)
 
     return LoopAware(policy, without_revisits)
-
-
-def _picked(found: tuple[Ranked, int | None]) -> tuple[Ranked, int]:
-    """The lookahead's proposals and the one it takes: the first whose plan breaks no rule, else the best."""
-    runnable, pick = found
-    return runnable, 0 if pick is None else pick
 
 
 def closes_loop(states: list[WorldState], history: tuple[Action, ...]) -> LeadsBack:
