@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 import shutil
 from pathlib import Path
 
@@ -323,3 +324,21 @@ def test_a_bad_selection_file_is_named(tiny, tmp_path, capsys):
                  "--output", str(tmp_path)])
     assert code == 2 and f"{bad}: field 'settings.full.C' must be a positive number" in capsys.readouterr().err
     assert not (tmp_path / "recipes.json").exists()
+
+
+def test_fold_models_read_back_from_the_fit_cache_write_the_same_store(tiny, tmp_path, capsys, monkeypatch):
+    monkeypatch.delenv("TASKSEQ_FIT_CACHE", raising=False)
+    run = ["fold_models", *data(tiny), *FOLDS, *LEARN, "--selection", str(tiny / "selection.json"), "--n-jobs", "1",
+           "--fit-cache", str(tmp_path / "fits")]
+    assert main([*run, "--output", str(tmp_path / "first"), "--metrics", str(tmp_path / "first.json")]) == 0
+    assert "read from the fit cache" not in capsys.readouterr().out
+    assert main([*run, "--output", str(tmp_path / "again"), "--metrics", str(tmp_path / "again.json")]) == 0
+    said = capsys.readouterr().out
+    first, again = sorted((tmp_path / "first").iterdir()), sorted((tmp_path / "again").iterdir())
+    assert [p.name for p in first] == [p.name for p in again] and len(first) > 2
+    assert all(a.read_bytes() == b.read_bytes() for a, b in zip(first, again, strict=True))
+    # every fit read back, and the stores equal those of the fixture's run without the cache
+    assert f"{len(first) - 1} of them read from the fit cache" in said
+    assert all(a.read_bytes() == (tiny / "store" / a.name).read_bytes() for a in first)
+    assert (tmp_path / "first.json").read_bytes() == (tmp_path / "again.json").read_bytes()
+    assert "TASKSEQ_FIT_CACHE" not in os.environ  # the option held for the run only

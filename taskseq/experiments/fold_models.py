@@ -141,9 +141,10 @@ def train_fold_models(methods: Mapping[str, MakeScorerMethod], contexts: list[St
     that model is a job too, both are fitted in one task, the base first, so it
     is never fitted twice. Tasks run in parallel, the longest first.
     Returns one record per model: key, uses (method, training set), steps,
-    settings, iterations, objective, the seconds it took and its learning curve;
-    `index.json` in the store holds all but the seconds and the curve, so the
-    same inputs give the same bytes.
+    settings, iterations, objective, the seconds it took, its learning curve and
+    whether it was read from the fit cache (`learn.fit_cache`; then the seconds are
+    those of the fit that stored it); `index.json` in the store holds all but
+    the last three, so the same inputs give the same bytes.
     """
     keyed: dict[str, list[TrainingJob]] = {}
     for job in jobs:
@@ -158,7 +159,7 @@ def train_fold_models(methods: Mapping[str, MakeScorerMethod], contexts: list[St
     parts = run_jobs([(_fit, (tuple(make[k] for k in keys), tuple(plans), steps, shared_meta, shared_scenarios,
                               keyed[keys[0]][0].index)) for keys, plans in tasks], n_jobs, verbose, cost=cost)
     fitted = {k: m for (keys, _), part in zip(tasks, parts, strict=True) for k, m in zip(keys, part, strict=True)}
-    records, seconds, curves = [], [], []
+    records, seconds, curves, cached = [], [], [], []
     with atomic_directory(output) as tmp:
         store = ModelStore(tmp)
         # models without DAgger first, then DAgger's: the store's index keeps one order whatever the tasks were
@@ -182,6 +183,8 @@ def train_fold_models(methods: Mapping[str, MakeScorerMethod], contexts: list[St
             records.append(record)
             seconds.append(planner.fit_seconds_)
             curves.append(learning_curve(ssvm.history_))
+            cached.append(planner.from_cache_)
         write_json_atomic(tmp / "index.json", {"models": records})
-    return [{**r, "seconds": t, "curve": c} for r, t, c in zip(records, seconds, curves, strict=True)]
+    return [{**r, "seconds": t, "curve": c, "from_cache": f}
+            for r, t, c, f in zip(records, seconds, curves, cached, strict=True)]
 

@@ -25,6 +25,8 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from ..features.context import StepContext, candidate_index
+from . import fit_cache
+from .fit_cache import fit_key
 from .mrf import FEATURE_SETS, StepMRF
 from .persist import load_model, save_model
 from .ssvm import Cuts, CuttingPlaneSSVM
@@ -63,6 +65,9 @@ class StepScorer:
         Wall time of the fits that led to these weights (a DAgger refit adds its rounds').
     n_steps_ : int
         Steps of the last fit.
+    from_cache_ : bool
+        Whether the fit was read from the fit cache (`fit_cache`; then `fit_seconds_` and the learner's
+        history are those of the fit that stored it).
     """
 
     def __init__(self, features: str = "full", C: float = 3.0, tol: float = 1e-3, max_iter: int = 2000,
@@ -111,6 +116,9 @@ class StepScorer:
         steps of `X` (at any C): the fit starts from its final cuts
         (`ssvm.Cuts`), which saves iterations and stops at the same certified
         gap. A scorer without them (loaded from a file) gives a cold start.
+        With the fit cache on (`fit_cache`: `TASKSEQ_FIT_CACHE` names its
+        folder), a fit of the same learner code, settings, steps, labels and
+        start is read from it instead of done again: the same weights and cuts.
         """
         self._check_params()
         if not X:
@@ -120,6 +128,18 @@ class StepScorer:
                 raise ValueError("steps without a demonstrated label need `y`")
             y = [x.gold for x in X]
         _check_labels(X, y)
+        warm = _cuts_of(warm_start, self.features)
+        cache = fit_cache.active()
+        key = fit_key(self.get_params(), X, y, warm) if cache is not None else ""
+        stored = cache.load(key) if cache is not None else None
+        if stored is not None:
+            return self._restore(stored)
+        self._fit(X, y, warm, progress)
+        if cache is not None:
+            cache.save(key, self._record())
+        return self
+
+    def _fit(self, X: list[StepContext], y: list[Y], warm: Cuts | None, progress: bool) -> None:
         model = StepMRF(self.features)
         # a bar on a terminal only: logs of CI and DVC stay readable
         bar = tqdm(total=self.max_iter, desc=f"ssvm {self.features}", unit="it", disable=None if progress else True,
@@ -136,7 +156,7 @@ class StepScorer:
         # bytes whether this runs in the main process or in a joblib worker (whose BLAS threads differ)
         try:
             with threadpool_limits(limits=1):
-                ssvm.fit(X, y, warm_start=_cuts_of(warm_start, self.features))
+                ssvm.fit(X, y, warm_start=warm)
         finally:
             bar.close()
             ssvm.progress = None  # a fitted scorer keeps neither the closed bar nor its training steps
@@ -144,6 +164,28 @@ class StepScorer:
         self.model_, self.ssvm_, self.w_ = model, ssvm, ssvm.w_
         self.fit_seconds_ = time.perf_counter() - start
         self.n_steps_ = len(X)
+        self.from_cache_ = False
+
+    def _record(self) -> dict[str, Any]:
+        """What the fit cache keeps of this fit: all that `_restore` needs to make it again."""
+        ssvm = self.ssvm_
+        return {"w": self.w_, "history": ssvm.history_, "cuts": ssvm.cuts_,
+                "primal_objective": ssvm.primal_objective_, "dual_objective": ssvm.dual_objective_,
+                "converged": bool(ssvm.converged_), "n_qp_steps": ssvm.n_qp_steps_,
+                "seconds_oracle": ssvm.seconds_oracle_, "seconds_qp": ssvm.seconds_qp_,
+                "fit_seconds": self.fit_seconds_, "n_steps": self.n_steps_}
+
+    def _restore(self, stored: dict[str, Any]) -> StepScorer:
+        """This scorer as the fit `stored` in the cache left it (its times are that fit's)."""
+        model = StepMRF(self.features)
+        ssvm = CuttingPlaneSSVM(model, C=self.C, tol=self.tol, max_iter=self.max_iter, n_slacks=self.n_slacks)
+        ssvm.w_, ssvm.history_, ssvm.cuts_ = stored["w"], stored["history"], stored["cuts"]
+        ssvm.primal_objective_, ssvm.dual_objective_ = stored["primal_objective"], stored["dual_objective"]
+        ssvm.n_iter_, ssvm.converged_ = len(stored["history"]), stored["converged"]
+        ssvm.n_qp_steps_, ssvm.seconds_oracle_, ssvm.seconds_qp_ = (stored["n_qp_steps"], stored["seconds_oracle"],
+                                                                    stored["seconds_qp"])
+        self.model_, self.ssvm_, self.w_ = model, ssvm, ssvm.w_
+        self.fit_seconds_, self.n_steps_, self.from_cache_ = stored["fit_seconds"], stored["n_steps"], True
         return self
 
     def drop_cuts(self) -> None:

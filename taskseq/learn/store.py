@@ -17,22 +17,16 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from ..features.context import StepContext
 from .estimator import StepScorer
+from .fit_cache import hash_steps
 
 
 def training_key(features: str, params: dict[str, Any], contexts: Sequence[StepContext]) -> str:
     """sha256 of the feature set, the learner's settings and every array of every training step."""
     h = hashlib.sha256()
     h.update(json.dumps({"features": features, **params}, sort_keys=True).encode())
-    for x in contexts:
-        h.update(json.dumps([x.object_ids, x.task, list(x.prev_prims), list(x.prev_args), list(x.gold)]).encode())
-        for a in (x.objects, x.task_rel, x.collide):
-            h.update(np.ascontiguousarray(a).tobytes())
-        if x.relations is not None:
-            h.update(np.ascontiguousarray(x.relations).tobytes())
+    hash_steps(h, contexts)
     return h.hexdigest()
 
 

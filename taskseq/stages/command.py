@@ -12,6 +12,9 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import MISSING, fields
 from pathlib import Path
 from typing import Any
@@ -51,6 +54,11 @@ def add_parser(sub: Any, name: str) -> None:
         p.add_argument("--world-seed", type=int, default=None,
                        help="the world drawn (generate, drawn_world), or the world these data were drawn with: a "
                             "label of the MLflow runs, so runs of several worlds can be compared (changes no result)")
+    if stage.fits:
+        p.add_argument("--fit-cache", type=Path, default=None, metavar="DIR",
+                       help="keep every fit in DIR and read back each fit already there with the same learner "
+                            "code, settings, steps and start (default: $TASKSEQ_FIT_CACHE, else no cache); "
+                            "changes no result")
     if stage.parallel:
         p.add_argument("--n-jobs", type=positive, default=None,
                        help="work run in parallel (joblib; default: $TASKSEQ_N_JOBS, else one per CPU); "
@@ -81,9 +89,30 @@ def prepare(args: argparse.Namespace) -> tuple[Any, Any, Any, dict[str, Any]]:
 
 def execute(args: argparse.Namespace, module: Any, settings: Any, options: Any, tracker: Any) -> int:
     """Run the stage; its exit code (0: every output written)."""
-    if STAGES[args.command].parallel:
-        module.run(settings, options, tracker, args.n_jobs or default_jobs())
-    else:
-        module.run(settings, options, tracker)
+    with _fit_cache(getattr(args, "fit_cache", None)):
+        if STAGES[args.command].parallel:
+            module.run(settings, options, tracker, args.n_jobs or default_jobs())
+        else:
+            module.run(settings, options, tracker)
     return 0
+
+
+@contextmanager
+def _fit_cache(folder: Path | None) -> Iterator[None]:
+    """`--fit-cache` in force during the run, for this process and the workers it starts (through the
+    environment, as `taskseq.learn.fit_cache` reads it); as it was afterwards."""
+    if folder is None:
+        yield
+        return
+    from ..learn.fit_cache import FIT_CACHE_ENV
+
+    before = os.environ.get(FIT_CACHE_ENV)
+    os.environ[FIT_CACHE_ENV] = str(folder)
+    try:
+        yield
+    finally:
+        if before is None:
+            os.environ.pop(FIT_CACHE_ENV, None)
+        else:
+            os.environ[FIT_CACHE_ENV] = before
 

@@ -56,7 +56,8 @@ def run(settings: Settings, options: FoldModelsOptions, tracker: Tracker = NO_RU
         write_json_atomic(options.metrics, {**out, "per_model": [
             {k: r[k] for k in ("features", "uses", "steps", "fitted_steps", "iterations", "converged",
                                "primal_objective", "dual_objective")} for r in records]})
-    times = {"wall_seconds": wall, "fit_seconds": sum(r["seconds"] for r in records)}
+    times = {"wall_seconds": wall, "fit_seconds": sum(r["seconds"] for r in records),
+             "from_cache": sum(r["from_cache"] for r in records)}
     tracker.metrics({k: float(v) for k, v in {**out, **times}.items()})
     for r in records:  # one child per model: its settings, and its objectives and gap per iteration
         uses = r["uses"]
@@ -68,6 +69,7 @@ def run(settings: Settings, options: FoldModelsOptions, tracker: Tracker = NO_RU
             child.metrics({"iterations": r["iterations"], "seconds": r["seconds"],
                            "primal_objective": r["primal_objective"], "dual_objective": r["dual_objective"]})
             child.curve(r["curve"])
+    reused = f", {times['from_cache']} of them read from the fit cache" if times["from_cache"] else ""
     print(f"trained {len(records)} models in {wall:.1f} s ({times['fit_seconds']:.1f} s of fitting, "
-          f"{out['iterations']} iterations); written to {output}")
+          f"{out['iterations']} iterations{reused}); written to {output}")
     return out

@@ -1,0 +1,164 @@
+"""Fits kept across runs, addressed by everything that decides them, so that a fit is done once per content.
+
+A fit of `StepScorer` is a pure function of the learner's code, its
+settings, the training steps with their labels and the cuts it starts from
+(`ssvm.Cuts`): the weights are the same bytes in any process
+(`estimator.StepScorer.fit`). The cache keys each fit by a hash of exactly
+those, the code taken as the files `taskseq.learn.estimator` imports
+(`runtime.sources`), so a change to the learner, the features or the
+simulator's vocabulary misses every entry, while a change anywhere else
+(a method's module, the planner, a report) keeps them: a stage re-run after
+such a change loads the fits it had and fits only what is new. A method
+whose training steps come from the planner (DAgger's rollouts) misses exactly
+when those steps changed, since they are hashed.
+
+The cache is used only where it is asked for: the environment variable
+`TASKSEQ_FIT_CACHE` names its folder (the pipeline's stages set it from
+their `--fit-cache` option, and their worker processes inherit it); unset,
+nothing is read or written. An entry is a NumPy .npz of arrays and JSON
+(no pickles), written atomically; one that cannot be read is fitted again and
+replaced, with a warning. Entries are never pruned: deleting the folder is safe
+at any time between runs.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import sys
+import tempfile
+import warnings
+import zipfile
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import asdict
+from importlib.metadata import version
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..features.context import StepContext
+from ..runtime.sources import code_fingerprint
+from .ssvm import Cuts, Iteration
+
+FIT_CACHE_ENV = "TASKSEQ_FIT_CACHE"
+FORMAT = "taskseq.fit/1"
+# what the learner's bytes depend on beyond its own code
+_LIBRARIES = ("numpy", "scipy", "numba")
+
+
+def hash_steps(h: Any, contexts: Sequence[StepContext]) -> None:
+    """Feed every field of every step to the hash `h` (hashlib's `update` protocol)."""
+    for x in contexts:
+        gold = None if x.gold is None else list(x.gold)
+        h.update(json.dumps([x.object_ids, x.task, list(x.prev_prims), list(x.prev_args), gold]).encode())
+        for a in (x.objects, x.task_rel, x.collide):
+            h.update(np.ascontiguousarray(a).tobytes())
+        if x.relations is not None:
+            h.update(np.ascontiguousarray(x.relations).tobytes())
+
+
+def _hash_cuts(h: Any, cuts: Cuts | None) -> None:
+    if cuts is None:
+        h.update(b"cold")
+        return
+    d = sp.csr_matrix(cuts.deltas)
+    h.update(json.dumps([list(d.shape), cuts.C, cuts.n_examples, cuts.fingerprint]).encode())
+    for a in (d.indptr.astype(np.int64), d.indices.astype(np.int64), d.data, cuts.losses, cuts.examples,
+              cuts.alpha):
+        h.update(np.ascontiguousarray(a).tobytes())
+
+
+def fit_key(params: dict[str, Any], X: Sequence[StepContext], y: Sequence[tuple[int, int, int]],
+            warm_start: Cuts | None) -> str:
+    """sha256 of the learner's code and libraries, its settings, the steps, their labels and the starting cuts."""
+    h = hashlib.sha256()
+    h.update(json.dumps({"format": FORMAT, "code": code_fingerprint("taskseq.learn.estimator"),
+                         "python": sys.version.split()[0], **{lib: version(lib) for lib in _LIBRARIES},
+                         **params}, sort_keys=True).encode())
+    hash_steps(h, X)
+    h.update(np.asarray(y, dtype=np.int64).tobytes())
+    _hash_cuts(h, warm_start)
+    return h.hexdigest()
+
+
+@contextmanager
+def disabled() -> Iterator[None]:
+    """No fit cache within the block, whatever `TASKSEQ_FIT_CACHE` says (nor in processes started there): a
+    benchmark that times fits must do them."""
+    before = os.environ.pop(FIT_CACHE_ENV, None)
+    try:
+        yield
+    finally:
+        if before is not None:
+            os.environ[FIT_CACHE_ENV] = before
+
+
+def active() -> FitCache | None:
+    """The cache `TASKSEQ_FIT_CACHE` names, or None when it is unset or empty."""
+    folder = os.environ.get(FIT_CACHE_ENV, "")
+    return FitCache(folder) if folder else None
+
+
+class FitCache:
+    """A folder of fits, `<key>.npz` each: the weights, the learner's record of the fit and its final cuts."""
+
+    def __init__(self, directory: Path | str) -> None:
+        self.directory = Path(directory)
+
+    def path(self, key: str) -> Path:
+        return self.directory / key[:2] / f"{key}.npz"
+
+    def load(self, key: str) -> dict[str, Any] | None:
+        """The fit stored under `key` (`save`'s fields), or None if there is none or it cannot be read."""
+        path = self.path(key)
+        if not path.exists():
+            return None
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                meta = json.loads(str(z["meta"]))
+                if meta.get("format") != FORMAT:
+                    raise ValueError(f"format {meta.get('format')!r}, expected {FORMAT!r}")
+                arrays = {name: z[name] for name in z.files if name != "meta"}
+        except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError) as err:
+            warnings.warn(f"{path}: an unreadable fit in the cache is fitted again ({err})", stacklevel=2)
+            return None
+        cuts = None
+        if meta["cuts"] is not None:
+            c = meta["cuts"]
+            deltas = sp.csr_matrix((arrays["cut_data"], arrays["cut_indices"], arrays["cut_indptr"]),
+                                   shape=tuple(c["shape"]))
+            cuts = Cuts(deltas, arrays["cut_losses"], arrays["cut_examples"], arrays["cut_alpha"], c["C"],
+                        c["n_examples"], c["fingerprint"])
+        return {"w": arrays["w"], "history": [Iteration(**it) for it in meta["history"]], "cuts": cuts,
+                **{k: meta[k] for k in ("primal_objective", "dual_objective", "converged", "n_qp_steps",
+                                        "seconds_oracle", "seconds_qp", "fit_seconds", "n_steps")}}
+
+    def save(self, key: str, fit: dict[str, Any]) -> None:
+        """Store `fit` (the fields `load` returns) under `key`, atomically: a reader sees the whole entry or none."""
+        cuts: Cuts | None = fit["cuts"]
+        arrays = {"w": np.asarray(fit["w"], dtype=np.float64)}
+        meta: dict[str, Any] = {"format": FORMAT, "history": [asdict(it) for it in fit["history"]], "cuts": None,
+                                **{k: fit[k] for k in ("primal_objective", "dual_objective", "converged",
+                                                       "n_qp_steps", "seconds_oracle", "seconds_qp",
+                                                       "fit_seconds", "n_steps")}}
+        if cuts is not None:
+            d = sp.csr_matrix(cuts.deltas)
+            arrays.update(cut_data=d.data, cut_indices=d.indices, cut_indptr=d.indptr, cut_losses=cuts.losses,
+                          cut_examples=cuts.examples, cut_alpha=cuts.alpha)
+            meta["cuts"] = {"shape": list(d.shape), "C": cuts.C, "n_examples": cuts.n_examples,
+                            "fingerprint": cuts.fingerprint}
+        arrays["meta"] = np.array(json.dumps(meta))
+        path = self.path(key)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, name = tempfile.mkstemp(prefix=f".{key[:8]}.", suffix=".npz", dir=path.parent)
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                np.savez_compressed(fh, **arrays)
+            os.replace(name, path)
+        except BaseException:
+            Path(name).unlink(missing_ok=True)
+            raise

@@ -1,0 +1,117 @@
+"""The fit cache: a fit read back is the fit done, and anything that decides a fit misses it."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from taskseq.features.context import candidate_index
+from taskseq.learn import fit_cache
+from taskseq.learn.estimator import StepScorer
+from taskseq.runtime import sources
+
+
+@pytest.fixture
+def cache_dir(tmp_path, monkeypatch):
+    folder = tmp_path / "fits"
+    monkeypatch.setenv(fit_cache.FIT_CACHE_ENV, str(folder))
+    return folder
+
+
+@pytest.fixture(scope="module")
+def steps(benchmark_steps):
+    contexts, _ = benchmark_steps
+    return contexts[:120]
+
+
+def _entries(folder):
+    return sorted(folder.rglob("*.npz"))
+
+
+def _same_fit(a: StepScorer, b: StepScorer, same_times: bool = True) -> None:
+    assert a.w_.tobytes() == b.w_.tobytes()
+    if same_times:  # read back: the record of the fit that stored it, its times included
+        assert a.ssvm_.history_ == b.ssvm_.history_ and a.fit_seconds_ == b.fit_seconds_
+    else:
+        assert [replace(it, seconds=0) for it in a.ssvm_.history_] == [replace(it, seconds=0)
+                                                                       for it in b.ssvm_.history_]
+    assert a.ssvm_.primal_objective_ == b.ssvm_.primal_objective_
+    assert a.ssvm_.dual_objective_ == b.ssvm_.dual_objective_
+    assert a.ssvm_.n_iter_ == b.ssvm_.n_iter_ and a.n_steps_ == b.n_steps_
+    ca, cb = a.ssvm_.cuts_, b.ssvm_.cuts_
+    assert (ca.deltas != cb.deltas).nnz == 0 and ca.deltas.shape == cb.deltas.shape
+    for x, y in ((ca.losses, cb.losses), (ca.examples, cb.examples), (ca.alpha, cb.alpha)):
+        assert x.tobytes() == y.tobytes() and x.dtype == y.dtype
+    assert (ca.C, ca.n_examples, ca.fingerprint) == (cb.C, cb.n_examples, cb.fingerprint)
+
+
+def test_a_fit_read_back_is_the_fit_done_and_starts_its_neighbours_alike(steps, cache_dir, monkeypatch):
+    done = StepScorer("full", C=1.0).fit(steps)
+    assert not done.from_cache_ and len(_entries(cache_dir)) == 1
+    read = StepScorer("full", C=1.0).fit(steps)
+    assert read.from_cache_
+    _same_fit(done, read)
+    assert read.predict(steps) == done.predict(steps)
+    # a neighbour warm-started from the fit read back is the one started from the fit done, bit for bit
+    monkeypatch.delenv(fit_cache.FIT_CACHE_ENV)
+    from_done = StepScorer("full", C=3.0).fit(steps, warm_start=done)
+    from_read = StepScorer("full", C=3.0).fit(steps, warm_start=read)
+    assert not from_read.from_cache_
+    _same_fit(from_done, from_read, same_times=False)
+
+
+def test_whatever_decides_a_fit_misses_the_cache(steps, cache_dir):
+    StepScorer("full", C=1.0).fit(steps)
+    base = StepScorer("full", C=1.0).fit(steps[:60])  # other steps
+    assert not base.from_cache_
+    assert not StepScorer("full", C=3.0).fit(steps).from_cache_  # another setting
+    assert not StepScorer("relations", C=1.0).fit(steps).from_cache_  # other features
+    labels = [x.gold for x in steps]
+    p, a1, a2 = candidate_index(steps[0].n)
+    labels[0] = next(y for y in zip(p.tolist(), a1.tolist(), a2.tolist(), strict=True) if y != tuple(steps[0].gold))
+    assert not StepScorer("full", C=1.0).fit(steps, y=labels).from_cache_  # other labels
+    assert not StepScorer("full", C=1.0).fit(steps, warm_start=base).from_cache_  # another start
+    assert StepScorer("full", C=1.0).fit(steps, warm_start=base).from_cache_
+    assert StepScorer("full", C=1.0).fit(steps).from_cache_
+
+
+def test_a_change_to_the_learner_code_misses_and_one_elsewhere_does_not(steps, cache_dir, monkeypatch):
+    StepScorer("full", C=1.0).fit(steps)
+    learner_files = sources.import_closure("taskseq.learn.estimator")
+    names = {p.relative_to(sources.ROOT).as_posix() for p in learner_files}
+    assert {"taskseq/learn/ssvm.py", "taskseq/learn/working_set.py", "taskseq/learn/mrf.py",
+            "taskseq/features/context.py"} <= names
+    assert not any(n.startswith(("taskseq/plan/", "taskseq/methods/", "taskseq/report/")) for n in names)
+    real = sources.code_fingerprint
+    monkeypatch.setattr(fit_cache, "code_fingerprint", lambda module: real(module) + "changed")
+    assert not StepScorer("full", C=1.0).fit(steps).from_cache_
+
+
+def test_an_unreadable_entry_is_fitted_again_and_replaced(steps, cache_dir):
+    done = StepScorer("full", C=1.0).fit(steps)
+    (entry,) = _entries(cache_dir)
+    entry.write_bytes(b"not a zip file")
+    with pytest.warns(UserWarning, match="unreadable fit"):
+        again = StepScorer("full", C=1.0).fit(steps)
+    assert not again.from_cache_ and again.w_.tobytes() == done.w_.tobytes()
+    assert StepScorer("full", C=1.0).fit(steps).from_cache_
+
+
+def test_without_the_variable_nothing_is_written(steps, tmp_path, monkeypatch):
+    monkeypatch.delenv(fit_cache.FIT_CACHE_ENV, raising=False)
+    monkeypatch.chdir(tmp_path)
+    assert fit_cache.active() is None
+    StepScorer("full", C=1.0).fit(steps)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_the_closure_follows_relative_imports_and_packages(tmp_path):
+    closure = {p.relative_to(sources.ROOT).as_posix() for p in sources.import_closure("taskseq.learn.store")}
+    # store imports estimator (relative), which imports the features (two dots up) and their package
+    assert {"taskseq/__init__.py", "taskseq/learn/__init__.py", "taskseq/learn/estimator.py",
+            "taskseq/learn/fit_cache.py", "taskseq/features/__init__.py", "taskseq/runtime/sources.py"} <= closure
+    with pytest.raises(ValueError, match="no such module"):
+        sources.import_closure("taskseq.no_such_module")
+    assert np.all([p.is_file() for p in sources.import_closure("taskseq.learn.store")])
