@@ -11,6 +11,7 @@
   `reports/mutation/`, the development world's ranking in `reports/selection.json`, the `teach`
   stage's tables of `reports/teach/`, the VEIL pipeline's timing of `reports/veil_timing.json`,
   Table I's means and per-seed figures (`reports/crossval_means.json`, `crossval_seeds.csv`), the
+  noise and feedback tables (`reports/noise.csv`, `feedback.csv`), the
   development world's checks of the scripts (`multiclass_tol.json`, `revisits.json`, `goal_stop.json`,
   `drawn_rooms_choice.json`, `teach_weight.json`), and the package's layout from its modules'
   docstrings.
@@ -611,8 +612,68 @@ def comparisons_excerpt() -> str:
     return _table_rows("comparisons.md", lambda row: row.startswith(rows) and "(the shipped planner)" not in row)
 
 
+def _csv_rows(name: str) -> list[dict[str, str]] | None:
+    path = REPORTS / name
+    if not path.is_file():
+        return None
+    with path.open(newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def _mean_sd(row: dict[str, str]) -> str:
+    return f"{float(row['sequence_arg']):.1f} ± {float(row['sequence_arg_sd']):.1f}"
+
+
+def _labels() -> dict[str, str]:
+    from taskseq.methods import method_labels
+
+    return method_labels()
+
+
+def noise_table() -> str:
+    """Sequence arg under attribute noise, a row per method and a column per flip rate (`reports/noise.csv`,
+    stage `aggregate`), with the paper's figures."""
+    from taskseq.report.paper import NOISE
+
+    rows = _csv_rows("noise.csv")
+    if rows is None:
+        return _missing("noise.csv", "dvc repro")
+    rates = list(dict.fromkeys(r["rate"] for r in rows))
+    labels = _labels()
+    by_method: dict[str, dict[str, str]] = {}
+    for r in rows:
+        by_method.setdefault(r["method"], {})[r["rate"]] = _mean_sd(r)
+    body = [[labels.get(m, m), *(cells.get(rate, "") for rate in rates)] for m, cells in by_method.items()]
+    body.append(["paper", *(f"{NOISE[float(rate)]:.1f}" if float(rate) in NOISE else "" for rate in rates)])
+    return _rows(["r", *(f"{float(rate):g}" for rate in rates)], "l" + "r" * len(rates), body)
+
+
+def feedback_table() -> str:
+    """Sequence arg with an observer's feedback, a row per method and top k, a column per number of steps with
+    feedback (`reports/feedback.csv`, stage `aggregate`), with the paper's figures."""
+    from taskseq.report.paper import FEEDBACK
+
+    rows = _csv_rows("feedback.csv")
+    if rows is None:
+        return _missing("feedback.csv", "dvc repro")
+    steps = list(dict.fromkeys(r["n"] for r in rows))
+    labels = _labels()
+    by_row: dict[tuple[str, str], dict[str, str]] = {}
+    for r in rows:
+        by_row.setdefault((r["method"], r["k"]), {})[r["n"]] = _mean_sd(r)
+    body = [[f"{labels.get(m, m)}, top {k}", *(cells.get(n, "") for n in steps)] for (m, k), cells in by_row.items()]
+    ks = sorted({int(k) for _, k in by_row})
+    body.append([f"paper, top {' / top '.join(map(str, ks))}",
+                 *(" / ".join(f"{FEEDBACK[(k, n)]:.1f}" for k in ks) if all((k, n) in FEEDBACK for k in ks)
+                   else "" for n in steps)])
+    return _rows(["sequence arg", *(f"n = {n}" if i == 0 else n for i, n in enumerate(steps))],
+                 "l" + "r" * len(steps), body)
+
+
 GENERATED = {
     "goal-stop": goal_stop,
+    "noise-table": noise_table,
+    "feedback-table": feedback_table,
     "teach-results": teach_results,
     "teach-weight": teach_weight,
     "bench-training": bench_training,
