@@ -86,7 +86,13 @@ def test_a_change_to_the_learner_code_misses_and_one_elsewhere_does_not(steps, c
     assert not any(n.startswith(("taskseq/plan/", "taskseq/methods/", "taskseq/report/")) for n in names)
     real = sources.code_fingerprint
     monkeypatch.setattr(fit_cache, "code_fingerprint", lambda module: real(module) + "changed")
-    assert not StepScorer("full", C=1.0).fit(steps).from_cache_
+    fit_cache._environment.cache_clear()  # read once per process: as a new process after the change would
+    try:
+        assert not StepScorer("full", C=1.0).fit(steps).from_cache_
+    finally:
+        monkeypatch.setattr(fit_cache, "code_fingerprint", real)
+        fit_cache._environment.cache_clear()
+    assert StepScorer("full", C=1.0).fit(steps).from_cache_
 
 
 def test_an_unreadable_entry_is_fitted_again_and_replaced(steps, cache_dir):
@@ -105,6 +111,16 @@ def test_without_the_variable_nothing_is_written(steps, tmp_path, monkeypatch):
     assert fit_cache.active() is None
     StepScorer("full", C=1.0).fit(steps)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_steps_digest_is_kept_for_that_step_only(steps):
+    from dataclasses import replace as changed
+
+    x = steps[0]
+    assert fit_cache.step_digest(x) == fit_cache.step_digest(x)
+    other = changed(x, objects=x.objects + 1.0)  # another object: its own digest, though its id may be x's old one
+    assert fit_cache.step_digest(other) != fit_cache.step_digest(x)
+    assert fit_cache.step_digest(changed(x)) == fit_cache.step_digest(x)  # equal content, equal digest
 
 
 def test_the_closure_follows_relative_imports_and_packages(tmp_path):

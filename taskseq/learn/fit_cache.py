@@ -29,10 +29,12 @@ import os
 import sys
 import tempfile
 import warnings
+import weakref
 import zipfile
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import asdict
+from functools import cache
 from importlib.metadata import version
 from pathlib import Path
 from typing import Any
@@ -50,15 +52,39 @@ FORMAT = "taskseq.fit/1"
 _LIBRARIES = ("numpy", "scipy", "numba")
 
 
+def step_digest(x: StepContext) -> bytes:
+    """sha256 of every field of one step, computed once per step object (steps are never changed once built).
+
+    A model's key hashes hundreds of steps, and the same steps are hashed again
+    for every method, C and stage that meets them: the digest is kept by the
+    step's identity, checked through a weak reference, so a digest never
+    outlives its step or serves another one.
+    """
+    kept = _DIGESTS.get(id(x))
+    if kept is not None and kept[0]() is x:
+        return kept[1]
+    h = hashlib.sha256()
+    gold = None if x.gold is None else list(x.gold)
+    h.update(json.dumps([x.object_ids, x.task, list(x.prev_prims), list(x.prev_args), gold]).encode())
+    for a in (x.objects, x.task_rel, x.collide):
+        h.update(np.ascontiguousarray(a).tobytes())
+    if x.relations is not None:
+        h.update(np.ascontiguousarray(x.relations).tobytes())
+    digest = h.digest()
+    if len(_DIGESTS) >= _DIGESTS_KEPT:
+        _DIGESTS.clear()
+    _DIGESTS[id(x)] = (weakref.ref(x), digest)
+    return digest
+
+
+_DIGESTS: dict[int, tuple[weakref.ref, bytes]] = {}
+_DIGESTS_KEPT = 200_000  # steps whose digest is kept (about 20 MB); past it all are dropped at once
+
+
 def hash_steps(h: Any, contexts: Sequence[StepContext]) -> None:
-    """Feed every field of every step to the hash `h` (hashlib's `update` protocol)."""
+    """Feed every step (`step_digest`, in order) to the hash `h` (hashlib's `update` protocol)."""
     for x in contexts:
-        gold = None if x.gold is None else list(x.gold)
-        h.update(json.dumps([x.object_ids, x.task, list(x.prev_prims), list(x.prev_args), gold]).encode())
-        for a in (x.objects, x.task_rel, x.collide):
-            h.update(np.ascontiguousarray(a).tobytes())
-        if x.relations is not None:
-            h.update(np.ascontiguousarray(x.relations).tobytes())
+        h.update(step_digest(x))
 
 
 def _hash_cuts(h: Any, cuts: Cuts | None) -> None:
@@ -72,13 +98,18 @@ def _hash_cuts(h: Any, cuts: Cuts | None) -> None:
         h.update(np.ascontiguousarray(a).tobytes())
 
 
+@cache
+def _environment() -> dict[str, str]:
+    """What a fit's bytes depend on besides its inputs: the learner's code and the libraries under it."""
+    return {"format": FORMAT, "code": code_fingerprint("taskseq.learn.estimator"), "python": sys.version.split()[0],
+            **{lib: version(lib) for lib in _LIBRARIES}}
+
+
 def fit_key(params: dict[str, Any], X: Sequence[StepContext], y: Sequence[tuple[int, int, int]],
             warm_start: Cuts | None) -> str:
     """sha256 of the learner's code and libraries, its settings, the steps, their labels and the starting cuts."""
     h = hashlib.sha256()
-    h.update(json.dumps({"format": FORMAT, "code": code_fingerprint("taskseq.learn.estimator"),
-                         "python": sys.version.split()[0], **{lib: version(lib) for lib in _LIBRARIES},
-                         **params}, sort_keys=True).encode())
+    h.update(json.dumps({**_environment(), **params}, sort_keys=True).encode())
     hash_steps(h, X)
     h.update(np.asarray(y, dtype=np.int64).tobytes())
     _hash_cuts(h, warm_start)
