@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from dataclasses import replace
 
 import numpy as np
@@ -103,6 +104,10 @@ def test_an_unreadable_entry_is_fitted_again_and_replaced(steps, cache_dir):
         again = StepScorer("full", C=1.0).fit(steps)
     assert not again.from_cache_ and again.w_.tobytes() == done.w_.tobytes()
     assert StepScorer("full", C=1.0).fit(steps).from_cache_
+    # a whole archive with a record that misses a field is no fit either
+    np.savez(entry, w=done.w_, meta=np.array(json.dumps({"format": fit_cache.FORMAT, "history": []})))
+    with pytest.warns(UserWarning, match="unreadable fit"):
+        assert not StepScorer("full", C=1.0).fit(steps).from_cache_
 
 
 def test_without_the_variable_nothing_is_written(steps, tmp_path, monkeypatch):

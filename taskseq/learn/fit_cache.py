@@ -134,6 +134,11 @@ def active() -> FitCache | None:
     return FitCache(folder) if folder else None
 
 
+# what a fit's record holds besides its weights, history and cuts (`StepScorer._record`)
+_SCALARS = ("primal_objective", "dual_objective", "converged", "n_qp_steps", "seconds_oracle", "seconds_qp",
+            "fit_seconds", "n_steps")
+
+
 class FitCache:
     """A folder of fits, `<key>.npz` each: the weights, the learner's record of the fit and its final cuts."""
 
@@ -154,28 +159,25 @@ class FitCache:
                 if meta.get("format") != FORMAT:
                     raise ValueError(f"format {meta.get('format')!r}, expected {FORMAT!r}")
                 arrays = {name: z[name] for name in z.files if name != "meta"}
-        except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError) as err:
-            warnings.warn(f"{path}: an unreadable fit in the cache is fitted again ({err})", stacklevel=2)
+            cuts = None
+            if meta["cuts"] is not None:
+                c = meta["cuts"]
+                deltas = sp.csr_matrix((arrays["cut_data"], arrays["cut_indices"], arrays["cut_indptr"]),
+                                       shape=tuple(c["shape"]))
+                cuts = Cuts(deltas, arrays["cut_losses"], arrays["cut_examples"], arrays["cut_alpha"], c["C"],
+                            c["n_examples"], c["fingerprint"])
+            return {"w": arrays["w"], "history": [Iteration(**it) for it in meta["history"]], "cuts": cuts,
+                    **{k: meta[k] for k in _SCALARS}}
+        except (OSError, ValueError, KeyError, TypeError, zipfile.BadZipFile, EOFError) as err:
+            warnings.warn(f"{path}: an unreadable fit in the cache is fitted again ({err!r})", stacklevel=2)
             return None
-        cuts = None
-        if meta["cuts"] is not None:
-            c = meta["cuts"]
-            deltas = sp.csr_matrix((arrays["cut_data"], arrays["cut_indices"], arrays["cut_indptr"]),
-                                   shape=tuple(c["shape"]))
-            cuts = Cuts(deltas, arrays["cut_losses"], arrays["cut_examples"], arrays["cut_alpha"], c["C"],
-                        c["n_examples"], c["fingerprint"])
-        return {"w": arrays["w"], "history": [Iteration(**it) for it in meta["history"]], "cuts": cuts,
-                **{k: meta[k] for k in ("primal_objective", "dual_objective", "converged", "n_qp_steps",
-                                        "seconds_oracle", "seconds_qp", "fit_seconds", "n_steps")}}
 
     def save(self, key: str, fit: dict[str, Any]) -> None:
         """Store `fit` (the fields `load` returns) under `key`, atomically: a reader sees the whole entry or none."""
         cuts: Cuts | None = fit["cuts"]
         arrays = {"w": np.asarray(fit["w"], dtype=np.float64)}
         meta: dict[str, Any] = {"format": FORMAT, "history": [asdict(it) for it in fit["history"]], "cuts": None,
-                                **{k: fit[k] for k in ("primal_objective", "dual_objective", "converged",
-                                                       "n_qp_steps", "seconds_oracle", "seconds_qp",
-                                                       "fit_seconds", "n_steps")}}
+                                **{k: fit[k] for k in _SCALARS}}
         if cuts is not None:
             d = sp.csr_matrix(cuts.deltas)
             arrays.update(cut_data=d.data, cut_indices=d.indices, cut_indptr=d.indptr, cut_losses=cuts.losses,
