@@ -126,6 +126,18 @@ def test_a_steps_digest_is_kept_for_that_step_only(steps):
     other = changed(x, objects=x.objects + 1.0)  # another object: its own digest, though its id may be x's old one
     assert fit_cache.step_digest(other) != fit_cache.step_digest(x)
     assert fit_cache.step_digest(changed(x)) == fit_cache.step_digest(x)  # equal content, equal digest
+    with_relations = [changed(x, relations=np.full((x.n, 3), v)) for v in (0.0, 1.0)]
+    assert fit_cache.step_digest(with_relations[0]) != fit_cache.step_digest(with_relations[1])
+    # a step made where a hashed one was freed may take its id: it gets its own digest, not the freed one's
+    gone = changed(x, objects=x.objects + 2.0)
+    freed_digest, freed_id = fit_cache.step_digest(gone), id(gone)
+    del gone
+    later = [changed(x, objects=x.objects + 3.0 + k) for k in range(50)]
+    reused = [y for y in later if id(y) == freed_id]
+    assert reused, "CPython gave the freed step's id to none of 50 new ones: the case is not exercised"
+    got = fit_cache.step_digest(reused[0])
+    fit_cache._DIGESTS.clear()
+    assert got == fit_cache.step_digest(reused[0]) != freed_digest
 
 
 def test_the_closure_follows_relative_imports_and_packages(tmp_path):
