@@ -92,6 +92,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt as err:
         from .runtime.atomic import WRITTEN
 
+        stopping.acknowledge()
+
         how = "SIGTERM" if isinstance(err, stopping.Stopped) else "Ctrl-C"
         run = "; its MLflow run is marked KILLED" if args.command in STAGES and not args.no_mlflow else ""
         written = "nothing was written" if not WRITTEN else (

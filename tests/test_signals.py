@@ -67,6 +67,7 @@ def handlers():
     before = signal.getsignal(signal.SIGTERM), signal.getsignal(signal.SIGINT)
     stopping.install()
     yield stopping
+    stopping.acknowledge()  # a signal a test raised and caught is not left for a later test's writes
     signal.signal(signal.SIGTERM, before[0])
     signal.signal(signal.SIGINT, before[1])
 
@@ -82,6 +83,60 @@ def test_a_signal_inside_a_held_block_is_raised_when_the_block_is_done(handlers,
         done.append("after the block")
     assert done == ["rest of the block"]
     assert type(stop.value).__name__ == kind
+
+
+@pytest.mark.parametrize("write", ["folder", "file"])
+def test_a_stop_dropped_where_it_landed_replaces_no_output(handlers, tmp_path, write):
+    """Python drops an exception raised in a ctypes callback (Numba's compiler writing its cache calls one) or a
+    destructor: the command runs on, but no atomic write replaces anything afterwards, and the stop is raised
+    there."""
+    from taskseq.runtime.atomic import atomic_directory, write_text_atomic
+
+    class LandsInADestructor:
+        def __del__(self):
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.1)  # the handler runs here, inside the destructor, whose exception Python drops
+
+    target = tmp_path / "out"
+    target.mkdir() if write == "folder" else target.write_text("before")
+    LandsInADestructor()  # made and dropped at once: the stop lands in its destructor
+    with pytest.raises(KeyboardInterrupt):
+        if write == "folder":
+            with atomic_directory(target) as tmp:
+                (tmp / "made").write_text("after")
+        else:
+            write_text_atomic(target, "after")
+    assert (not list(target.iterdir())) if write == "folder" else target.read_text() == "before"
+    assert [p.name for p in tmp_path.iterdir()] == ["out"]  # no temporary left behind
+    handlers.acknowledge()  # the command said it stopped: writes go on
+    write_text_atomic(tmp_path / "later", "written")
+    assert (tmp_path / "later").read_text() == "written"
+
+
+def test_a_dropped_stop_prints_no_traceback_and_ends_the_command_at_its_write(tmp_path):
+    """In a process of its own (pytest keeps its own hook for dropped exceptions): the stop lands in a destructor,
+    Python drops it without a word, and the next atomic write raises it instead of writing."""
+    script = (
+        "import os, signal, sys, time\n"
+        "from taskseq.runtime import stopping\n"
+        "from taskseq.runtime.atomic import write_text_atomic\n"
+        "stopping.install()\n"
+        "class LandsInADestructor:\n"
+        "    def __del__(self):\n"
+        "        os.kill(os.getpid(), signal.SIGINT)\n"
+        "        time.sleep(0.1)\n"
+        "LandsInADestructor()\n"
+        "print('ran on')\n"
+        "try:\n"
+        "    write_text_atomic(sys.argv[1], 'written')\n"
+        "except KeyboardInterrupt:\n"
+        "    sys.exit(130)\n")
+    out = tmp_path / "out.txt"
+    done = subprocess.run([sys.executable, "-c", script, str(out)], capture_output=True, text=True,
+                          preexec_fn=_default_sigint, timeout=120)
+    assert (done.returncode, done.stdout) == (130, "ran on\n"), done.stderr
+    assert "Traceback" not in done.stderr and "Exception ignored" not in done.stderr, done.stderr
+    assert not out.exists()
 
 
 def test_a_signal_while_the_run_is_being_opened_still_leaves_it_killed(handlers, tmp_path, monkeypatch):

@@ -18,6 +18,8 @@ from typing import Any
 
 import numpy as np
 
+from . import stopping
+
 WRITTEN: list[Path] = []
 
 
@@ -29,6 +31,7 @@ def atomic_directory(target: Path | str) -> Iterator[Path]:
     tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
     try:
         yield tmp
+        stopping.check()  # a stop whose exception was dropped where it landed replaces nothing
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
@@ -53,6 +56,7 @@ def atomic_file(path: Path | str) -> Iterator[Path]:
     tmp = Path(name)
     try:
         yield tmp
+        stopping.check()
         os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)

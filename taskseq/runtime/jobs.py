@@ -29,6 +29,8 @@ from typing import Any
 import numpy as np
 from joblib import Parallel, delayed, parallel_config
 
+from . import stopping
+
 SCHEDULER_ENV = "TASKSEQ_DASK_SCHEDULER"
 
 Job = tuple[Callable[..., Any], tuple[Any, ...]]
@@ -78,6 +80,7 @@ def _received(key: str, blob: np.ndarray) -> Shared:
 
 
 def _call(f: Callable[..., Any], args: tuple[Any, ...]) -> Any:
+    stopping.check()  # run in this process: a stop dropped during the last job ends the grid here
     return f(*(a.value if isinstance(a, Shared) else a for a in args))
 
 

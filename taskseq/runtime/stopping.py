@@ -7,17 +7,28 @@ database writes half way and leave the run FAILED or RUNNING instead of
 KILLED; inside `held()` the signal is noted and raised once the block is done.
 Python runs signal handlers in the main thread only, so the flag is all the
 state needed, whichever thread the operating system delivered the signal to.
+
+Python drops an exception raised inside a ctypes callback (Numba's compiler
+calls one as it writes its cache) or a destructor, printing "Exception
+ignored": a stop that lands there would be lost, and the command would run
+on and write its outputs. So the signals raised are also noted until the
+command says it stopped (`acknowledge`), and `check`, which every atomic
+write calls before it replaces anything and every job of `runtime.jobs`
+before it starts, raises a noted one again; Python's report of the dropped
+exception (a traceback on stderr) is left out, since the stop is not lost.
 """
 
 from __future__ import annotations
 
 import signal
+import sys
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 
 _held = 0  # depth of nested `held()` blocks
 _pending: list[int] = []  # signals that arrived while held, first first
+_raised: list[int] = []  # signals raised by the handler that the command has not said it stopped for
 
 
 class Stopped(KeyboardInterrupt):
@@ -34,7 +45,27 @@ def _handler(signum: int, frame: object) -> None:
     if _held:
         _pending.append(signum)
         return
+    _raised.append(signum)
     _raise(signum)
+
+
+def check() -> None:
+    """Raise again a stopping signal whose exception was dropped where it landed (see above); nothing when every
+    signal raised was acknowledged, or when this module's handler is not the one installed."""
+    if _raised and signal.getsignal(signal.SIGINT) is _handler:
+        _raise(_raised[0])
+
+
+def _unraisable(unraisable: sys.UnraisableHookArgs) -> None:
+    """Python's hook for an exception it drops: silent for a stop this module noted (`check` raises it again)."""
+    if isinstance(unraisable.exc_value, KeyboardInterrupt) and _raised:
+        return
+    sys.__unraisablehook__(unraisable)
+
+
+def acknowledge() -> None:
+    """The command has stopped for the signals raised so far: `check` forgets them."""
+    _raised.clear()
 
 
 def install() -> None:
@@ -47,6 +78,8 @@ def install() -> None:
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, _handler)
         signal.signal(signal.SIGINT, _handler)
+        sys.unraisablehook = _unraisable
+    acknowledge()
 
 
 @contextmanager
