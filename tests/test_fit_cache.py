@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -49,8 +52,12 @@ def _same_fit(a: StepScorer, b: StepScorer, same_times: bool = True) -> None:
 
 
 def test_a_fit_read_back_is_the_fit_done_and_starts_its_neighbours_alike(steps, cache_dir, monkeypatch):
+    from taskseq.runtime.atomic import WRITTEN
+
+    before = len(WRITTEN)
     done = StepScorer("full", C=1.0).fit(steps)
     assert not done.from_cache_ and len(_entries(cache_dir)) == 1
+    assert len(WRITTEN) == before  # an entry is no output of the command: "N files already replaced" omits it
     read = StepScorer("full", C=1.0).fit(steps)
     assert read.from_cache_
     _same_fit(done, read)
@@ -148,3 +155,20 @@ def test_the_closure_follows_relative_imports_and_packages(tmp_path):
     with pytest.raises(ValueError, match="no such module"):
         sources.import_closure("taskseq.no_such_module")
     assert np.all([p.is_file() for p in sources.import_closure("taskseq.learn.store")])
+
+
+def test_a_benchmark_fits_afresh_whatever_the_variable_says(steps, cache_dir):
+    StepScorer("full", C=1.0).fit(steps)
+    with fit_cache.disabled():
+        assert fit_cache.active() is None
+        assert not StepScorer("full", C=1.0).fit(steps).from_cache_
+    assert StepScorer("full", C=1.0).fit(steps).from_cache_  # the variable as it was afterwards
+    assert len(_entries(cache_dir)) == 1
+
+
+def test_the_closure_read_from_the_code_holds_every_module_an_import_loads():
+    """The fingerprint reads imports from the text; a fresh interpreter's own account must not name more."""
+    script = ("import sys, taskseq.learn.estimator\n"
+              "print('\\n'.join(m.__file__ for n, m in sys.modules.items() if n.split('.')[0] == 'taskseq'))")
+    loaded = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True).stdout.split()
+    assert loaded and {Path(f).resolve() for f in loaded} <= set(sources.import_closure("taskseq.learn.estimator"))

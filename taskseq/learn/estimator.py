@@ -26,7 +26,7 @@ from tqdm import tqdm
 
 from ..features.context import StepContext, candidate_index
 from . import fit_cache
-from .fit_cache import fit_key
+from .fit_cache import FitRecord, fit_key
 from .mrf import FEATURE_SETS, StepMRF
 from .persist import load_model, save_model
 from .ssvm import Cuts, CuttingPlaneSSVM
@@ -130,13 +130,15 @@ class StepScorer:
         _check_labels(X, y)
         warm = _cuts_of(warm_start, self.features)
         cache = fit_cache.active()
-        key = fit_key(self.get_params(), X, y, warm) if cache is not None else ""
-        stored = cache.load(key) if cache is not None else None
+        if cache is None:
+            self._fit(X, y, warm, progress)
+            return self
+        key = fit_key(self.get_params(), X, y, warm)
+        stored = cache.load(key)
         if stored is not None:
             return self._restore(stored)
         self._fit(X, y, warm, progress)
-        if cache is not None:
-            cache.save(key, self._record())
+        cache.save(key, self._record())
         return self
 
     def _fit(self, X: list[StepContext], y: list[Y], warm: Cuts | None, progress: bool) -> None:
@@ -166,26 +168,23 @@ class StepScorer:
         self.n_steps_ = len(X)
         self.from_cache_ = False
 
-    def _record(self) -> dict[str, Any]:
+    def _record(self) -> FitRecord:
         """What the fit cache keeps of this fit: all that `_restore` needs to make it again."""
         ssvm = self.ssvm_
-        return {"w": self.w_, "history": ssvm.history_, "cuts": ssvm.cuts_,
-                "primal_objective": ssvm.primal_objective_, "dual_objective": ssvm.dual_objective_,
-                "converged": bool(ssvm.converged_), "n_qp_steps": ssvm.n_qp_steps_,
-                "seconds_oracle": ssvm.seconds_oracle_, "seconds_qp": ssvm.seconds_qp_,
-                "fit_seconds": self.fit_seconds_, "n_steps": self.n_steps_}
+        return FitRecord(self.w_, ssvm.history_, ssvm.cuts_, ssvm.primal_objective_, ssvm.dual_objective_,
+                         bool(ssvm.converged_), ssvm.n_qp_steps_, ssvm.seconds_oracle_, ssvm.seconds_qp_,
+                         self.fit_seconds_, self.n_steps_)
 
-    def _restore(self, stored: dict[str, Any]) -> StepScorer:
+    def _restore(self, stored: FitRecord) -> StepScorer:
         """This scorer as the fit `stored` in the cache left it (its times are that fit's)."""
         model = StepMRF(self.features)
         ssvm = CuttingPlaneSSVM(model, C=self.C, tol=self.tol, max_iter=self.max_iter, n_slacks=self.n_slacks)
-        ssvm.w_, ssvm.history_, ssvm.cuts_ = stored["w"], stored["history"], stored["cuts"]
-        ssvm.primal_objective_, ssvm.dual_objective_ = stored["primal_objective"], stored["dual_objective"]
-        ssvm.n_iter_, ssvm.converged_ = len(stored["history"]), stored["converged"]
-        ssvm.n_qp_steps_, ssvm.seconds_oracle_, ssvm.seconds_qp_ = (stored["n_qp_steps"], stored["seconds_oracle"],
-                                                                    stored["seconds_qp"])
+        ssvm.w_, ssvm.history_, ssvm.cuts_ = stored.w, stored.history, stored.cuts
+        ssvm.primal_objective_, ssvm.dual_objective_ = stored.primal_objective, stored.dual_objective
+        ssvm.n_iter_, ssvm.converged_, ssvm.n_qp_steps_ = len(stored.history), stored.converged, stored.n_qp_steps
+        ssvm.seconds_oracle_, ssvm.seconds_qp_ = stored.seconds_oracle, stored.seconds_qp
         self.model_, self.ssvm_, self.w_ = model, ssvm, ssvm.w_
-        self.fit_seconds_, self.n_steps_, self.from_cache_ = stored["fit_seconds"], stored["n_steps"], True
+        self.fit_seconds_, self.n_steps_, self.from_cache_ = stored.fit_seconds, stored.n_steps, True
         return self
 
     def drop_cuts(self) -> None:

@@ -27,13 +27,12 @@ import hashlib
 import json
 import os
 import sys
-import tempfile
 import warnings
 import weakref
 import zipfile
 from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
-from dataclasses import asdict
+from contextlib import AbstractContextManager, contextmanager
+from dataclasses import asdict, dataclass, fields
 from functools import cache
 from importlib.metadata import version
 from pathlib import Path
@@ -43,6 +42,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..features.context import StepContext
+from ..runtime.atomic import atomic_file
 from ..runtime.sources import code_fingerprint
 from .ssvm import Cuts, Iteration
 
@@ -117,15 +117,27 @@ def fit_key(params: dict[str, Any], X: Sequence[StepContext], y: Sequence[tuple[
 
 
 @contextmanager
-def disabled() -> Iterator[None]:
-    """No fit cache within the block, whatever `TASKSEQ_FIT_CACHE` says (nor in processes started there): a
-    benchmark that times fits must do them."""
-    before = os.environ.pop(FIT_CACHE_ENV, None)
+def folder(directory: Path | str | None) -> Iterator[None]:
+    """`TASKSEQ_FIT_CACHE` set to `directory` within the block (None: unset, no cache), for this process and the
+    processes started there; as it was afterwards."""
+    before = os.environ.get(FIT_CACHE_ENV)
+    if directory is None:
+        os.environ.pop(FIT_CACHE_ENV, None)
+    else:
+        os.environ[FIT_CACHE_ENV] = str(directory)
     try:
         yield
     finally:
-        if before is not None:
+        if before is None:
+            os.environ.pop(FIT_CACHE_ENV, None)
+        else:
             os.environ[FIT_CACHE_ENV] = before
+
+
+def disabled() -> AbstractContextManager[None]:
+    """No fit cache within the block, whatever `TASKSEQ_FIT_CACHE` says: a benchmark that times fits must do
+    them (usable as a decorator too)."""
+    return folder(None)
 
 
 def active() -> FitCache | None:
@@ -134,9 +146,24 @@ def active() -> FitCache | None:
     return FitCache(folder) if folder else None
 
 
-# what a fit's record holds besides its weights, history and cuts (`StepScorer._record`)
-_SCALARS = ("primal_objective", "dual_objective", "converged", "n_qp_steps", "seconds_oracle", "seconds_qp",
-            "fit_seconds", "n_steps")
+@dataclass(frozen=True)
+class FitRecord:
+    """What the cache keeps of a fit: all a `StepScorer` needs to be that fit again (`StepScorer.record_`)."""
+
+    w: np.ndarray
+    history: list[Iteration]
+    cuts: Cuts | None  # where a neighbouring fit starts (None with grouped slacks)
+    primal_objective: float
+    dual_objective: float
+    converged: bool
+    n_qp_steps: int
+    seconds_oracle: float
+    seconds_qp: float
+    fit_seconds: float  # of the fit that stored it
+    n_steps: int
+
+
+_SCALARS = tuple(f.name for f in fields(FitRecord) if f.name not in ("w", "history", "cuts"))
 
 
 class FitCache:
@@ -148,8 +175,8 @@ class FitCache:
     def path(self, key: str) -> Path:
         return self.directory / key[:2] / f"{key}.npz"
 
-    def load(self, key: str) -> dict[str, Any] | None:
-        """The fit stored under `key` (`save`'s fields), or None if there is none or it cannot be read."""
+    def load(self, key: str) -> FitRecord | None:
+        """The fit stored under `key`, or None if there is none or it cannot be read."""
         path = self.path(key)
         if not path.exists():
             return None
@@ -166,32 +193,24 @@ class FitCache:
                                        shape=tuple(c["shape"]))
                 cuts = Cuts(deltas, arrays["cut_losses"], arrays["cut_examples"], arrays["cut_alpha"], c["C"],
                             c["n_examples"], c["fingerprint"])
-            return {"w": arrays["w"], "history": [Iteration(**it) for it in meta["history"]], "cuts": cuts,
-                    **{k: meta[k] for k in _SCALARS}}
+            return FitRecord(arrays["w"], [Iteration(**it) for it in meta["history"]], cuts,
+                             **{k: meta[k] for k in _SCALARS})
         except (OSError, ValueError, KeyError, TypeError, zipfile.BadZipFile, EOFError) as err:
             warnings.warn(f"{path}: an unreadable fit in the cache is fitted again ({err!r})", stacklevel=2)
             return None
 
-    def save(self, key: str, fit: dict[str, Any]) -> None:
-        """Store `fit` (the fields `load` returns) under `key`, atomically: a reader sees the whole entry or none."""
-        cuts: Cuts | None = fit["cuts"]
-        arrays = {"w": np.asarray(fit["w"], dtype=np.float64)}
-        meta: dict[str, Any] = {"format": FORMAT, "history": [asdict(it) for it in fit["history"]], "cuts": None,
-                                **{k: fit[k] for k in _SCALARS}}
-        if cuts is not None:
-            d = sp.csr_matrix(cuts.deltas)
-            arrays.update(cut_data=d.data, cut_indices=d.indices, cut_indptr=d.indptr, cut_losses=cuts.losses,
-                          cut_examples=cuts.examples, cut_alpha=cuts.alpha)
-            meta["cuts"] = {"shape": list(d.shape), "C": cuts.C, "n_examples": cuts.n_examples,
-                            "fingerprint": cuts.fingerprint}
+    def save(self, key: str, fit: FitRecord) -> None:
+        """Store `fit` under `key`, atomically: a reader sees the whole entry or none (not one of the command's
+        outputs: `runtime.atomic.WRITTEN` does not list it)."""
+        arrays = {"w": np.asarray(fit.w, dtype=np.float64)}
+        meta: dict[str, Any] = {"format": FORMAT, "history": [asdict(it) for it in fit.history], "cuts": None,
+                                **{k: getattr(fit, k) for k in _SCALARS}}
+        if fit.cuts is not None:
+            d = sp.csr_matrix(fit.cuts.deltas)
+            arrays.update(cut_data=d.data, cut_indices=d.indices, cut_indptr=d.indptr, cut_losses=fit.cuts.losses,
+                          cut_examples=fit.cuts.examples, cut_alpha=fit.cuts.alpha)
+            meta["cuts"] = {"shape": list(d.shape), "C": fit.cuts.C, "n_examples": fit.cuts.n_examples,
+                            "fingerprint": fit.cuts.fingerprint}
         arrays["meta"] = np.array(json.dumps(meta))
-        path = self.path(key)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, name = tempfile.mkstemp(prefix=f".{key[:8]}.", suffix=".npz", dir=path.parent)
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                np.savez_compressed(fh, **arrays)
-            os.replace(name, path)
-        except BaseException:
-            Path(name).unlink(missing_ok=True)
-            raise
+        with atomic_file(self.path(key), output=False) as tmp:
+            np.savez_compressed(tmp, **arrays)

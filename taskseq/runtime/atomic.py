@@ -46,9 +46,10 @@ def atomic_directory(target: Path | str) -> Iterator[Path]:
 
 
 @contextmanager
-def atomic_file(path: Path | str) -> Iterator[Path]:
+def atomic_file(path: Path | str, output: bool = True) -> Iterator[Path]:
     """Yield a temporary path beside `path` (same suffix, for writers that go by it) that replaces
-    `path` only if the block succeeds: for files written by other libraries (models, figures)."""
+    `path` only if the block succeeds: for files written by other libraries (models, figures). `output`
+    False: a file kept for the command's own use (a cache), which `WRITTEN` does not list."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, name = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
@@ -61,7 +62,8 @@ def atomic_file(path: Path | str) -> Iterator[Path]:
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
-    WRITTEN.append(path)
+    if output:
+        WRITTEN.append(path)
 
 
 def write_text_atomic(path: Path | str, text: str) -> None:

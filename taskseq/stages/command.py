@@ -12,9 +12,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import os
-from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import AbstractContextManager, nullcontext
 from dataclasses import MISSING, fields
 from pathlib import Path
 from typing import Any
@@ -97,22 +95,11 @@ def execute(args: argparse.Namespace, module: Any, settings: Any, options: Any, 
     return 0
 
 
-@contextmanager
-def _fit_cache(folder: Path | None) -> Iterator[None]:
+def _fit_cache(folder: Path | None) -> AbstractContextManager[None]:
     """`--fit-cache` in force during the run, for this process and the workers it starts (through the
-    environment, as `taskseq.learn.fit_cache` reads it); as it was afterwards."""
+    environment, as `taskseq.learn.fit_cache` reads it); the environment as it was without the option."""
     if folder is None:
-        yield
-        return
-    from ..learn.fit_cache import FIT_CACHE_ENV
+        return nullcontext()
+    from ..learn.fit_cache import folder as cache_folder
 
-    before = os.environ.get(FIT_CACHE_ENV)
-    os.environ[FIT_CACHE_ENV] = str(folder)
-    try:
-        yield
-    finally:
-        if before is None:
-            os.environ.pop(FIT_CACHE_ENV, None)
-        else:
-            os.environ[FIT_CACHE_ENV] = before
-
+    return cache_folder(folder)
