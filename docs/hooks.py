@@ -166,6 +166,14 @@ def _json(name: str) -> dict | None:
     return json.loads(path.read_text()) if path.is_file() else None
 
 
+def _csv_rows(name: str) -> list[dict[str, str]] | None:
+    path = REPORTS / name
+    if not path.is_file():
+        return None
+    with path.open(newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
 def _missing(name: str, command: str) -> str:
     return f"`reports/{name}` has not been written yet: run `{command}`.\n"
 
@@ -440,8 +448,7 @@ def teach_results() -> str:
         return _missing("teach/teach.md", TEACH_COMMAND)
     text = path.read_text()
     text = text.split("\n", 1)[1].lstrip("\n") if text.startswith("# ") else text
-    with open(seeds, newline="") as fh:
-        rows = list(csv.DictReader(fh))
+    rows = _csv_rows("teach/teach_seeds.csv")
     ks = sorted({int(r["k"]) for r in rows})
     worlds = sorted({int(r["world_seed"]) for r in rows})
     got = {(int(r["world_seed"]), int(r["k"])): r for r in rows}
@@ -561,8 +568,7 @@ def _seeds_table(name: str, command: str) -> str:
         return _missing(name, command)
     from taskseq.methods import method_labels
 
-    with open(path, newline="") as fh:
-        rows = list(csv.DictReader(fh))
+    rows = _csv_rows(name)
     seeds = sorted({int(r["world_seed"]) for r in rows})
     got = {(r["method"], int(r["world_seed"])): r for r in rows}
 
@@ -612,34 +618,21 @@ def comparisons_excerpt() -> str:
     return _table_rows("comparisons.md", lambda row: row.startswith(rows) and "(the shipped planner)" not in row)
 
 
-def _csv_rows(name: str) -> list[dict[str, str]] | None:
-    path = REPORTS / name
-    if not path.is_file():
-        return None
-    with path.open(newline="") as fh:
-        return list(csv.DictReader(fh))
-
-
 def _mean_sd(row: dict[str, str]) -> str:
     return f"{float(row['sequence_arg']):.1f} ± {float(row['sequence_arg_sd']):.1f}"
-
-
-def _labels() -> dict[str, str]:
-    from taskseq.methods import method_labels
-
-    return method_labels()
 
 
 def noise_table() -> str:
     """Sequence arg under attribute noise, a row per method and a column per flip rate (`reports/noise.csv`,
     stage `aggregate`), with the paper's figures."""
+    from taskseq.methods import method_labels
     from taskseq.report.paper import NOISE
 
     rows = _csv_rows("noise.csv")
     if rows is None:
         return _missing("noise.csv", "dvc repro")
     rates = list(dict.fromkeys(r["rate"] for r in rows))
-    labels = _labels()
+    labels = method_labels()
     by_method: dict[str, dict[str, str]] = {}
     for r in rows:
         by_method.setdefault(r["method"], {})[r["rate"]] = _mean_sd(r)
@@ -651,13 +644,14 @@ def noise_table() -> str:
 def feedback_table() -> str:
     """Sequence arg with an observer's feedback, a row per method and top k, a column per number of steps with
     feedback (`reports/feedback.csv`, stage `aggregate`), with the paper's figures."""
+    from taskseq.methods import method_labels
     from taskseq.report.paper import FEEDBACK
 
     rows = _csv_rows("feedback.csv")
     if rows is None:
         return _missing("feedback.csv", "dvc repro")
     steps = list(dict.fromkeys(r["n"] for r in rows))
-    labels = _labels()
+    labels = method_labels()
     by_row: dict[tuple[str, str], dict[str, str]] = {}
     for r in rows:
         by_row.setdefault((r["method"], r["k"]), {})[r["n"]] = _mean_sd(r)

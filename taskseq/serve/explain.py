@@ -29,8 +29,12 @@ from .rules import named, step_text, unsafe_reason
 
 Y = tuple[int, int, int]
 SHOWN_REASONS = 3  # steps that cannot run named per row; the rest are counted
-LOOP = ("it leads back to where this task already was, with the same last two steps, from where the planner would "
-        "go round the same loop")
+
+
+def _loop(leads: str) -> str:
+    """Why a step that closes a loop is passed over, `leads` saying whose step and how ("it leads")."""
+    return (f"{leads} back to where this task already was, with the same last two steps, from where the planner "
+            "would go round the same loop")
 
 
 @dataclass(frozen=True)
@@ -156,7 +160,7 @@ def explain(planner: StepScorer, policy: str, task: Task, initial: WorldState, c
             parts.append("below done: the goal holds, and the robot stops once it does")
         elif y in demoted:
             found = plan(y) if looks_ahead else None
-            said = [LOOP] if loops(y) else []
+            said = [_loop("it leads")] if loops(y) else []
             if found is not None and found.harmful:
                 said.append(f"its plan would {found.text()}")
             parts.append(f"demoted: {'; and '.join(said)}" if said
@@ -175,7 +179,7 @@ def explain(planner: StepScorer, policy: str, task: Task, initial: WorldState, c
                 if stops and ctx.action(y).primitive == DONE:
                     cause = "the goal holds, and the lookahead stops once it does"
                 elif group is looping:
-                    cause = LOOP.replace("it leads", "it would lead" if len(group) == 1 else "they would lead")
+                    cause = _loop("it would lead" if len(group) == 1 else "they would lead")
                 else:
                     cause = ("the lookahead found its plan breaks a safety rule" if len(group) == 1
                              else "the lookahead found their plans break a safety rule")
