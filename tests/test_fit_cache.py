@@ -117,6 +117,13 @@ def test_an_unreadable_entry_is_fitted_again_and_replaced(steps, cache_dir):
         assert not StepScorer("full", C=1.0).fit(steps).from_cache_
 
 
+def test_a_variable_naming_a_file_is_refused_before_any_fit(steps, tmp_path, monkeypatch):
+    (tmp_path / "fits").write_text("")
+    monkeypatch.setenv(fit_cache.FIT_CACHE_ENV, str(tmp_path / "fits"))
+    with pytest.raises(ValueError, match="TASKSEQ_FIT_CACHE=.*: not a folder"):
+        StepScorer("full", C=1.0).fit(steps)
+
+
 def test_without_the_variable_nothing_is_written(steps, tmp_path, monkeypatch):
     monkeypatch.delenv(fit_cache.FIT_CACHE_ENV, raising=False)
     monkeypatch.chdir(tmp_path)

@@ -342,3 +342,13 @@ def test_fold_models_read_back_from_the_fit_cache_write_the_same_store(tiny, tmp
     assert all(a.read_bytes() == (tiny / "store" / a.name).read_bytes() for a in first)
     assert (tmp_path / "first.json").read_bytes() == (tmp_path / "again.json").read_bytes()
     assert "TASKSEQ_FIT_CACHE" not in os.environ  # the option held for the run only
+
+
+def test_a_fit_cache_that_is_a_file_is_named_and_nothing_is_written(tiny, tmp_path, capsys):
+    not_a_folder = tmp_path / "fits.txt"
+    not_a_folder.write_text("a file a person made\n")
+    code = main(["fold_models", *data(tiny), *FOLDS, *LEARN, "--selection", str(tiny / "selection.json"),
+                 "--n-jobs", "1", "--fit-cache", str(not_a_folder), "--output", str(tmp_path / "store")])
+    assert code == 2
+    assert f"--fit-cache {not_a_folder}: not a folder" in capsys.readouterr().err
+    assert not (tmp_path / "store").exists() and not_a_folder.read_text() == "a file a person made\n"

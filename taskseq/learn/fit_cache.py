@@ -141,9 +141,13 @@ def disabled() -> AbstractContextManager[None]:
 
 
 def active() -> FitCache | None:
-    """The cache `TASKSEQ_FIT_CACHE` names, or None when it is unset or empty."""
+    """The cache `TASKSEQ_FIT_CACHE` names, or None when it is unset or empty; `ValueError` when it names a file."""
     folder = os.environ.get(FIT_CACHE_ENV, "")
-    return FitCache(folder) if folder else None
+    if not folder:
+        return None
+    if Path(folder).exists() and not Path(folder).is_dir():
+        raise ValueError(f"{FIT_CACHE_ENV}={folder}: not a folder (the fit cache is a folder of fits)")
+    return FitCache(folder)
 
 
 @dataclass(frozen=True)

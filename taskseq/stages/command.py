@@ -100,6 +100,8 @@ def _fit_cache(folder: Path | None) -> AbstractContextManager[None]:
     environment, as `taskseq.learn.fit_cache` reads it); the environment as it was without the option."""
     if folder is None:
         return nullcontext()
+    if folder.exists() and not folder.is_dir():
+        raise ValueError(f"--fit-cache {folder}: not a folder (the fit cache is a folder of fits)")
     from ..learn.fit_cache import folder as cache_folder
 
     return cache_folder(folder)
