@@ -14,14 +14,13 @@ import pytest
 from taskseq.features.context import candidate_index
 from taskseq.learn import fit_cache
 from taskseq.learn.estimator import StepScorer
-from taskseq.runtime import sources
+from taskseq.runtime import cache, sources
 
 
 @pytest.fixture
 def cache_dir(tmp_path, monkeypatch):
-    folder = tmp_path / "fits"
-    monkeypatch.setenv(fit_cache.FIT_CACHE_ENV, str(folder))
-    return folder
+    monkeypatch.setenv(cache.CACHE_ENV, str(tmp_path / "cache"))
+    return tmp_path / "cache" / "fits"
 
 
 @pytest.fixture(scope="module")
@@ -63,7 +62,7 @@ def test_a_fit_read_back_is_the_fit_done_and_starts_its_neighbours_alike(steps, 
     _same_fit(done, read)
     assert read.predict(steps) == done.predict(steps)
     # a neighbour warm-started from the fit read back is the one started from the fit done, bit for bit
-    monkeypatch.delenv(fit_cache.FIT_CACHE_ENV)
+    monkeypatch.delenv(cache.CACHE_ENV)
     from_done = StepScorer("full", C=3.0).fit(steps, warm_start=done)
     from_read = StepScorer("full", C=3.0).fit(steps, warm_start=read)
     assert not from_read.from_cache_
@@ -118,14 +117,14 @@ def test_an_unreadable_entry_is_fitted_again_and_replaced(steps, cache_dir):
 
 
 def test_a_variable_naming_a_file_is_refused_before_any_fit(steps, tmp_path, monkeypatch):
-    (tmp_path / "fits").write_text("")
-    monkeypatch.setenv(fit_cache.FIT_CACHE_ENV, str(tmp_path / "fits"))
-    with pytest.raises(ValueError, match="TASKSEQ_FIT_CACHE=.*: not a folder"):
+    (tmp_path / "cache").write_text("")
+    monkeypatch.setenv(cache.CACHE_ENV, str(tmp_path / "cache"))
+    with pytest.raises(ValueError, match="TASKSEQ_CACHE=.*: not a folder"):
         StepScorer("full", C=1.0).fit(steps)
 
 
 def test_without_the_variable_nothing_is_written(steps, tmp_path, monkeypatch):
-    monkeypatch.delenv(fit_cache.FIT_CACHE_ENV, raising=False)
+    monkeypatch.delenv(cache.CACHE_ENV, raising=False)
     monkeypatch.chdir(tmp_path)
     assert fit_cache.active() is None
     StepScorer("full", C=1.0).fit(steps)
@@ -166,7 +165,7 @@ def test_the_closure_follows_relative_imports_and_packages(tmp_path):
 
 def test_a_benchmark_fits_afresh_whatever_the_variable_says(steps, cache_dir):
     StepScorer("full", C=1.0).fit(steps)
-    with fit_cache.disabled():
+    with cache.disabled():
         assert fit_cache.active() is None
         assert not StepScorer("full", C=1.0).fit(steps).from_cache_
     assert StepScorer("full", C=1.0).fit(steps).from_cache_  # the variable as it was afterwards

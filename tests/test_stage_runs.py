@@ -326,10 +326,10 @@ def test_a_bad_selection_file_is_named(tiny, tmp_path, capsys):
     assert not (tmp_path / "recipes.json").exists()
 
 
-def test_fold_models_read_back_from_the_fit_cache_write_the_same_store(tiny, tmp_path, capsys, monkeypatch):
-    monkeypatch.delenv("TASKSEQ_FIT_CACHE", raising=False)
+def test_fold_models_read_back_from_the_cache_write_the_same_store(tiny, tmp_path, capsys, monkeypatch):
+    monkeypatch.delenv("TASKSEQ_CACHE", raising=False)
     run = ["fold_models", *data(tiny), *FOLDS, *LEARN, "--selection", str(tiny / "selection.json"), "--n-jobs", "1",
-           "--fit-cache", str(tmp_path / "fits")]
+           "--cache", str(tmp_path / "cache")]
     assert main([*run, "--output", str(tmp_path / "first"), "--metrics", str(tmp_path / "first.json")]) == 0
     assert "read from the fit cache" not in capsys.readouterr().out
     assert main([*run, "--output", str(tmp_path / "again"), "--metrics", str(tmp_path / "again.json")]) == 0
@@ -341,14 +341,14 @@ def test_fold_models_read_back_from_the_fit_cache_write_the_same_store(tiny, tmp
     assert f"{len(first) - 1} of them read from the fit cache" in said
     assert all(a.read_bytes() == (tiny / "store" / a.name).read_bytes() for a in first)
     assert (tmp_path / "first.json").read_bytes() == (tmp_path / "again.json").read_bytes()
-    assert "TASKSEQ_FIT_CACHE" not in os.environ  # the option held for the run only
+    assert "TASKSEQ_CACHE" not in os.environ  # the option held for the run only
 
 
-def test_a_fit_cache_that_is_a_file_is_named_and_nothing_is_written(tiny, tmp_path, capsys):
-    not_a_folder = tmp_path / "fits.txt"
+def test_a_cache_that_is_a_file_is_named_and_nothing_is_written(tiny, tmp_path, capsys):
+    not_a_folder = tmp_path / "cache.txt"
     not_a_folder.write_text("a file a person made\n")
     code = main(["fold_models", *data(tiny), *FOLDS, *LEARN, "--selection", str(tiny / "selection.json"),
-                 "--n-jobs", "1", "--fit-cache", str(not_a_folder), "--output", str(tmp_path / "store")])
+                 "--n-jobs", "1", "--cache", str(not_a_folder), "--output", str(tmp_path / "store")])
     assert code == 2
-    assert f"--fit-cache {not_a_folder}: not a folder" in capsys.readouterr().err
+    assert f"--cache {not_a_folder}: not a folder" in capsys.readouterr().err
     assert not (tmp_path / "store").exists() and not_a_folder.read_text() == "a file a person made\n"

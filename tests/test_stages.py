@@ -225,15 +225,15 @@ def test_dvc_params_are_exactly_the_settings_a_stage_reads(stage):
 def test_stage_commands_carry_paths_and_the_world_seed_only(stage):
     cmd = dvc_stage(stage)["cmd"]
     options = re.findall(r"--([a-z-]+)", cmd)
-    allowed = {f.name.replace("_", "-") for f in fields(STAGES[stage].options)} | {"world-seed", "fit-cache"}
+    allowed = {f.name.replace("_", "-") for f in fields(STAGES[stage].options)} | {"world-seed", "cache"}
     assert set(options) <= allowed, f"{stage} passes {sorted(set(options) - allowed)}"
-    rest = re.sub(r"\$\{item(\.\w+)?\}", "", cmd).replace("${world.seeds[0]}", "").replace("${fit_cache}", "")
+    rest = re.sub(r"\$\{item(\.\w+)?\}", "", cmd).replace("${world.seeds[0]}", "").replace("${cache}", "")
     assert "${" not in rest, cmd
 
 
-def test_every_stage_that_fits_keeps_its_fits_in_the_one_cache_folder():
+def test_every_stage_that_fits_or_runs_programs_keeps_them_in_the_one_cache_folder():
     vars_ = {k: v for entry in yaml.safe_load((ROOT / "dvc.yaml").read_text())["vars"] for k, v in entry.items()}
-    assert vars_["fit_cache"] == ".cache/fits" and "/.cache/" in (ROOT / ".gitignore").read_text().split()
+    assert vars_["cache"] == ".cache" and "/.cache/" in (ROOT / ".gitignore").read_text().split()
     for name, stage in STAGES.items():
-        passed = re.findall(r"--fit-cache (\S+)", dvc_stage(name)["cmd"])
-        assert passed == (["${fit_cache}"] if stage.fits else []), name
+        passed = re.findall(r"--cache (\S+)", dvc_stage(name)["cmd"])
+        assert passed == (["${cache}"] if stage.cached else []), name

@@ -282,7 +282,7 @@ def run_scaling(plan: Plan, keep: Path | None = None, say: Callable[[str], None]
 
     `update` gets the result so far after every measurement (the command writes it out each time).
     """
-    from ..learn.fit_cache import disabled  # here: the command line is built without the learner
+    from ..runtime.cache import disabled  # here: the command line is built without the learner
 
     with disabled():  # a fit read from the cache would time nothing, here or in the stages' processes
         return _measured(plan, keep, say, update)

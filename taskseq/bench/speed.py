@@ -18,7 +18,7 @@ import numpy as np
 from ..features.context import step_context
 from ..features.dataset import build_steps, write_features
 from ..learn.estimator import StepScorer
-from ..learn.fit_cache import disabled
+from ..runtime.cache import disabled
 from ..sim.catalog import OBJECTS
 from ..sim.objects import ObjectSpec
 from ..sim.state import ON, WorldState

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 
 from threadpoolctl import threadpool_limits
 
@@ -16,6 +16,7 @@ from ..features.dataset import StepMeta
 from ..plan.planner import Program
 from ..runtime.jobs import Shared, run_jobs
 from ..sim.scenarios import Scenario
+from . import outcome_cache
 
 Y = tuple[int, int, int]
 
@@ -74,6 +75,24 @@ def _run_fold(make, fold, contexts, meta, scenarios, test_scenarios, max_steps, 
     train_index = training_index(meta, test_scenarios)
     test_index = [i for i, m in enumerate(meta) if m.scenario_id in test_scenarios]
     method = make().fit([contexts[i] for i in train_index], [meta[i] for i in train_index], scenarios)
+    cache = None if keep_programs else outcome_cache.active()  # programs kept for recordings are not cached
+    if cache is None:
+        return _tested(method, fold, contexts, meta, scenarios, test_scenarios, test_index, max_steps, demos,
+                       keep_programs)
+    key = outcome_cache.job_key("crossval", make, method, contexts, meta, scenarios, test_scenarios, demos,
+                                {"fold": fold, "max_steps": max_steps})
+    stored = cache.load(key)
+    if stored is not None:
+        return _decoded(stored)
+    result = _tested(method, fold, contexts, meta, scenarios, test_scenarios, test_index, max_steps, demos,
+                     keep_programs)
+    cache.save(key, _encoded(result))
+    return result
+
+
+def _tested(method, fold, contexts, meta, scenarios, test_scenarios, test_index, max_steps, demos,
+            keep_programs) -> FoldResult:
+    """The fitted `method`'s predictions of the fold's test steps and its programs on the fold's test scenarios."""
     predictions = method.predict_steps([contexts[i] for i in test_index], [meta[i] for i in test_index], demos)
     outcomes: list[SequenceOutcome] | None = []
     programs = {}
@@ -86,6 +105,24 @@ def _run_fold(make, fold, contexts, meta, scenarios, test_scenarios, max_steps, 
         if sid in keep_programs:
             programs[sid] = program
     return FoldResult(method.name, fold, test_index, predictions, outcomes, programs)
+
+
+def _encoded(result: FoldResult) -> dict:
+    """A fold's result as JSON (its kept programs aside: a cached job keeps none)."""
+    return {"method": result.method, "fold": result.fold, "step_index": result.step_index,
+            "step_predictions": result.step_predictions,
+            "sequences": None if result.sequences is None else [asdict(o) for o in result.sequences]}
+
+
+def outcome_of(entry: dict) -> SequenceOutcome:
+    """A `SequenceOutcome` from its JSON (`dataclasses.asdict`)."""
+    return SequenceOutcome(**{**entry, "actions": tuple(entry["actions"])})
+
+
+def _decoded(entry: dict) -> FoldResult:
+    sequences = None if entry["sequences"] is None else [outcome_of(o) for o in entry["sequences"]]
+    return FoldResult(entry["method"], entry["fold"], entry["step_index"],
+                      [tuple(y) for y in entry["step_predictions"]], sequences)
 
 
 def training_index(meta: list[StepMeta], test_scenarios: set[str]) -> list[int]:

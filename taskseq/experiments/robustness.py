@@ -9,7 +9,7 @@ method's own policy, as its Table I programs do.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -23,7 +23,8 @@ from ..runtime.jobs import Shared, run_jobs
 from ..settings import Feedback, Folds, Noise
 from ..sim.primitives import Action
 from ..sim.scenarios import Scenario
-from .crossval import SequenceOutcome, judge, scenario_folds, training_index
+from . import outcome_cache
+from .crossval import SequenceOutcome, judge, outcome_of, scenario_folds, training_index
 
 
 def observer(demonstrations: tuple[tuple[Action, ...], ...], n_feedback: int):
@@ -71,6 +72,26 @@ def _fold(make, contexts, meta, scenarios, test, conditions, max_steps, seed):
 def _replay(make, contexts, meta, scenarios, test, conditions, max_steps, seed):
     train = training_index(meta, test)
     method: ScorerMethod = make().fit([contexts[i] for i in train], [meta[i] for i in train], scenarios)
+    cache = outcome_cache.active()
+    if cache is None:
+        return _replayed(method, scenarios, test, conditions, max_steps, seed)
+    key = outcome_cache.job_key("robustness", make, method, contexts, meta, scenarios, test, None,
+                                {"conditions": [repr(c) for c in conditions], "max_steps": max_steps, "seed": seed})
+    stored = cache.load(key)
+    if stored is not None:
+        return [(_condition(c), outcome_of(o)) for c, o in stored]
+    result = _replayed(method, scenarios, test, conditions, max_steps, seed)
+    cache.save(key, [(asdict(c) | {"kind": type(c).__name__}, asdict(o)) for c, o in result])
+    return result
+
+
+def _condition(entry: dict) -> Condition:
+    kinds = {kind.__name__: kind for kind in (NoiseCondition, FeedbackCondition)}
+    return kinds[entry["kind"]](**{k: v for k, v in entry.items() if k != "kind"})
+
+
+def _replayed(method, scenarios, test, conditions, max_steps, seed):
+    """Each condition's outcome on every test scenario, from the fitted `method`."""
     order = sorted(scenarios)
     outcome = {}
     for sid in sorted(test):

@@ -116,7 +116,7 @@ class StepScorer:
         steps of `X` (at any C): the fit starts from its final cuts
         (`ssvm.Cuts`), which saves iterations and stops at the same certified
         gap. A scorer without them (loaded from a file) gives a cold start.
-        With the fit cache on (`fit_cache`: `TASKSEQ_FIT_CACHE` names its
+        With the fit cache on (`fit_cache`: `TASKSEQ_CACHE` names the cache's
         folder), a fit of the same learner code, settings, steps, labels and
         start is read from it instead of done again: the same weights and cuts.
         """

@@ -12,29 +12,23 @@ such a change loads the fits it had and fits only what is new. A method
 whose training steps come from the planner (DAgger's rollouts) misses exactly
 when those steps changed, since they are hashed.
 
-The cache is used only where it is asked for: the environment variable
-`TASKSEQ_FIT_CACHE` names its folder (the pipeline's stages set it from
-their `--fit-cache` option, and their worker processes inherit it); unset,
-nothing is read or written. An entry is a NumPy .npz of arrays and JSON
-(no pickles), written atomically; one that cannot be read is fitted again and
-replaced, with a warning. Entries are never pruned: deleting the folder is safe
-at any time between runs.
+The cache is used only where it is asked for (`runtime.cache`: the `fits/`
+folder of the cache `TASKSEQ_CACHE` names, set by the stages' `--cache`
+option). An entry is a NumPy .npz of arrays and JSON (no pickles), written
+atomically; one that cannot be read is fitted again and replaced, with a
+warning.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
-import os
-import sys
 import warnings
 import weakref
 import zipfile
-from collections.abc import Iterator, Sequence
-from contextlib import AbstractContextManager, contextmanager
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, fields
 from functools import cache
-from importlib.metadata import version
 from pathlib import Path
 from typing import Any
 
@@ -43,10 +37,10 @@ import scipy.sparse as sp
 
 from ..features.context import StepContext
 from ..runtime.atomic import atomic_file
+from ..runtime.cache import subfolder, versions
 from ..runtime.sources import code_fingerprint
 from .ssvm import Cuts, Iteration
 
-FIT_CACHE_ENV = "TASKSEQ_FIT_CACHE"
 FORMAT = "taskseq.fit/1"
 # what the learner's bytes depend on beyond its own code
 _LIBRARIES = ("numpy", "scipy", "numba")
@@ -101,8 +95,7 @@ def _hash_cuts(h: Any, cuts: Cuts | None) -> None:
 @cache
 def _environment() -> dict[str, str]:
     """What a fit's bytes depend on besides its inputs: the learner's code and the libraries under it."""
-    return {"format": FORMAT, "code": code_fingerprint("taskseq.learn.estimator"), "python": sys.version.split()[0],
-            **{lib: version(lib) for lib in _LIBRARIES}}
+    return {"format": FORMAT, "code": code_fingerprint("taskseq.learn.estimator"), **versions(*_LIBRARIES)}
 
 
 def fit_key(params: dict[str, Any], X: Sequence[StepContext], y: Sequence[tuple[int, int, int]],
@@ -116,38 +109,10 @@ def fit_key(params: dict[str, Any], X: Sequence[StepContext], y: Sequence[tuple[
     return h.hexdigest()
 
 
-@contextmanager
-def folder(directory: Path | str | None) -> Iterator[None]:
-    """`TASKSEQ_FIT_CACHE` set to `directory` within the block (None: unset, no cache), for this process and the
-    processes started there; as it was afterwards."""
-    before = os.environ.get(FIT_CACHE_ENV)
-    if directory is None:
-        os.environ.pop(FIT_CACHE_ENV, None)
-    else:
-        os.environ[FIT_CACHE_ENV] = str(directory)
-    try:
-        yield
-    finally:
-        if before is None:
-            os.environ.pop(FIT_CACHE_ENV, None)
-        else:
-            os.environ[FIT_CACHE_ENV] = before
-
-
-def disabled() -> AbstractContextManager[None]:
-    """No fit cache within the block, whatever `TASKSEQ_FIT_CACHE` says: a benchmark that times fits must do
-    them (usable as a decorator too)."""
-    return folder(None)
-
-
 def active() -> FitCache | None:
-    """The cache `TASKSEQ_FIT_CACHE` names, or None when it is unset or empty; `ValueError` when it names a file."""
-    folder = os.environ.get(FIT_CACHE_ENV, "")
-    if not folder:
-        return None
-    if Path(folder).exists() and not Path(folder).is_dir():
-        raise ValueError(f"{FIT_CACHE_ENV}={folder}: not a folder (the fit cache is a folder of fits)")
-    return FitCache(folder)
+    """The fit cache in force (`runtime.cache`: `fits/` under the folder `TASKSEQ_CACHE` names), or None."""
+    directory = subfolder("fits")
+    return None if directory is None else FitCache(directory)
 
 
 @dataclass(frozen=True)

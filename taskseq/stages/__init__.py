@@ -29,15 +29,14 @@ class Stage:
     options: type  # its `Options` class: the command's options
     parallel: bool = False  # takes `n_jobs`
     per_world: bool = False  # runs on one world's data (`--world-seed`)
-    fits: bool = False  # fits models: takes `--fit-cache` (`taskseq.learn.fit_cache`)
-
+    cached: bool = False  # fits models or runs programs: takes `--cache` (`taskseq.runtime.cache`)
 
 
 STAGES: dict[str, Stage] = {
     "dev_world": Stage("draw the development world (logs, tables, features) into one folder",
                        opts.WorldFolderOptions),
     "select": Stage("cross-validate each MRF method on the development world to choose its own C; rank them",
-                    opts.SelectOptions, True, fits=True),
+                    opts.SelectOptions, True, cached=True),
     "generate": Stage("simulate the demonstrator and write demonstration logs (JSON Lines)", opts.GenerateOptions,
                       per_world=True),
     "ingest": Stage("validate logs and write them as Parquet tables plus dataset metrics", opts.IngestOptions,
@@ -45,29 +44,31 @@ STAGES: dict[str, Stage] = {
     "features": Stage("build every teacher-forced step's candidates and features from the Parquet tables",
                       opts.FeaturesOptions, per_world=True),
     "train": Stage("fit the MRF weights with the structural SVM (the paper's 1-slack objective) on every step",
-                   opts.TrainOptions, per_world=True, fits=True),
+                   opts.TrainOptions, per_world=True, cached=True),
     "pddl": Stage("write the PDDL domain, a problem per scenario and its shortest plan (SAT)", opts.PddlOptions,
                   per_world=True),
     "fold_models": Stage("train every MRF model the evaluation stages use, once, into a model store",
-                         opts.FoldModelsOptions, True, True, fits=True),
+                         opts.FoldModelsOptions, True, True, cached=True),
     "crossval": Stage("cross-validate every method and write Table I, metrics and a confusion matrix",
-                      opts.CrossvalOptions, True, True),
-    "noise": Stage("sequence accuracy with binary attributes flipped at test time", opts.EvaluationOptions, True, True),
+                      opts.CrossvalOptions, True, True, cached=True),
+    "noise": Stage("sequence accuracy with binary attributes flipped at test time", opts.EvaluationOptions, True, True,
+                   cached=True),
     "feedback": Stage("sequence accuracy when an observer picks among the top k at the first n steps",
-                      opts.EvaluationOptions, True, True),
+                      opts.EvaluationOptions, True, True,
+                   cached=True),
     "recipes": Stage("chain programs into recipes in environments held out from training", opts.EvaluationOptions,
                      per_world=True),
     "drawn_world": Stage("draw a world of rooms by a reported world's seed (logs, tables, features) into one folder",
                          opts.WorldFolderOptions, per_world=True),
     "scenes_world": Stage("one world seed with whole rooms held out of training, paper-shaped and drawn (noise and "
                           "feedback there too), and models of the paper-shaped rooms run in drawn ones",
-                          opts.ScenesWorldOptions, True, True, fits=True),
+                          opts.ScenesWorldOptions, True, True, cached=True),
     "scenes": Stage("Table I, failures and the transfer with rooms held out, over the world seeds",
                     opts.ScenesOptions),
     "people": Stage("check people's demonstrations, count them, and compare the planner with and without them",
-                    opts.PeopleOptions, fits=True),
+                    opts.PeopleOptions, cached=True),
     "teach": Stage("the shipped planner in drawn rooms it never saw, after a scripted person shows k tasks in each",
-                   opts.TeachOptions, True, fits=True),
+                   opts.TeachOptions, True, cached=True),
     "aggregate": Stage("every figure over the world seeds: mean ± sd tables, failures, noise, feedback, recipes",
                        opts.AggregateOptions),
     "stats": Stage("confidence intervals of Table I by a bootstrap over worlds and scenarios; paired tests of methods",

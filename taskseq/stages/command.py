@@ -17,6 +17,7 @@ from dataclasses import MISSING, fields
 from pathlib import Path
 from typing import Any
 
+from ..runtime.cache import folder as cache_folder
 from ..runtime.jobs import default_jobs
 from ..settings import Params
 from . import STAGES
@@ -52,10 +53,10 @@ def add_parser(sub: Any, name: str) -> None:
         p.add_argument("--world-seed", type=int, default=None,
                        help="the world drawn (generate, drawn_world), or the world these data were drawn with: a "
                             "label of the MLflow runs, so runs of several worlds can be compared (changes no result)")
-    if stage.fits:
-        p.add_argument("--fit-cache", type=Path, default=None, metavar="DIR",
-                       help="keep every fit in DIR and read back each fit already there with the same learner "
-                            "code, settings, steps and start (default: $TASKSEQ_FIT_CACHE, else no cache); "
+    if stage.cached:
+        p.add_argument("--cache", type=Path, default=None, metavar="DIR",
+                       help="keep every fit and every fold's program outcomes in DIR, and read back those already "
+                            "there from the same code and inputs (default: $TASKSEQ_CACHE, else no cache); "
                             "changes no result")
     if stage.parallel:
         p.add_argument("--n-jobs", type=positive, default=None,
@@ -87,7 +88,7 @@ def prepare(args: argparse.Namespace) -> tuple[Any, Any, Any, dict[str, Any]]:
 
 def execute(args: argparse.Namespace, module: Any, settings: Any, options: Any, tracker: Any) -> int:
     """Run the stage; its exit code (0: every output written)."""
-    with _fit_cache(getattr(args, "fit_cache", None)):
+    with _cache(getattr(args, "cache", None)):
         if STAGES[args.command].parallel:
             module.run(settings, options, tracker, args.n_jobs or default_jobs())
         else:
@@ -95,13 +96,7 @@ def execute(args: argparse.Namespace, module: Any, settings: Any, options: Any, 
     return 0
 
 
-def _fit_cache(folder: Path | None) -> AbstractContextManager[None]:
-    """`--fit-cache` in force during the run, for this process and the workers it starts (through the
-    environment, as `taskseq.learn.fit_cache` reads it); the environment as it was without the option."""
-    if folder is None:
-        return nullcontext()
-    if folder.exists() and not folder.is_dir():
-        raise ValueError(f"--fit-cache {folder}: not a folder (the fit cache is a folder of fits)")
-    from ..learn.fit_cache import folder as cache_folder
-
-    return cache_folder(folder)
+def _cache(directory: Path | None) -> AbstractContextManager[None]:
+    """`--cache` in force during the run, for this process and the workers it starts (through the environment,
+    as `taskseq.runtime.cache` reads it); the environment as it was without the option."""
+    return nullcontext() if directory is None else cache_folder(directory)

@@ -1,0 +1,170 @@
+"""A fold's outcomes kept across runs: what one method's programs and step predictions did on one fold's tests.
+
+Once a method is fitted on a fold, what it predicts and what its programs do
+on the fold's test scenarios is a pure function of the code that runs them,
+the method's settings, its fitted weights and the fold's test data (the
+planner, the simulator and the judging are deterministic). After a change to
+one method's module, a re-run of the evaluation stages fits nothing new (the
+fit cache) and would still replay every other method's programs; with this
+cache they are read back, and only the changed method's programs run.
+
+A job's key hashes:
+- the code: the source files of the experiment's module
+  (`experiments.crossval` or `experiments.robustness`, with all they import)
+  and of the module of every function the method's factory is made of (its
+  method module: `taskseq/methods/noise_trained.py` and what it imports), read
+  by `runtime.sources`, and the libraries' versions;
+- the method: its type and every setting but the model store's path (where a
+  fit is found changes nothing but the weights), and, fitted, its scorer's
+  weights and settings (`planner_`), so a model the store trained otherwise
+  misses;
+- the data: every step of the pool with its metadata, every scenario (rooms,
+  objects, task, demonstrations), the fold's test scenarios, the world states
+  of the test steps, and the job's own settings (step cap, conditions, seeds).
+
+It lives in the `outcomes/` folder of the cache `TASKSEQ_CACHE` names
+(`runtime.cache`): one JSON file an entry, written atomically; one that cannot
+be read is run again and replaced, with a warning. A job that keeps its
+programs for recordings is never cached (programs hold every world state).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import warnings
+import weakref
+from collections.abc import Callable, Sequence
+from dataclasses import fields, is_dataclass
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+from ..demonstrations.benchmark import Benchmark
+from ..demonstrations.records import spec_to_dict, state_to_dict
+from ..features.context import StepContext
+from ..features.dataset import StepMeta
+from ..learn.fit_cache import hash_steps
+from ..runtime.atomic import atomic_file
+from ..runtime.cache import subfolder, versions
+from ..runtime.sources import code_fingerprint
+from ..sim.scenarios import Scenario
+from ..sim.state import WorldState
+
+FORMAT = "taskseq.outcomes/1"
+# what a program's steps depend on beyond the project's code: arrays, compiled scoring, SAT, the multiclass SVM
+_LIBRARIES = ("numpy", "scipy", "numba", "python-sat", "scikit-learn")
+
+
+class OutcomeCache:
+    """A folder of fold outcomes, `<key>.json` each (the JSON the experiment's encoder wrote)."""
+
+    def __init__(self, directory: Path | str) -> None:
+        self.directory = Path(directory)
+
+    def path(self, key: str) -> Path:
+        return self.directory / key[:2] / f"{key}.json"
+
+    def load(self, key: str) -> Any | None:
+        """The outcomes stored under `key`, or None if there are none or they cannot be read."""
+        path = self.path(key)
+        if not path.exists():
+            return None
+        try:
+            entry = json.loads(path.read_text(encoding="utf-8"))
+            if entry.get("format") != FORMAT:
+                raise ValueError(f"format {entry.get('format')!r}, expected {FORMAT!r}")
+            return entry["outcomes"]
+        except (OSError, ValueError, KeyError, AttributeError) as err:
+            warnings.warn(f"{path}: unreadable outcomes in the cache are run again ({err!r})", stacklevel=2)
+            return None
+
+    def save(self, key: str, outcomes: Any) -> None:
+        """Store `outcomes` (JSON) under `key`, atomically (not one of the command's outputs)."""
+        with atomic_file(self.path(key), output=False) as tmp:
+            Path(tmp).write_text(json.dumps({"format": FORMAT, "outcomes": outcomes}), encoding="utf-8")
+
+
+def active() -> OutcomeCache | None:
+    """The outcome cache in force (`outcomes/` under the folder `TASKSEQ_CACHE` names), or None."""
+    directory = subfolder("outcomes")
+    return None if directory is None else OutcomeCache(directory)
+
+
+def job_key(experiment: str, make: Callable[[], Any], method: Any, contexts: Sequence[StepContext],
+            meta: Sequence[StepMeta], scenarios: dict[str, Scenario], test: set[str] | frozenset[str],
+            demos: Benchmark | None, job: dict[str, Any]) -> str:
+    """sha256 of what decides one fold job of `experiment` (a module of this package): its code, the fitted
+    `method` that `make` made, the pool of steps and scenarios, the test scenarios and the job's settings."""
+    h = hashlib.sha256()
+    code = [code_fingerprint(f"taskseq.experiments.{experiment}"),
+            *(code_fingerprint(m) for m in sorted(_factory_modules(make)))]
+    h.update(json.dumps({"format": FORMAT, "code": code, **versions(*_LIBRARIES), "method": _described(method),
+                         "test": sorted(test), "job": job}, sort_keys=True, default=repr).encode())
+    fitted = getattr(method, "planner_", None)  # a scorer's weights: the store may have trained them otherwise
+    if fitted is not None:
+        h.update(repr(fitted).encode())
+        h.update(fitted.w_.tobytes())
+    hash_steps(h, contexts)
+    h.update(json.dumps([[m.sequence_id, m.scenario_id, m.step] for m in meta]).encode())
+    for sid in sorted(scenarios):
+        h.update(_scenario_digest(scenarios[sid]))
+    if demos is not None:
+        for m in meta:
+            if m.scenario_id in test:
+                h.update(_state_digest(demos.states[(m.sequence_id, m.step)]))
+                h.update(json.dumps([str(a) for a in demos.actions[m.sequence_id]]).encode())
+    return h.hexdigest()
+
+
+def _described(method: Any) -> dict[str, str]:
+    """The method's type and settings (a dataclass's fields), without the model store's path."""
+    out = {"type": f"{type(method).__module__}.{type(method).__qualname__}"}
+    if is_dataclass(method):
+        out.update({f.name: repr(getattr(method, f.name)) for f in fields(method) if f.name != "store"})
+    else:
+        out["repr"] = repr(method)
+    return out
+
+
+def _factory_modules(make: Callable[[], Any]) -> set[str]:
+    """The project modules of every function `make` is built of (partials unwrapped, callable arguments too)."""
+    out: set[str] = set()
+    todo: list[Any] = [make]
+    while todo:
+        f = todo.pop()
+        if isinstance(f, partial):
+            todo.append(f.func)
+            todo.extend(a for a in (*f.args, *f.keywords.values()) if callable(a))
+        elif getattr(f, "__module__", "").split(".")[0] == "taskseq":
+            out.add(f.__module__)
+    return out
+
+
+def _memo(obj: Any, compute: Callable[[Any], bytes]) -> bytes:
+    """`compute(obj)`, kept by the object's identity behind a weak reference (scenarios and states are never
+    changed once loaded, and each is met by every method and fold of a run)."""
+    kept = _DIGESTS.get(id(obj))
+    if kept is not None and kept[0]() is obj:
+        return kept[1]
+    digest = compute(obj)
+    if len(_DIGESTS) >= _DIGESTS_KEPT:
+        _DIGESTS.clear()
+    _DIGESTS[id(obj)] = (weakref.ref(obj), digest)
+    return digest
+
+
+_DIGESTS: dict[int, tuple[weakref.ref, bytes]] = {}
+_DIGESTS_KEPT = 100_000
+
+
+def _state_digest(state: WorldState) -> bytes:
+    return _memo(state, lambda s: hashlib.sha256(json.dumps(
+        [state_to_dict(s), [spec_to_dict(s.specs[o]) for o in sorted(s.specs)]]).encode()).digest())
+
+
+def _scenario_digest(scenario: Scenario) -> bytes:
+    return _memo(scenario, lambda s: hashlib.sha256(json.dumps(
+        [s.env_id, str(s.task), [[str(a) for a in d] for d in s.demonstrations]]).encode()
+        + _state_digest(s.initial)).digest())
+
