@@ -104,10 +104,20 @@ def test_whatever_decides_a_fold_misses_the_cache(small, cache_dir, runs):
 
 
 def test_where_a_model_was_found_changes_nothing_but_its_weights_do(small, cache_dir, runs, tmp_path):
+    from taskseq.learn.store import ModelStore
+
+    contexts, meta, bench = small
     _cv(small, {"full": MRF})
     runs.clear()
-    _cv(small, {"full": partial(configured, MRF, store=str(tmp_path / "store"))})  # the same fit, from a store
+    _cv(small, {"full": partial(configured, MRF, store=str(tmp_path / "empty"))})  # the same fits, via a store
     assert runs == []
+    # a store whose models under these keys were trained otherwise (here: at another C): other weights, a miss
+    store = ModelStore(tmp_path / "other")
+    for test in crossval.scenario_folds(bench.scenarios, 2, 0, "scenario"):
+        train = [contexts[i] for i in crossval.training_index(meta, test)]
+        store.save(MRF().key(train), MRF(C=0.3).estimator().fit(train), {})
+    _cv(small, {"full": partial(configured, MRF, store=str(tmp_path / "other"))})
+    assert runs == [("full", "crossval")] * 2
 
 
 def test_a_method_module_and_the_experiment_code_are_in_the_key(small, cache_dir, runs, monkeypatch):

@@ -10,10 +10,11 @@ cache they are read back, and only the changed method's programs run.
 
 A job's key hashes:
 - the code: the source files of the experiment's module
-  (`experiments.crossval` or `experiments.robustness`, with all they import)
-  and of the module of every function the method's factory is made of (its
-  method module: `taskseq/methods/noise_trained.py` and what it imports), read
-  by `runtime.sources`, and the libraries' versions;
+  (`experiments.crossval` or `experiments.robustness`, with all they import),
+  of the module of every function the method's factory is made of (its
+  method module: `taskseq/methods/noise_trained.py` and what it imports) and
+  of the method's class, read by `runtime.sources`, and the libraries'
+  versions;
 - the method: its type and every setting but the model store's path (where a
   fit is found changes nothing but the weights), and, fitted, its scorer's
   weights and settings (`planner_`), so a model the store trained otherwise
@@ -97,8 +98,8 @@ def job_key(experiment: str, make: Callable[[], Any], method: Any, contexts: Seq
     """sha256 of what decides one fold job of `experiment` (a module of this package): its code, the fitted
     `method` that `make` made, the pool of steps and scenarios, the test scenarios and the job's settings."""
     h = hashlib.sha256()
-    code = [code_fingerprint(f"taskseq.experiments.{experiment}"),
-            *(code_fingerprint(m) for m in sorted(_factory_modules(make)))]
+    modules = _factory_modules(make) | _factory_modules(type(method))  # a method module may define its own class
+    code = [code_fingerprint(f"taskseq.experiments.{experiment}"), *(code_fingerprint(m) for m in sorted(modules))]
     h.update(json.dumps({"format": FORMAT, "code": code, **versions(*_LIBRARIES), "method": _described(method),
                          "test": sorted(test), "job": job}, sort_keys=True, default=repr).encode())
     fitted = getattr(method, "planner_", None)  # a scorer's weights: the store may have trained them otherwise
