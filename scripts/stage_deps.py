@@ -5,11 +5,14 @@ that reads it) and the project code it runs. The code part is generated here:
 a fresh interpreter imports the command line and the stage's entry modules,
 and every project module it then holds is a dependency, named by its
 subpackage (`taskseq/learn`) or, for the package's own modules, the stage
-modules and VEIL's modules, by its file (`taskseq/stages/select.py`). So a
-change to code a stage never loads does not re-run it, and one it does load
-always does.
+modules, the methods' and VEIL's modules, by its file
+(`taskseq/stages/select.py`). So a change to code a stage never loads does not
+re-run it, and one it does load always does.
 
-A stage of dvc.yaml enters through its module, `taskseq.stages.<name>`. A
+A stage of dvc.yaml enters through its module, `taskseq.stages.<name>`, and
+the modules of the methods it runs (`Stage.runs`: every method, or those
+whose entry of params.yaml's `methods` names the stage's experiment), which a
+stage imports only when it asks for them (`taskseq.methods.method_spec`). A
 stage of veil/dvc.yaml is the `taskseq veil` sub-command of its name, which
 imports what it needs when it runs (so that `taskseq --help` stays quick):
 its entry modules are those its function imports, read from the function's
@@ -18,7 +21,8 @@ source, and from the functions of `taskseq/veil/command.py` it calls.
     python scripts/stage_deps.py           # rewrite the code deps of both files
     python scripts/stage_deps.py --check   # exit 1 and name every file whose code deps differ
 
-Run it after adding a stage or changing what a stage imports; tests/test_stages.py fails until both files agree.
+Run it after adding a stage or a method, changing what a stage imports or which experiments a method's entry of
+params.yaml names; tests/test_stages.py fails until both files agree.
 """
 
 from __future__ import annotations
@@ -47,7 +51,7 @@ print(json.dumps(sorted(m.__file__ for n, m in sys.modules.items()
 """
 STAGE = re.compile(r"^  (\w+):\s*$")
 CODE_DEP = re.compile(r"^(\s+)- (?:\.\./)?taskseq/\S+\s*$")
-BY_FILE = {"stages", "veil"}  # subpackages whose modules are listed one by one
+BY_FILE = {"stages", "veil", "methods"}  # subpackages whose modules are listed one by one
 VEIL_STAGES = ("import", "evaluate", "train")  # veil/dvc.yaml's stages: `taskseq veil` sub-commands
 
 
@@ -62,17 +66,40 @@ def loaded_files(entries: list[str]) -> list[str]:
 
 
 def grouped(paths: list[str]) -> list[str]:
-    """Files as dvc.yaml lists them: a subpackage whole, the package's own modules and those of `BY_FILE` by file."""
+    """Files as dvc.yaml lists them: a subpackage whole, the package's own modules and those of `BY_FILE` by file,
+    the methods' package whole when every module of it is loaded."""
     deps = set()
     for path in paths:
         parts = path.split("/")
         deps.add("/".join(parts[:2]) if len(parts) > 2 and parts[1] not in BY_FILE else path)
+    methods = {str(p.relative_to(ROOT)) for p in (ROOT / "taskseq" / "methods").glob("*.py")}
+    if methods <= deps:
+        deps = deps - methods | {"taskseq/methods"}
     return sorted(deps)
 
 
 def code_deps(stage: str) -> list[str]:
-    """A stage of dvc.yaml's code dependencies."""
-    return grouped(loaded_files(["taskseq.cli", f"taskseq.stages.{stage}"]))
+    """A stage of dvc.yaml's code dependencies: what importing it loads, and the modules of the methods it runs."""
+    from taskseq.methods.spec import added_modules
+
+    methods = [f"taskseq.methods.{name}" for name in methods_run(stage) if name in added_modules()]
+    return grouped(loaded_files(["taskseq.cli", f"taskseq.stages.{stage}", *methods]))
+
+
+def methods_run(stage: str) -> list[str]:
+    """The methods whose modules the stage loads when it runs (`Stage.runs`): every one, or those params.yaml's
+    `methods` section gives its experiment (and the shipped method's stages `train.method` when it names one)."""
+    from taskseq.methods import method_names
+    from taskseq.settings import Params
+    from taskseq.stages import STAGES
+
+    runs, params = STAGES[stage].runs, Params.load(ROOT / "params.yaml")
+    if runs == "all":
+        return method_names()
+    named = [name for name, entry in params.methods.entries if runs and runs in entry.experiments]
+    if runs == "select" and params.train.method != "best":
+        named.append(params.train.method)
+    return named
 
 
 def _imported_when_run(function, module, seen: set[str]) -> set[str]:

@@ -49,7 +49,7 @@ def test_a_number_of_rooms_below_one_is_refused_with_its_value():
     with pytest.raises(ValueError, match="at least 1, got 0"):
         drawn_room_steps(0, 1000, Procedural())
     with pytest.raises(ValueError, match="rooms must be at least 1"):
-        Lineup(Params.load(None, ["methods.drawn_rooms.rooms=0"]).methods)
+        Lineup(Params.load(None, ["methods.drawn_rooms.rooms=0"]).methods).factory("drawn_rooms")
 
 
 def test_the_rooms_trained_on_are_none_of_the_rooms_any_world_reports_or_develops_on():

@@ -82,7 +82,9 @@ def test_the_tutorials_method_reaches_table1_mlflow_the_store_and_the_tables_ove
     assert added == "full_dagger"
     labels = method_labels()
     assert labels["full_dagger"] == "ours - full + dagger"
-    assert list(labels)[-1] == "full_dagger"  # below the built-in rows
+    builtin = [name for name, s in spec.specs().items() if s.make.__module__ == "taskseq.methods.builtin"]
+    added_rows = list(labels)[len(builtin):]  # below the built-in rows, the added ones by name
+    assert list(labels)[:len(builtin)] == builtin and "full_dagger" in added_rows and added_rows == sorted(added_rows)
     # its entry: select gives it a C of its own; its setting is read, checked and overridden like any other
     methods = Params.load(params).methods
     assert Lineup(methods).names("select") == ["full", "full_dagger"]
@@ -90,7 +92,7 @@ def test_the_tutorials_method_reaches_table1_mlflow_the_store_and_the_tables_ove
     assert Lineup(Params.load(params, ["methods.full_dagger.rounds=2"]).methods).factory("full_dagger")(
         ).dagger_rounds == 2
     with pytest.raises(ValueError, match="methods.full_dagger.rounds must be a whole number, got 'two'"):
-        Lineup(Params.load(params, ["methods.full_dagger.rounds=two"]).methods)
+        Lineup(Params.load(params, ["methods.full_dagger.rounds=two"]).methods).factories()
     # the C `select` chose for it, as selection.json holds it (the other MRF methods' too, which fold_models trains)
     selection = tmp_path / "selection.json"
     every = [n for n, m in Lineup(methods).mrf().items() if n not in ("only_edge", "only_clique")]
@@ -149,12 +151,18 @@ def test_a_method_needs_a_c_of_its_own_when_a_selection_file_is_given(added, par
 def test_an_entry_names_a_method_and_settings_it_has(added, tmp_path):
     with pytest.raises(ValueError, match="methods.full_chained is no method of Table I"):
         Lineup(Params.load(None, ["methods.full_chained.experiments=select"]).methods)
+    lineup = Lineup(Params.load(None, ["methods.full.rounds=2"]).methods)
     with pytest.raises(ValueError, match="unknown setting methods.full.rounds"):
-        Lineup(Params.load(None, ["methods.full.rounds=2"]).methods)
+        lineup.factories()  # every stage asks for its methods before any work
 
 
 def test_a_name_is_registered_once(added):
     with pytest.raises(ValueError, match="registered twice"):
         register(MethodSpec("full", "another full model", lambda build: None))
+    in_the_package = lambda build: None  # noqa: E731
+    in_the_package.__module__ = "taskseq.methods.choice"
+    with pytest.raises(ValueError, match="registered by taskseq/methods/choice.py: a module that adds a method is "
+                                         "named as the method"):
+        register(MethodSpec("choice_again", "x", in_the_package))
     with pytest.raises(ValueError, match="Python identifier"):
         MethodSpec("two words", "x", lambda build: None)

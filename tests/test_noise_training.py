@@ -124,7 +124,7 @@ def test_a_model_file_says_how_many_noisy_copies_it_trained_on():
                                                   ("noise_copies=-1", "noise_copies must be at least 0")])
 def test_noisy_training_settings_are_checked_where_the_methods_are_configured(setting, message):
     with pytest.raises(ValueError, match=message):
-        Lineup(Params.load(None, [f"methods.noise_trained.{setting}"]).methods)
+        Lineup(Params.load(None, [f"methods.noise_trained.{setting}"]).methods).factory("noise_trained")
     for rate in ("0.0", "1.0"):  # both ends of the range are probabilities
         methods = Params.load(None, [f"methods.noise_trained.noise_rate={rate}",
                                      "methods.noise_trained.noise_copies=0"]).methods

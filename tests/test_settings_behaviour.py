@@ -14,7 +14,6 @@ from pathlib import Path
 import pytest
 
 from taskseq.methods import Lineup, MethodSpec, specs
-from taskseq.methods import lineup as lineup_module
 from taskseq.methods import spec as spec_module
 from taskseq.selection import UNTUNED_C, Selection, read_selection
 from taskseq.settings import (
@@ -362,9 +361,10 @@ def test_a_lineup_refuses_an_unknown_method_or_setting():
     known = ", ".join(specs())
     assert refused(lineup, '{"full": null, "fool": null, "bar": null}') == (
         f"params.yaml: methods.fool is no method of Table I; known: {known}")
-    assert refused(lineup, '{"dagger": {"dagger_rounds": "two"}}') == (
+    # a method's settings are checked when it is asked for, as every stage does for its methods before any work
+    assert refused(lambda text: lineup(text).factories(), '{"dagger": {"dagger_rounds": "two"}}') == (
         "params.yaml: methods.dagger.dagger_rounds must be a whole number, got 'two'")
-    assert refused(lineup, '{"chance": {"dagger_rounds": 1}}') == (
+    assert refused(lambda text: lineup(text).factory("chance"), '{"chance": {"dagger_rounds": 1}}') == (
         "params.yaml: unknown setting methods.chance.dagger_rounds; methods.chance has ")
     assert refused(lineup().factories, ["full", "fool"]) == f"unknown methods ['fool']; known: {known}"
 
@@ -395,7 +395,7 @@ def test_a_lineup_gives_each_method_its_settings_c_and_learner():
 def test_only_methods_tuned_by_a_c_count_as_mrf_methods(monkeypatch):
     # a method that fits no C of its own (C_from None) is no MRF method of the fold models, even when it is one
     fixed = MethodSpec("fixed", "fixed model", lambda b: replace(b, C=1.0).mrf("full"), C_from=None)
-    monkeypatch.setattr(lineup_module, "specs", lambda: {**specs(), "fixed": fixed})
+    monkeypatch.setattr(spec_module, "_SPECS", {**spec_module._SPECS, "fixed": fixed})
     up = lineup().at_C(2.0)
     assert up.factory("fixed")().C == 1.0
     assert "fixed" not in up.mrf() and "full" in up.mrf()
@@ -447,10 +447,9 @@ def test_a_name_is_registered_once_and_the_lists_keep_the_order_registered(monke
     assert spec_module.register(MethodSpec("b", "the b", make_nothing)) == first  # the same spec again: no change
     spec_module.register(MethodSpec("a", "the a", make_nothing))
     assert refused(spec_module.register, MethodSpec("b", "another b", make_nothing)) == "method 'b' is registered twice"
-    assert list(spec_module.specs()) == ["b", "a"] and spec_module.specs()["b"] == first
-    assert spec_module.method_labels() == {"b": "the b", "a": "the a"}
-    spec_module.specs().clear()  # a copy
-    assert list(spec_module.specs()) == ["b", "a"]
+    assert [n for n in spec_module.method_names() if n in "ab"] == ["b", "a"]  # methods of no module of the package
+    assert spec_module.method_spec("b") == first
+    assert spec_module.method_labels(["b", "a"]) == {"b": "the b", "a": "the a"}
 
 
 def test_a_build_makes_the_mrf_method_with_everything_in_force():

@@ -17,7 +17,9 @@ from taskseq.demonstrations.records import spec_from_dict, state_from_dict
 from taskseq.experiments import selection
 from taskseq.experiments.selection import best_candidate
 from taskseq.learn.estimator import StepScorer
+from taskseq.methods.spec import added_modules
 from taskseq.plan.planner import feasible, run_loop
+from taskseq.settings import Params
 from taskseq.sim.procedural import DrawReport
 from taskseq.sim.tasks import Task
 from taskseq.stages import generate as generate_stage
@@ -352,3 +354,39 @@ def test_a_cache_that_is_a_file_is_named_and_nothing_is_written(tiny, tmp_path, 
     assert code == 2
     assert f"--cache {not_a_folder}: not a folder" in capsys.readouterr().err
     assert not (tmp_path / "store").exists() and not_a_folder.read_text() == "a file a person made\n"
+
+
+LOADED_AT_EXIT = """
+import atexit, json, sys
+from taskseq.cli import main
+atexit.register(lambda: print(json.dumps(sorted(m.__file__ for n, m in sys.modules.items()
+                                                if n.startswith("taskseq.methods") and getattr(m, "__file__", None)))))
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.parametrize(("stage", "options"), [
+    ("noise", ["--set", "noise.rates=0.0 0.3", "--set", "noise.draws=1"]),
+    ("feedback", ["--set", "feedback.k=2", "--set", "feedback.n=0 all"]),
+    ("recipes", [])])
+def test_a_stage_loads_the_modules_of_the_methods_it_runs_and_no_other(stage, options, tiny, tmp_path):
+    """What DVC re-runs after a change to a method's module rests on this: the stage really loads no other."""
+    import importlib.util
+    import subprocess
+    import sys
+
+    root = Path(__file__).resolve().parents[1]
+    spec = importlib.util.spec_from_file_location("stage_deps", root / "scripts" / "stage_deps.py")
+    stage_deps = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(stage_deps)
+    argv = [sys.executable, "-c", LOADED_AT_EXIT, "--no-mlflow", stage, *data(tiny), *FOLDS, *LEARN, *options,
+            "--selection", str(tiny / "selection.json"), "--model-store", str(tiny / "store"),
+            "--output", str(tmp_path), *(["--n-jobs", "1"] if stage != "recipes" else [])]
+    out = subprocess.run(argv, capture_output=True, text=True, cwd=root)
+    assert out.returncode == 0, out.stderr[-2000:]
+    loaded = {str(Path(f).resolve().relative_to(root)) for f in json.loads(out.stdout.strip().splitlines()[-1])}
+    deps = stage_deps.code_deps(stage)
+    assert sorted(f for f in loaded if not any(f == d or f.startswith(d + "/") for d in deps)) == [], stage
+    ran = {name for name, entry in Params.load(root / "params.yaml").methods.entries if stage in entry.experiments}
+    added = {f"taskseq/methods/{name}.py" for name in added_modules()}
+    assert loaded & added == {f"taskseq/methods/{name}.py" for name in ran} & added  # its own, no other

@@ -171,6 +171,30 @@ def test_a_change_to_one_stages_code_reaches_only_that_stage_and_what_reads_its_
         "stats@drawn_rooms", "stats@transfer", "report"}  # the drawn worlds' stages, none of the reported worlds'
 
 
+@pytest.mark.filterwarnings("ignore::DeprecationWarning")  # DVC's own, from its graph of outputs
+def test_a_change_to_one_methods_module_reruns_only_the_stages_that_run_it():
+    from dvc.repo import Repo
+
+    repo = Repo(str(ROOT))
+
+    def listing(path: str) -> set[str]:  # the stages whose deps DVC checks for this file
+        return {s.addressing for s in repo.index.graph if s.dvcfile.relpath == "dvc.yaml"
+                and any(path == d or path.startswith(d + "/")
+                        for d in (os.path.relpath(dep.fs_path, repo.root_dir) for dep in s.deps))}
+
+    seeds = Params.load(ROOT / "params.yaml").world.seeds
+    per_world = {f"{stage}@{s}" for stage in ("fold_models", "crossval", "noise", "scenes_world") for s in seeds}
+    # noise_trained runs in select, noise and Table I (params.yaml); teach and train take the shipped method, one
+    # that select ranks; the tables over worlds name every method
+    assert listing("taskseq/methods/noise_trained.py") == per_world | {
+        "select", "train", "teach", "scenes", "aggregate", "report",
+        *(f"stats@{t}" for t in ("scenario_folds", "drawn_rooms", "transfer"))}
+    for stage in ("feedback", "recipes"):  # they run full, relations, chained and choice_chained_lookahead
+        assert not {f"{stage}@{s}" for s in seeds} & listing("taskseq/methods/noise_trained.py")
+        assert {f"{stage}@{s}" for s in seeds} <= listing("taskseq/methods/builtin.py")
+    assert {f"recipes@{s}" for s in seeds} <= listing("taskseq/methods/choice_chained_lookahead.py")
+
+
 @pytest.mark.parametrize("stage", ["train", "select", "fold_models", "crossval", "noise", "feedback", "recipes",
                                    "scenes_world"])
 def test_stages_that_load_planners_start_without_scikit_learn(stage):

@@ -1,14 +1,20 @@
 """A Table I method as one spec: its name, label, estimator factory, policy, and own settings with defaults.
 
-Every method, built in (`builtin.py`) or added (a module of its own beside it),
-registers one `MethodSpec` here with `register`. The package's `__init__`
-imports every module of the package before anyone can ask for the list, so
-the list is whole whenever it is read, and this module imports none of them.
+Every method, built in (`builtin.py`) or added (a module of its own beside it,
+named as the method), registers one `MethodSpec` here with `register`. A
+method's module is imported when someone asks for its spec (`method_spec`),
+and every one when someone asks for the whole list (`specs`); the names are
+known without importing any (`method_names`). So a stage that runs some
+methods loads the code of those only, and DVC re-runs it only when that code
+changes (`scripts/stage_deps.py`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import importlib
+import pkgutil
+import sys
+from collections.abc import Callable, Iterable
 from dataclasses import MISSING, dataclass, fields, is_dataclass
 from typing import Any
 
@@ -77,21 +83,65 @@ class MethodSpec:
 
 
 _SPECS: dict[str, MethodSpec] = {}
+_BUILTIN = f"{__package__}.builtin"
+MACHINERY = {"builtin", "lineup", "spec"}  # the package's modules that add no method of their own
 
 
 def register(spec: MethodSpec) -> MethodSpec:
-    """Add a method to Table I: built-in ones in the tables' order, then added ones by module name."""
+    """Add a method to Table I. A module of this package that adds one is named as its method (the method
+    `noise_trained` is `taskseq/methods/noise_trained.py`), so that a stage loads the modules of exactly the
+    methods it runs (`method_spec`)."""
+    module = getattr(spec.make, "__module__", "") or ""
+    home = module.removeprefix(f"{__package__}.")
+    if module.startswith(f"{__package__}.") and home not in MACHINERY and home != spec.name:
+        raise ValueError(f"method {spec.name!r} is registered by taskseq/methods/{home}.py: a module that adds a "
+                         f"method is named as the method ({spec.name}.py)")
     if spec.name in _SPECS and _SPECS[spec.name] != spec:
         raise ValueError(f"method {spec.name!r} is registered twice")
     _SPECS[spec.name] = spec
     return spec
 
 
+def added_modules() -> list[str]:
+    """The names of the package's modules that add a method, sorted (none of them imported)."""
+    package = sys.modules[__package__]  # its __path__ as it is now (a test adds a folder to it)
+    return sorted(m.name for m in pkgutil.iter_modules(package.__path__) if m.name not in MACHINERY)
+
+
+def load() -> None:
+    """Import every module of the package that adds a method (each registers its spec)."""
+    importlib.import_module(f"{__package__}.builtin")
+    for name in added_modules():
+        importlib.import_module(f"{__package__}.{name}")
+
+
+def method_names() -> list[str]:
+    """Every method's name, the built-in ones first in the tables' order, then the added ones by name, without
+    importing the added ones (a module's name is its method's)."""
+    importlib.import_module(f"{__package__}.builtin")
+    builtin = [name for name, spec in _SPECS.items() if spec.make.__module__ == _BUILTIN]
+    return builtin + [n for n in added_modules() if n not in builtin] + [
+        n for n in _SPECS if n not in builtin and n not in added_modules()]
+
+
+def method_spec(name: str) -> MethodSpec:
+    """Method `name`'s spec, importing its module if it is an added one and no other; `ValueError` if there is
+    no such method."""
+    if name not in _SPECS:
+        importlib.import_module(f"{__package__}.builtin")
+    if name not in _SPECS and name in added_modules():
+        importlib.import_module(f"{__package__}.{name}")
+    if name not in _SPECS:
+        raise ValueError(f"no method {name!r}; known: {', '.join(method_names())}")
+    return _SPECS[name]
+
+
 def specs() -> dict[str, MethodSpec]:
-    """Every method's spec by name, in the tables' order."""
-    return dict(_SPECS)
+    """Every method's spec by name, in the tables' order (`method_names`); imports every method's module."""
+    load()
+    return {name: method_spec(name) for name in method_names()}
 
 
-def method_labels() -> dict[str, str]:
-    """Every method's label, in the tables' order."""
-    return {name: spec.label for name, spec in _SPECS.items()}
+def method_labels(names: Iterable[str] | None = None) -> dict[str, str]:
+    """The labels of `names` (default: every method, in the tables' order), importing only their modules."""
+    return {name: method_spec(name).label for name in (method_names() if names is None else names)}

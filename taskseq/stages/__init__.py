@@ -30,13 +30,17 @@ class Stage:
     parallel: bool = False  # takes `n_jobs`
     per_world: bool = False  # runs on one world's data (`--world-seed`)
     cached: bool = False  # fits models or runs programs: takes `--cache` (`taskseq.runtime.cache`)
+    # the methods whose modules it loads (`taskseq.methods.method_spec`): "" none, "all" every one (Table I, every
+    # label), or an experiment's (those whose entry of params.yaml's `methods` names it; `select`'s for the stages
+    # that take the shipped method, which `select` ranks first, or `train.method` when it names one)
+    runs: str = ""
 
 
 STAGES: dict[str, Stage] = {
     "dev_world": Stage("draw the development world (logs, tables, features) into one folder",
                        opts.WorldFolderOptions),
     "select": Stage("cross-validate each MRF method on the development world to choose its own C; rank them",
-                    opts.SelectOptions, True, cached=True),
+                    opts.SelectOptions, True, cached=True, runs="select"),
     "generate": Stage("simulate the demonstrator and write demonstration logs (JSON Lines)", opts.GenerateOptions,
                       per_world=True),
     "ingest": Stage("validate logs and write them as Parquet tables plus dataset metrics", opts.IngestOptions,
@@ -44,34 +48,34 @@ STAGES: dict[str, Stage] = {
     "features": Stage("build every teacher-forced step's candidates and features from the Parquet tables",
                       opts.FeaturesOptions, per_world=True),
     "train": Stage("fit the MRF weights with the structural SVM (the paper's 1-slack objective) on every step",
-                   opts.TrainOptions, per_world=True, cached=True),
+                   opts.TrainOptions, per_world=True, cached=True, runs="select"),
     "pddl": Stage("write the PDDL domain, a problem per scenario and its shortest plan (SAT)", opts.PddlOptions,
                   per_world=True),
     "fold_models": Stage("train every MRF model the evaluation stages use, once, into a model store",
-                         opts.FoldModelsOptions, True, True, cached=True),
+                         opts.FoldModelsOptions, True, True, cached=True, runs="all"),
     "crossval": Stage("cross-validate every method and write Table I, metrics and a confusion matrix",
-                      opts.CrossvalOptions, True, True, cached=True),
+                      opts.CrossvalOptions, True, True, cached=True, runs="all"),
     "noise": Stage("sequence accuracy with binary attributes flipped at test time", opts.EvaluationOptions, True, True,
-                   cached=True),
+                   cached=True, runs="noise"),
     "feedback": Stage("sequence accuracy when an observer picks among the top k at the first n steps",
-                      opts.EvaluationOptions, True, True,
-                   cached=True),
+                      opts.EvaluationOptions, True, True, cached=True, runs="feedback"),
     "recipes": Stage("chain programs into recipes in environments held out from training", opts.EvaluationOptions,
-                     per_world=True),
+                     per_world=True, runs="recipes"),
     "drawn_world": Stage("draw a world of rooms by a reported world's seed (logs, tables, features) into one folder",
                          opts.WorldFolderOptions, per_world=True),
     "scenes_world": Stage("one world seed with whole rooms held out of training, paper-shaped and drawn (noise and "
                           "feedback there too), and models of the paper-shaped rooms run in drawn ones",
-                          opts.ScenesWorldOptions, True, True, cached=True),
+                          opts.ScenesWorldOptions, True, True, cached=True, runs="all"),
     "scenes": Stage("Table I, failures and the transfer with rooms held out, over the world seeds",
-                    opts.ScenesOptions),
+                    opts.ScenesOptions, runs="all"),
     "people": Stage("check people's demonstrations, count them, and compare the planner with and without them",
                     opts.PeopleOptions, cached=True),
     "teach": Stage("the shipped planner in drawn rooms it never saw, after a scripted person shows k tasks in each",
-                   opts.TeachOptions, True, cached=True),
+                   opts.TeachOptions, True, cached=True, runs="select"),
     "aggregate": Stage("every figure over the world seeds: mean ± sd tables, failures, noise, feedback, recipes",
-                       opts.AggregateOptions),
+                       opts.AggregateOptions, runs="all"),
     "stats": Stage("confidence intervals of Table I by a bootstrap over worlds and scenarios; paired tests of methods",
-                   opts.StatsOptions),
-    "report": Stage("write reports/summary.md: every result next to the paper's figures", opts.ReportOptions),
+                   opts.StatsOptions, runs="all"),
+    "report": Stage("write reports/summary.md: every result next to the paper's figures", opts.ReportOptions,
+                    runs="all"),
 }

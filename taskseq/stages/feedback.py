@@ -68,7 +68,7 @@ def run(settings: Settings, options: EvaluationOptions, tracker: Tracker = NO_RU
             child.metrics({k: r[k] for k in DECIMALS})
             child.table([q for q in sequences if (q["method"], q["k"], q["n"]) == (name, r["k"], r["n"])],
                         "sequences")
-    series = {f"{method_labels()[m]}, top {k}": (list(range(len(ns))), [r["sequence_arg"] for r in rows
+    series = {f"{method_labels([m])[m]}, top {k}": (list(range(len(ns))), [r["sequence_arg"] for r in rows
                                                                      if r["k"] == k and r["method"] == m], None)
               for m in methods for k in feedback.k}
     line_plot_png(series, str(out / "feedback.png"), "Sequence accuracy (arg) with an observer's feedback",

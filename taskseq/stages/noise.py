@@ -72,7 +72,7 @@ def run(settings: Settings, options: EvaluationOptions, tracker: Tracker = NO_RU
             child.metrics({"sequence_arg": row["sequence_arg"], "sequence_arg_std": row["sequence_arg_std"],
                            "sequence_prim": row["sequence_prim"], "success": row["success"]})
             child.table([r for r in sequences if r["method"] == name and r["rate"] == row["rate"]], "sequences")
-    series = {f"{method_labels()[m]} (mean, std over noise draws)":
+    series = {f"{method_labels([m])[m]} (mean, std over noise draws)":
               (list(noise.rates), [r["sequence_arg"] for r in curve if r["method"] == m],
                [r["sequence_arg_std"] for r in curve if r["method"] == m]) for m in methods}
     line_plot_png(series, str(out / "noise.png"), "Sequence accuracy (arg) with binary attributes flipped",

@@ -61,7 +61,7 @@ def run(settings: Settings, options: EvaluationOptions, tracker: Tracker = NO_RU
                 child.table([r for r in mine if r["recipe"] == name], "programs")
         totals = report["totals"]
         tracker.metrics({f"{method}.{k}": float(v) for k, v in totals.items()})
-        print(f"== {method_labels()[method]}")
+        print(f"== {method_labels([method])[method]}")
         for o in outcomes:
             print(f"{o.recipe:24s} {o.env_id} feedback={'yes' if o.feedback else 'no ':3s} "
                   f"{'SUCCESS' if o.success else 'failed '}  "

@@ -88,7 +88,7 @@ def run(settings: Settings, options: TeachOptions, tracker: Tracker = NO_RUN, n_
                                   max_steps)]
     programs = [row for rows in run_jobs(jobs, n_jobs) for row in rows]
     table, per_seed = _over_seeds(programs, teach.k, world.seeds)
-    out, label = Path(options.output), method_labels().get(shipped, shipped)
+    out, label = Path(options.output), method_labels([shipped])[shipped]
     write_text_atomic(out / "teach_programs.csv", csv_text(list(programs[0]), programs) if programs else "")
     write_text_atomic(out / "teach_seeds.csv", csv_text(["world_seed", "k", "held_out_tasks", *FIGURES], per_seed,
                                                         dict.fromkeys(FIGURES, 2)))

@@ -78,7 +78,7 @@ def run(settings: Settings, options: TrainOptions, tracker: Tracker = NO_RUN) ->
                              "training scenarios, from the Parquet tables (--processed)")
         scenarios = {**load_benchmark(options.processed).scenarios, **Benchmark.from_records(people).scenarios}
     planner = method.fit(contexts, meta, scenarios).planner_
-    label = method_labels().get(name, name)
+    label = method_labels([name])[name]
     planner.save(model, n_steps=len(contexts), method=name, label=label, chosen_by=chosen_by,
                  chained_starts=method.chained_starts, dagger_rounds=method.dagger_rounds, policy=method.policy,
                  **({"noise_rate": method.noise_rate, "noise_copies": method.noise_copies} if method.noise_copies
