@@ -98,9 +98,21 @@ def test_whatever_decides_a_fold_misses_the_cache(small, cache_dir, runs):
     changed = {**bench.scenarios, sid: replace(first, demonstrations=first.demonstrations[:1] + ((),))}
     _cv((contexts, meta, replace(bench, scenarios=changed)), {"full": MRF})  # a scenario judged otherwise
     assert runs == [("full", "crossval")] * 2 * 4
+
+
+
+def test_programs_kept_for_recordings_are_run_again_from_an_entry(small, cache_dir, runs, monkeypatch):
+    contexts, meta, bench = small
+    kept = frozenset(sorted(bench.scenarios)[:3])
+    monkeypatch.delenv(cache.CACHE_ENV)
+    uncached = _cv(small, {"full": MRF}, keep_programs={"full": kept})
+    monkeypatch.setenv(cache.CACHE_ENV, str(cache_dir.parent))
+    _cv(small, {"full": MRF}, keep_programs={"full": kept})
     runs.clear()
-    _cv(small, {"full": MRF}, keep_programs={"full": frozenset({sid})})  # programs kept for recordings: not cached
-    assert runs == [("full", "crossval")] * 2
+    again = _cv(small, {"full": MRF}, keep_programs={"full": kept})
+    assert runs == []  # the fold's outcomes read back; only the kept programs ran
+    assert again == uncached  # the programs too, state by state
+    assert sorted(sid for r in again for sid in r.programs) == sorted(kept)
 
 
 def test_where_a_model_was_found_changes_nothing_but_its_weights_do(small, cache_dir, runs, tmp_path):

@@ -75,15 +75,17 @@ def _run_fold(make, fold, contexts, meta, scenarios, test_scenarios, max_steps, 
     train_index = training_index(meta, test_scenarios)
     test_index = [i for i, m in enumerate(meta) if m.scenario_id in test_scenarios]
     method = make().fit([contexts[i] for i in train_index], [meta[i] for i in train_index], scenarios)
-    cache = None if keep_programs else outcome_cache.active()  # programs kept for recordings are not cached
+    cache = outcome_cache.active()
     if cache is None:
         return _tested(method, fold, contexts, meta, scenarios, test_scenarios, test_index, max_steps, demos,
                        keep_programs)
     key = outcome_cache.job_key("crossval", make, method, contexts, meta, scenarios, test_scenarios, demos,
                                 {"fold": fold, "max_steps": max_steps})
     stored = cache.load(key)
-    if stored is not None:
-        return _decoded(stored)
+    if stored is not None:  # the programs kept for recordings run again: a cached entry holds no world states
+        result = _decoded(stored)
+        kept = sorted(keep_programs & test_scenarios) if result.sequences is not None else []
+        return replace(result, programs={sid: method.run(scenarios[sid], max_steps) for sid in kept})
     result = _tested(method, fold, contexts, meta, scenarios, test_scenarios, test_index, max_steps, demos,
                      keep_programs)
     cache.save(key, _encoded(result))
@@ -108,7 +110,7 @@ def _tested(method, fold, contexts, meta, scenarios, test_scenarios, test_index,
 
 
 def _encoded(result: FoldResult) -> dict:
-    """A fold's result as JSON (its kept programs aside: a cached job keeps none)."""
+    """A fold's result as JSON, its kept programs aside (they hold every world state they met)."""
     return {"method": result.method, "fold": result.fold, "step_index": result.step_index,
             "step_predictions": result.step_predictions,
             "sequences": None if result.sequences is None else [asdict(o) for o in result.sequences]}

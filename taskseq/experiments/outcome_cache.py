@@ -25,8 +25,9 @@ A job's key hashes:
 
 It lives in the `outcomes/` folder of the cache `TASKSEQ_CACHE` names
 (`runtime.cache`): one JSON file an entry, written atomically; one that cannot
-be read is run again and replaced, with a warning. A job that keeps its
-programs for recordings is never cached (programs hold every world state).
+be read is run again and replaced, with a warning. An entry holds outcomes,
+not programs (a program holds every world state it met): a job read back
+that keeps some programs for recordings runs those few again.
 """
 
 from __future__ import annotations

@@ -26,8 +26,10 @@ def _file(module: str) -> Path | None:
     return None
 
 
-def _imported(module: str, path: Path) -> set[str]:
-    """The `taskseq` modules that the text of `module` (at `path`) imports."""
+@cache
+def _imported(module: str, path: Path) -> frozenset[str]:
+    """The `taskseq` modules that the text of `module` (at `path`) imports (each file read once per process, as
+    several closures share most of their files)."""
     package = module if path.name == "__init__.py" else module.rpartition(".")[0]
     out: set[str] = set()
     for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), filename=str(path))):
@@ -41,7 +43,7 @@ def _imported(module: str, path: Path) -> set[str]:
                 base = node.module or ""
             out.add(base)
             out.update(f"{base}.{alias.name}" for alias in node.names)  # `from pkg import module`
-    return {m for m in out if m.split(".")[0] == "taskseq" and _file(m) is not None}
+    return frozenset(m for m in out if m.split(".")[0] == "taskseq" and _file(m) is not None)
 
 
 @cache
