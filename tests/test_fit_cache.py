@@ -106,13 +106,13 @@ def test_an_unreadable_entry_is_fitted_again_and_replaced(steps, cache_dir):
     done = StepScorer("full", C=1.0).fit(steps)
     (entry,) = _entries(cache_dir)
     entry.write_bytes(b"not a zip file")
-    with pytest.warns(UserWarning, match="unreadable fit"):
+    with pytest.warns(UserWarning, match="unreadable entry of the cache is fitted again"):
         again = StepScorer("full", C=1.0).fit(steps)
     assert not again.from_cache_ and again.w_.tobytes() == done.w_.tobytes()
     assert StepScorer("full", C=1.0).fit(steps).from_cache_
     # a whole archive with a record that misses a field is no fit either
     np.savez(entry, w=done.w_, meta=np.array(json.dumps({"format": fit_cache.FORMAT, "history": []})))
-    with pytest.warns(UserWarning, match="unreadable fit"):
+    with pytest.warns(UserWarning, match="unreadable entry of the cache is fitted again"):
         assert not StepScorer("full", C=1.0).fit(steps).from_cache_
 
 

@@ -156,7 +156,7 @@ def test_an_unreadable_entry_is_run_again_and_replaced(small, cache_dir, runs):
     entries = sorted(cache_dir.rglob("*.json"))
     entries[0].write_text("{not json")
     runs.clear()
-    with pytest.warns(UserWarning, match="unreadable outcomes in the cache are run again"):
+    with pytest.warns(UserWarning, match="unreadable entry of the cache is run again"):
         again = _cv(small, {"chance": ChanceMethod})
     assert again == first and len(runs) == 1
     runs.clear()

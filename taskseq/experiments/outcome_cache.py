@@ -34,7 +34,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import warnings
 import weakref
 from collections.abc import Callable, Sequence
 from dataclasses import fields, is_dataclass
@@ -48,7 +47,7 @@ from ..features.context import StepContext
 from ..features.dataset import StepMeta
 from ..learn.fit_cache import hash_steps
 from ..runtime.atomic import atomic_file
-from ..runtime.cache import subfolder, versions
+from ..runtime.cache import Entries, subfolder, versions
 from ..runtime.sources import code_fingerprint
 from ..sim.scenarios import Scenario
 from ..sim.state import WorldState
@@ -58,33 +57,26 @@ FORMAT = "taskseq.outcomes/1"
 _LIBRARIES = ("numpy", "scipy", "numba", "python-sat", "scikit-learn")
 
 
-class OutcomeCache:
+class OutcomeCache(Entries):
     """A folder of fold outcomes, `<key>.json` each (the JSON the experiment's encoder wrote)."""
 
-    def __init__(self, directory: Path | str) -> None:
-        self.directory = Path(directory)
-
-    def path(self, key: str) -> Path:
-        return self.directory / key[:2] / f"{key}.json"
+    suffix = ".json"
 
     def load(self, key: str) -> Any | None:
         """The outcomes stored under `key`, or None if there are none or they cannot be read."""
-        path = self.path(key)
-        if not path.exists():
-            return None
-        try:
-            entry = json.loads(path.read_text(encoding="utf-8"))
-            if entry.get("format") != FORMAT:
-                raise ValueError(f"format {entry.get('format')!r}, expected {FORMAT!r}")
-            return entry["outcomes"]
-        except (OSError, ValueError, KeyError, AttributeError) as err:
-            warnings.warn(f"{path}: unreadable outcomes in the cache are run again ({err!r})", stacklevel=2)
-            return None
+        return self.read(key, _parsed, "run again")
 
     def save(self, key: str, outcomes: Any) -> None:
         """Store `outcomes` (JSON) under `key`, atomically (not one of the command's outputs)."""
         with atomic_file(self.path(key), output=False) as tmp:
             Path(tmp).write_text(json.dumps({"format": FORMAT, "outcomes": outcomes}), encoding="utf-8")
+
+
+def _parsed(path: Path) -> Any:
+    entry = json.loads(path.read_text(encoding="utf-8"))
+    if entry.get("format") != FORMAT:
+        raise ValueError(f"format {entry.get('format')!r}, expected {FORMAT!r}")
+    return entry["outcomes"]
 
 
 def active() -> OutcomeCache | None:

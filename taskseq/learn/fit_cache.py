@@ -23,9 +23,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-import warnings
 import weakref
-import zipfile
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, fields
 from functools import cache
@@ -37,7 +35,7 @@ import scipy.sparse as sp
 
 from ..features.context import StepContext
 from ..runtime.atomic import atomic_file
-from ..runtime.cache import subfolder, versions
+from ..runtime.cache import Entries, subfolder, versions
 from ..runtime.sources import code_fingerprint
 from .ssvm import Cuts, Iteration
 
@@ -135,38 +133,30 @@ class FitRecord:
 _SCALARS = tuple(f.name for f in fields(FitRecord) if f.name not in ("w", "history", "cuts"))
 
 
-class FitCache:
+def _parsed(path: Path) -> FitRecord:
+    with np.load(path, allow_pickle=False) as z:
+        meta = json.loads(str(z["meta"]))
+        if meta.get("format") != FORMAT:
+            raise ValueError(f"format {meta.get('format')!r}, expected {FORMAT!r}")
+        arrays = {name: z[name] for name in z.files if name != "meta"}
+    cuts = None
+    if meta["cuts"] is not None:
+        c = meta["cuts"]
+        deltas = sp.csr_matrix((arrays["cut_data"], arrays["cut_indices"], arrays["cut_indptr"]),
+                               shape=tuple(c["shape"]))
+        cuts = Cuts(deltas, arrays["cut_losses"], arrays["cut_examples"], arrays["cut_alpha"], c["C"],
+                    c["n_examples"], c["fingerprint"])
+    return FitRecord(arrays["w"], [Iteration(**it) for it in meta["history"]], cuts, **{k: meta[k] for k in _SCALARS})
+
+
+class FitCache(Entries):
     """A folder of fits, `<key>.npz` each: the weights, the learner's record of the fit and its final cuts."""
 
-    def __init__(self, directory: Path | str) -> None:
-        self.directory = Path(directory)
-
-    def path(self, key: str) -> Path:
-        return self.directory / key[:2] / f"{key}.npz"
+    suffix = ".npz"
 
     def load(self, key: str) -> FitRecord | None:
         """The fit stored under `key`, or None if there is none or it cannot be read."""
-        path = self.path(key)
-        if not path.exists():
-            return None
-        try:
-            with np.load(path, allow_pickle=False) as z:
-                meta = json.loads(str(z["meta"]))
-                if meta.get("format") != FORMAT:
-                    raise ValueError(f"format {meta.get('format')!r}, expected {FORMAT!r}")
-                arrays = {name: z[name] for name in z.files if name != "meta"}
-            cuts = None
-            if meta["cuts"] is not None:
-                c = meta["cuts"]
-                deltas = sp.csr_matrix((arrays["cut_data"], arrays["cut_indices"], arrays["cut_indptr"]),
-                                       shape=tuple(c["shape"]))
-                cuts = Cuts(deltas, arrays["cut_losses"], arrays["cut_examples"], arrays["cut_alpha"], c["C"],
-                            c["n_examples"], c["fingerprint"])
-            return FitRecord(arrays["w"], [Iteration(**it) for it in meta["history"]], cuts,
-                             **{k: meta[k] for k in _SCALARS})
-        except (OSError, ValueError, KeyError, TypeError, zipfile.BadZipFile, EOFError) as err:
-            warnings.warn(f"{path}: an unreadable fit in the cache is fitted again ({err!r})", stacklevel=2)
-            return None
+        return self.read(key, _parsed, "fitted again")
 
     def save(self, key: str, fit: FitRecord) -> None:
         """Store `fit` under `key`, atomically: a reader sees the whole entry or none (not one of the command's

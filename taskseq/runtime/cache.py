@@ -16,11 +16,16 @@ from __future__ import annotations
 
 import os
 import sys
-from collections.abc import Iterator
+import warnings
+import zipfile
+from collections.abc import Callable, Iterator
 from contextlib import AbstractContextManager, contextmanager
 from functools import cache
 from importlib.metadata import version
 from pathlib import Path
+from typing import TypeVar
+
+T = TypeVar("T")
 
 CACHE_ENV = "TASKSEQ_CACHE"
 
@@ -70,3 +75,28 @@ def _check(root: Path, named: str) -> None:
 def versions(*libraries: str) -> dict[str, str]:
     """Python's version and each library's: what cached bytes depend on beyond the project's own code."""
     return {"python": sys.version.split()[0], **{lib: version(lib) for lib in libraries}}
+
+
+class Entries:
+    """A folder of entries of one kind, `<key><suffix>` each, in a subfolder named by the key's first two
+    characters (a few hundred files a folder at most)."""
+
+    suffix = ""
+
+    def __init__(self, directory: Path | str) -> None:
+        self.directory = Path(directory)
+
+    def path(self, key: str) -> Path:
+        return self.directory / key[:2] / f"{key}{self.suffix}"
+
+    def read(self, key: str, parse: Callable[[Path], T], then: str) -> T | None:
+        """`parse` of the entry under `key`; None if there is none, or (with a warning that it is `then`: done
+        again) if it cannot be read, whatever the reason: a half-copied folder, another format, a file edited."""
+        path = self.path(key)
+        if not path.exists():
+            return None
+        try:
+            return parse(path)
+        except (OSError, ValueError, KeyError, TypeError, AttributeError, zipfile.BadZipFile, EOFError) as err:
+            warnings.warn(f"{path}: an unreadable entry of the cache is {then} ({err!r})", stacklevel=3)
+            return None
