@@ -171,3 +171,18 @@ def test_a_cache_that_is_a_file_is_refused(tmp_path, monkeypatch):
         outcome_cache.active()
     with pytest.raises(ValueError, match="--cache .*not a folder"), cache.folder(not_a_folder):
         pass
+
+
+def test_a_taught_planners_outcomes_read_back_are_those_run(small, cache_dir, monkeypatch):
+    from taskseq.experiments.teaching import judged
+
+    contexts, meta, bench = small
+    tested = [bench.scenarios[sid] for sid in sorted(bench.scenarios)[:4]]
+    ran, run = [], ScorerMethod.run
+    monkeypatch.setattr(ScorerMethod, "run", lambda self, *args: ran.append(1) or run(self, *args))
+    first = judged(MRF, MRF().fit(contexts, meta), tested, 20)
+    assert len(ran) == len(tested)
+    again = judged(MRF, MRF().fit(contexts, meta), tested, 20)
+    assert again == first and len(ran) == len(tested)  # read back, none run again
+    judged(MRF, MRF().fit(contexts[: len(contexts) // 2], meta[: len(meta) // 2]), tested, 20)  # other weights
+    assert len(ran) == 2 * len(tested)

@@ -78,7 +78,7 @@ def outcome(world_seed: int, k: int, scenario) -> SequenceOutcome:
 def spied(worlds, tmp_path, monkeypatch):
     calls = SimpleNamespace(fits=[], plots=[], metrics=[])
 
-    def judged(method, scenarios, max_steps):
+    def judged(make, method, scenarios, max_steps):
         n = calls.fits.index(method.entry)  # the stage fits world by world, k by k
         return [outcome(SEEDS[n // len(KS)], KS[n % len(KS)], method.run(s, max_steps).scenario) for s in scenarios]
 

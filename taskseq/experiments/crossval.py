@@ -75,21 +75,17 @@ def _run_fold(make, fold, contexts, meta, scenarios, test_scenarios, max_steps, 
     train_index = training_index(meta, test_scenarios)
     test_index = [i for i, m in enumerate(meta) if m.scenario_id in test_scenarios]
     method = make().fit([contexts[i] for i in train_index], [meta[i] for i in train_index], scenarios)
-    cache = outcome_cache.active()
-    if cache is None:
-        return _tested(method, fold, contexts, meta, scenarios, test_scenarios, test_index, max_steps, demos,
-                       keep_programs)
-    key = outcome_cache.job_key("crossval", make, method, contexts, meta, scenarios, test_scenarios, demos,
-                                {"fold": fold, "max_steps": max_steps})
-    stored = cache.load(key)
-    if stored is not None:  # the programs kept for recordings run again: a cached entry holds no world states
-        result = _decoded(stored)
+    data = (contexts, meta, scenarios, test_scenarios, demos)
+
+    def decoded(entry: dict) -> FoldResult:  # the programs kept for recordings run again: an entry holds none
+        result = _decoded(entry)
         kept = sorted(keep_programs & test_scenarios) if result.sequences is not None else []
         return replace(result, programs={sid: method.run(scenarios[sid], max_steps) for sid in kept})
-    result = _tested(method, fold, contexts, meta, scenarios, test_scenarios, test_index, max_steps, demos,
-                     keep_programs)
-    cache.save(key, _encoded(result))
-    return result
+
+    return outcome_cache.read_or_run(
+        "crossval", make, method, data, {"fold": fold, "max_steps": max_steps},
+        lambda: _tested(method, fold, contexts, meta, scenarios, test_scenarios, test_index, max_steps, demos,
+                        keep_programs), _encoded, decoded)
 
 
 def _tested(method, fold, contexts, meta, scenarios, test_scenarios, test_index, max_steps, demos,

@@ -39,7 +39,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import fields, is_dataclass
 from functools import partial
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from ..demonstrations.benchmark import Benchmark
 from ..demonstrations.records import spec_to_dict, state_to_dict
@@ -53,6 +53,11 @@ from ..sim.scenarios import Scenario
 from ..sim.state import WorldState
 
 FORMAT = "taskseq.outcomes/1"
+T = TypeVar("T")
+# a fold job's data: the pool's steps and their metadata, its scenarios, the job's test scenarios, the world
+# states of the demonstrations (None where the job reads none)
+FoldData = tuple[Sequence[StepContext], Sequence[StepMeta], dict[str, Scenario], set[str] | frozenset[str],
+                 Benchmark | None]
 # what a program's steps depend on beyond the project's code: arrays, compiled scoring, SAT, the multiclass SVM
 _LIBRARIES = ("numpy", "scipy", "numba", "python-sat", "scikit-learn")
 
@@ -83,6 +88,22 @@ def active() -> OutcomeCache | None:
     """The outcome cache in force (`outcomes/` under the folder `TASKSEQ_CACHE` names), or None."""
     directory = subfolder("outcomes")
     return None if directory is None else OutcomeCache(directory)
+
+
+def read_or_run(experiment: str, make: Callable[[], Any], method: Any, data: FoldData, job: dict[str, Any],
+                run: Callable[[], T], encode: Callable[[T], Any], decode: Callable[[Any], T]) -> T:
+    """`run()` (the fitted `method`'s outcomes on one fold job of `experiment`), or, with the cache on, what an
+    earlier run of the same job stored (`decode`d), else `run()` stored (`encode`d as JSON)."""
+    cache = active()
+    if cache is None:
+        return run()
+    key = job_key(experiment, make, method, *data, job)
+    stored = cache.load(key)
+    if stored is not None:
+        return decode(stored)
+    result = run()
+    cache.save(key, encode(result))
+    return result
 
 
 def job_key(experiment: str, make: Callable[[], Any], method: Any, contexts: Sequence[StepContext],

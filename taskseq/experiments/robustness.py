@@ -72,17 +72,12 @@ def _fold(make, contexts, meta, scenarios, test, conditions, max_steps, seed):
 def _replay(make, contexts, meta, scenarios, test, conditions, max_steps, seed):
     train = training_index(meta, test)
     method: ScorerMethod = make().fit([contexts[i] for i in train], [meta[i] for i in train], scenarios)
-    cache = outcome_cache.active()
-    if cache is None:
-        return _replayed(method, scenarios, test, conditions, max_steps, seed)
-    key = outcome_cache.job_key("robustness", make, method, contexts, meta, scenarios, test, None,
-                                {"conditions": [repr(c) for c in conditions], "max_steps": max_steps, "seed": seed})
-    stored = cache.load(key)
-    if stored is not None:
-        return [(_condition(c), outcome_of(o)) for c, o in stored]
-    result = _replayed(method, scenarios, test, conditions, max_steps, seed)
-    cache.save(key, [(asdict(c) | {"kind": type(c).__name__}, asdict(o)) for c, o in result])
-    return result
+    return outcome_cache.read_or_run(
+        "robustness", make, method, (contexts, meta, scenarios, test, None),
+        {"conditions": [repr(c) for c in conditions], "max_steps": max_steps, "seed": seed},
+        lambda: _replayed(method, scenarios, test, conditions, max_steps, seed),
+        lambda result: [(asdict(c) | {"kind": type(c).__name__}, asdict(o)) for c, o in result],
+        lambda entry: [(_condition(c), outcome_of(o)) for c, o in entry])
 
 
 def _condition(entry: dict) -> Condition:

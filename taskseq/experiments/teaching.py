@@ -17,8 +17,8 @@ choice, goal reached, no safety rule broken.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
@@ -32,7 +32,8 @@ from ..sim.primitives import Action
 from ..sim.scenarios import Scenario, room_scenarios
 from ..sim.state import WorldState
 from ..sim.tasks import Task
-from .crossval import SequenceOutcome, judge
+from . import outcome_cache
+from .crossval import SequenceOutcome, judge, outcome_of
 
 
 @dataclass(frozen=True)
@@ -121,6 +122,13 @@ def weighted(contexts: list[StepContext], meta: list[StepMeta], taught: list[Ste
     return contexts + taught * weight, meta + taught_meta * weight
 
 
-def judged(method: Method, scenarios: Iterable[Scenario], max_steps: int) -> list[SequenceOutcome]:
-    """The fitted method's program for each scenario, judged against its demonstrations."""
-    return [judge(s, method.run(s, max_steps)) for s in scenarios]
+def judged(make: Callable[[], Method], method: Method, scenarios: Iterable[Scenario],
+           max_steps: int) -> list[SequenceOutcome]:
+    """The fitted method's (made by `make`) program for each scenario, judged against its demonstrations (read back
+    from the outcome cache when it is on and holds them)."""
+    tested = {s.id: s for s in scenarios}
+    return outcome_cache.read_or_run(
+        "teaching", make, method, ([], [], tested, frozenset(tested), None),
+        {"order": list(tested), "max_steps": max_steps},
+        lambda: [judge(s, method.run(s, max_steps)) for s in tested.values()],
+        lambda result: [asdict(o) for o in result], lambda entry: [outcome_of(o) for o in entry])

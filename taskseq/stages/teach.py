@@ -148,7 +148,7 @@ def _taught(seed: int, k: int, base: tuple[list, list], taught: list[Any], scena
     method = taught_method(k, base, taught, scenarios, weight, make)
     rows = []
     for room in taught:
-        for outcome in judged(method, room.tested, max_steps):
+        for outcome in judged(make, method, room.tested, max_steps):
             rows.append({"world_seed": seed, "k": k, "room": room.env_id, "scenario": outcome.scenario_id,
                          "task": outcome.task, "sequence_arg": int(outcome.arg_correct),
                          "success": int(outcome.success), "failure": outcome.failure})
