@@ -10,7 +10,7 @@ cache they are read back, and only the changed method's programs run.
 
 A job's key hashes:
 - the code: the source files of the experiment's module
-  (`experiments.crossval` or `experiments.robustness`, with all they import),
+  (`experiments.crossval`, `.robustness` or `.teaching`, with all they import),
   of the module of every function the method's factory is made of (its
   method module: `taskseq/methods/noise_trained.py` and what it imports) and
   of the method's class, read by `runtime.sources`, and the libraries'
@@ -34,7 +34,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import weakref
 from collections.abc import Callable, Sequence
 from dataclasses import fields, is_dataclass
 from functools import partial
@@ -47,7 +46,7 @@ from ..features.context import StepContext
 from ..features.dataset import StepMeta
 from ..learn.fit_cache import hash_steps
 from ..runtime.atomic import atomic_file
-from ..runtime.cache import Entries, subfolder, versions
+from ..runtime.cache import Digests, Entries, subfolder, versions
 from ..runtime.sources import code_fingerprint
 from ..sim.scenarios import Scenario
 from ..sim.state import WorldState
@@ -156,30 +155,16 @@ def _factory_modules(make: Callable[[], Any]) -> set[str]:
     return out
 
 
-def _memo(obj: Any, compute: Callable[[Any], bytes]) -> bytes:
-    """`compute(obj)`, kept by the object's identity behind a weak reference (scenarios and states are never
-    changed once loaded, and each is met by every method and fold of a run)."""
-    kept = _DIGESTS.get(id(obj))
-    if kept is not None and kept[0]() is obj:
-        return kept[1]
-    digest = compute(obj)
-    if len(_DIGESTS) >= _DIGESTS_KEPT:
-        _DIGESTS.clear()
-    _DIGESTS[id(obj)] = (weakref.ref(obj), digest)
-    return digest
-
-
-_DIGESTS: dict[int, tuple[weakref.ref, bytes]] = {}
-_DIGESTS_KEPT = 100_000
+_DIGESTS = Digests(100_000)
 
 
 def _state_digest(state: WorldState) -> bytes:
-    return _memo(state, lambda s: hashlib.sha256(json.dumps(
+    return _DIGESTS(state, lambda s: hashlib.sha256(json.dumps(
         [state_to_dict(s), [spec_to_dict(s.specs[o]) for o in sorted(s.specs)]]).encode()).digest())
 
 
 def _scenario_digest(scenario: Scenario) -> bytes:
-    return _memo(scenario, lambda s: hashlib.sha256(json.dumps(
+    return _DIGESTS(scenario, lambda s: hashlib.sha256(json.dumps(
         [s.env_id, str(s.task), [[str(a) for a in d] for d in s.demonstrations]]).encode()
         + _state_digest(s.initial)).digest())
 

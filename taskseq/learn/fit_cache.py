@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import weakref
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, fields
 from functools import cache
@@ -35,7 +34,7 @@ import scipy.sparse as sp
 
 from ..features.context import StepContext
 from ..runtime.atomic import atomic_file
-from ..runtime.cache import Entries, subfolder, versions
+from ..runtime.cache import Digests, Entries, subfolder, versions
 from ..runtime.sources import code_fingerprint
 from .ssvm import Cuts, Iteration
 
@@ -45,16 +44,12 @@ _LIBRARIES = ("numpy", "scipy", "numba")
 
 
 def step_digest(x: StepContext) -> bytes:
-    """sha256 of every field of one step, computed once per step object (steps are never changed once built).
+    """sha256 of every field of one step, computed once per step object (`runtime.cache.Digests`): a model's key
+    hashes hundreds of steps, and the same steps are hashed again for every method, C and stage that meets them."""
+    return _DIGESTS(x, _step_digest)
 
-    A model's key hashes hundreds of steps, and the same steps are hashed again
-    for every method, C and stage that meets them: the digest is kept by the
-    step's identity, checked through a weak reference, so a digest never
-    outlives its step or serves another one.
-    """
-    kept = _DIGESTS.get(id(x))
-    if kept is not None and kept[0]() is x:
-        return kept[1]
+
+def _step_digest(x: StepContext) -> bytes:
     h = hashlib.sha256()
     gold = None if x.gold is None else list(x.gold)
     h.update(json.dumps([x.object_ids, x.task, list(x.prev_prims), list(x.prev_args), gold]).encode())
@@ -62,15 +57,10 @@ def step_digest(x: StepContext) -> bytes:
         h.update(np.ascontiguousarray(a).tobytes())
     if x.relations is not None:
         h.update(np.ascontiguousarray(x.relations).tobytes())
-    digest = h.digest()
-    if len(_DIGESTS) >= _DIGESTS_KEPT:
-        _DIGESTS.clear()
-    _DIGESTS[id(x)] = (weakref.ref(x), digest)
-    return digest
+    return h.digest()
 
 
-_DIGESTS: dict[int, tuple[weakref.ref, bytes]] = {}
-_DIGESTS_KEPT = 200_000  # steps whose digest is kept (about 20 MB); past it all are dropped at once
+_DIGESTS = Digests(200_000)  # about 20 MB
 
 
 def hash_steps(h: Any, contexts: Sequence[StepContext]) -> None:

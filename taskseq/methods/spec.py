@@ -83,7 +83,6 @@ class MethodSpec:
 
 
 _SPECS: dict[str, MethodSpec] = {}
-_BUILTIN = f"{__package__}.builtin"
 MACHINERY = {"builtin", "lineup", "spec"}  # the package's modules that add no method of their own
 
 
@@ -119,9 +118,9 @@ def method_names() -> list[str]:
     """Every method's name, the built-in ones first in the tables' order, then the added ones by name, without
     importing the added ones (a module's name is its method's)."""
     importlib.import_module(f"{__package__}.builtin")
-    builtin = [name for name, spec in _SPECS.items() if spec.make.__module__ == _BUILTIN]
-    return builtin + [n for n in added_modules() if n not in builtin] + [
-        n for n in _SPECS if n not in builtin and n not in added_modules()]
+    builtin = [name for name, spec in _SPECS.items() if spec.make.__module__ == f"{__package__}.builtin"]
+    added = [name for name in added_modules() if name not in builtin]
+    return builtin + added + [name for name in _SPECS if name not in builtin and name not in added]
 
 
 def method_spec(name: str) -> MethodSpec:

@@ -17,13 +17,14 @@ from __future__ import annotations
 import os
 import sys
 import warnings
+import weakref
 import zipfile
 from collections.abc import Callable, Iterator
 from contextlib import AbstractContextManager, contextmanager
 from functools import cache
 from importlib.metadata import version
 from pathlib import Path
-from typing import TypeVar
+from typing import Any, TypeVar
 
 T = TypeVar("T")
 
@@ -100,3 +101,26 @@ class Entries:
         except (OSError, ValueError, KeyError, TypeError, AttributeError, zipfile.BadZipFile, EOFError) as err:
             warnings.warn(f"{path}: an unreadable entry of the cache is {then} ({err!r})", stacklevel=3)
             return None
+
+
+class Digests:
+    """Digests kept by their object's identity, checked through a weak reference, so a digest never outlives its
+    object or serves another one that took its id. For objects never changed once built (steps, scenarios,
+    world states), hashed again and again for every method, fold and stage that meets them."""
+
+    def __init__(self, most: int) -> None:
+        self.most = most  # objects whose digest is kept; past it all are dropped at once
+        self._kept: dict[int, tuple[weakref.ref, bytes]] = {}
+
+    def __call__(self, obj: Any, compute: Callable[[Any], bytes]) -> bytes:
+        kept = self._kept.get(id(obj))
+        if kept is not None and kept[0]() is obj:
+            return kept[1]
+        digest = compute(obj)
+        if len(self._kept) >= self.most:
+            self._kept.clear()
+        self._kept[id(obj)] = (weakref.ref(obj), digest)
+        return digest
+
+    def clear(self) -> None:
+        self._kept.clear()
