@@ -37,7 +37,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cache, cached_property
 
 import numpy as np
 import scipy.sparse as sp
@@ -502,14 +502,7 @@ class StepMRF(_Batched):
     def feature_names(self) -> list[str]:
         """Every weight's name, `block[label,...]`: `primitive_previous_task1[pour,hold_above->follow_traj_pour]`
         is the weight of `follow_traj_pour` right after `hold_above` in task `pour`."""
-        names = []
-        for b in self.blocks:
-            for idx in np.ndindex(*b.shape):
-                labels = [b.labels[k][i] for k, i in enumerate(idx)]
-                if b.family == "primitive_previous_task":
-                    labels = [labels[0], f"{labels[1]}->{labels[2]}"]
-                names.append(f"{b.name}[{','.join(labels)}]")
-        return names
+        return list(_feature_names(self.features))
 
     def family_of(self) -> np.ndarray:
         """Family name of every weight, aligned with `feature_names()`."""
@@ -623,3 +616,17 @@ class StepMRF(_Batched):
         cands, s = self.scores(x, w)
         for i in np.argsort(-s, kind="stable"):  # ties: the earlier candidate first
             yield (int(cands[0][i]), int(cands[1][i]), int(cands[2][i])), float(s[i])
+
+
+@cache
+def _feature_names(features: str) -> tuple[str, ...]:
+    """The weights' names of a feature set, built once per process: every model file saved or loaded checks them
+    (about 10 ms to build, for each of the hundreds of fold models a stage stores or reads)."""
+    names = []
+    for b in StepMRF(features).blocks:
+        for idx in np.ndindex(*b.shape):
+            labels = [b.labels[k][i] for k, i in enumerate(idx)]
+            if b.family == "primitive_previous_task":
+                labels = [labels[0], f"{labels[1]}->{labels[2]}"]
+            names.append(f"{b.name}[{','.join(labels)}]")
+    return tuple(names)
