@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-import taskseq.methods  # noqa: F401  (the added methods register themselves, as in the stages that list them)
+import taskseq.methods  # noqa: F401  (the built-in methods; an added one registers when a test asks for it)
 from taskseq.demonstrations.generate import generate
 from taskseq.demonstrations.ingest import load_logs
 from taskseq.settings import Generate
