@@ -1,6 +1,6 @@
 """The sub-commands of `taskseq` that are not pipeline stages, as one table: each one's help, options and runner.
 
-`replay`, `plan`, `serve`, `layout`, `bench`, `scaling` and `veil` are each
+`replay`, `plan`, `serve`, `layout`, `bench`, `scaling`, `cache` and `veil` are each
 an entry of `TOOLS`: its help, a function adding its options to its parser
 and a function running it from the parsed options (returning the exit code).
 A runner only reads its options and prints; the work is the product's
@@ -193,6 +193,51 @@ def _layout(args: argparse.Namespace) -> int:
     return 0
 
 
+def _days(value: str) -> float:
+    """A number of days above zero from the command line."""
+    try:
+        days = float(value)
+    except ValueError:
+        days = float("nan")
+    if not days > 0 or days == float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a number of days above 0, got {value!r}")
+    return days
+
+
+def _cache_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("folder", type=Path, nargs="?", default=Path(".cache"),
+                   help="the cache folder (default: .cache, the one `dvc repro` fills)")
+    drop = p.add_mutually_exclusive_group()
+    drop.add_argument("--unused-for", type=_days, metavar="DAYS",
+                      help="delete the entries no run has written or read in the last DAYS days")
+    drop.add_argument("--clear", action="store_true", help="delete every entry (the next run fits everything again)")
+
+
+def _cache(args: argparse.Namespace) -> int:
+    import time
+
+    from .runtime.cache import prune, usage
+
+    if args.clear or args.unused_for is not None:
+        removed, freed = prune(args.folder, None if args.clear else args.unused_for * 86400.0, time.time())
+        why = "" if args.clear else f" unused for {args.unused_for:g} days"
+        print(f"deleted {removed} files{why} ({_size(freed)})")
+    kinds = usage(args.folder)
+    print(f"{args.folder}:")
+    for kind in kinds:
+        used = "never" if kind.last_used is None else time.strftime("%Y-%m-%d %H:%M", time.localtime(kind.last_used))
+        print(f"  {kind.kind:9s} {kind.entries:6d} entries  {_size(kind.size):>8s}  last used {used}")
+    return 0
+
+
+def _size(size: int) -> str:
+    """Bytes as a person reads them: 812 B, 40.2 kB, 136.9 MB."""
+    for unit, scale in (("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if size >= scale:
+            return f"{size / scale:.1f} {unit}"
+    return f"{size} B"
+
+
 def _veil_options(p: argparse.ArgumentParser) -> None:
     from .veil.command import options
 
@@ -217,6 +262,8 @@ TOOLS: dict[str, Tool] = {
                   _bench),
     "scaling": Tool("draw procedural worlds of several sizes and time every per-world stage, training to the gap, "
                     "its memory and per-step inference", _scaling_options, _scaling),
+    "cache": Tool("what the cache of fits and programs' outcomes holds (docs/pipeline.md), and deleting the "
+                  "entries no run has used for a while", _cache_options, _cache),
     "veil": Tool("VEIL-500 (Tell Me Dave): import people's sequences from a release folder (docs/veil.md)",
                  _veil_options, _veil),
 }

@@ -20,7 +20,7 @@ def test_the_subcommands_are_the_documented_ones():
     assert set(SUBCOMMANDS) == {"generate", "replay", "ingest", "features", "train", "plan", "crossval", "noise",
                                 "feedback", "recipes", "fold_models", "select", "aggregate", "report", "pddl", "bench",
                                 "scaling", "dev_world", "drawn_world", "scenes_world", "scenes", "people", "teach",
-                                "serve", "layout", "stats", "veil"}
+                                "serve", "layout", "stats", "veil", "cache"}
 
 
 def test_the_top_level_help_lists_every_subcommand(capsys):

@@ -64,7 +64,7 @@ _LIBRARIES = ("numpy", "scipy", "numba", "python-sat", "scikit-learn")
 class OutcomeCache(Entries):
     """A folder of fold outcomes, `<key>.json` each (the JSON the experiment's encoder wrote)."""
 
-    suffix = ".json"
+    kind = "outcomes"
 
     def load(self, key: str) -> Any | None:
         """The outcomes stored under `key`, or None if there are none or they cannot be read."""
@@ -85,7 +85,7 @@ def _parsed(path: Path) -> Any:
 
 def active() -> OutcomeCache | None:
     """The outcome cache in force (`outcomes/` under the folder `TASKSEQ_CACHE` names), or None."""
-    directory = subfolder("outcomes")
+    directory = subfolder(OutcomeCache.kind)
     return None if directory is None else OutcomeCache(directory)
 
 

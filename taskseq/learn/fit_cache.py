@@ -99,7 +99,7 @@ def fit_key(params: dict[str, Any], X: Sequence[StepContext], y: Sequence[tuple[
 
 def active() -> FitCache | None:
     """The fit cache in force (`runtime.cache`: `fits/` under the folder `TASKSEQ_CACHE` names), or None."""
-    directory = subfolder("fits")
+    directory = subfolder(FitCache.kind)
     return None if directory is None else FitCache(directory)
 
 
@@ -142,7 +142,7 @@ def _parsed(path: Path) -> FitRecord:
 class FitCache(Entries):
     """A folder of fits, `<key>.npz` each: the weights, the learner's record of the fit and its final cuts."""
 
-    suffix = ".npz"
+    kind = "fits"
 
     def load(self, key: str) -> FitRecord | None:
         """The fit stored under `key`, or None if there is none or it cannot be read."""

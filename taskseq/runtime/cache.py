@@ -9,18 +9,22 @@ a hash of its inputs and of the source files it runs (`runtime.sources`).
 The cache is used only where it is asked for: the pipeline's stages set the
 variable from their `--cache` option, and the worker processes they start
 inherit it; unset or empty, nothing is read or written. Entries are written
-atomically and never pruned: deleting the folder between runs is safe.
+atomically. Reading an entry marks it used (its modification time), so
+`prune` can drop what no run has asked for in a while (`taskseq cache`);
+deleting the folder between runs is safe too.
 """
 
 from __future__ import annotations
 
 import os
+import re
 import sys
 import warnings
 import weakref
 import zipfile
 from collections.abc import Callable, Iterator
-from contextlib import AbstractContextManager, contextmanager
+from contextlib import AbstractContextManager, contextmanager, suppress
+from dataclasses import dataclass
 from functools import cache
 from importlib.metadata import version
 from pathlib import Path
@@ -29,6 +33,10 @@ from typing import Any, TypeVar
 T = TypeVar("T")
 
 CACHE_ENV = "TASKSEQ_CACHE"
+# the kinds of entry, each in a subfolder of the cache named as it, and the ending of their files
+KINDS = {"fits": ".npz", "outcomes": ".json"}
+_KEY = re.compile(r"[0-9a-f]{64}")  # a key: a SHA-256 in hex
+LEFTOVER_AGE = 3600.0  # seconds after which a writer's temporary file is taken as left by an interrupted run
 
 
 @contextmanager
@@ -79,13 +87,17 @@ def versions(*libraries: str) -> dict[str, str]:
 
 
 class Entries:
-    """A folder of entries of one kind, `<key><suffix>` each, in a subfolder named by the key's first two
-    characters (a few hundred files a folder at most)."""
+    """A folder of entries of one kind (`KINDS`), `<key><suffix>` each, in a subfolder named by the key's first
+    two characters (a few hundred files a folder at most)."""
 
-    suffix = ""
+    kind = ""
 
     def __init__(self, directory: Path | str) -> None:
         self.directory = Path(directory)
+
+    @property
+    def suffix(self) -> str:
+        return KINDS[self.kind]
 
     def path(self, key: str) -> Path:
         return self.directory / key[:2] / f"{key}{self.suffix}"
@@ -97,10 +109,13 @@ class Entries:
         if not path.exists():
             return None
         try:
-            return parse(path)
+            parsed = parse(path)
         except (OSError, ValueError, KeyError, TypeError, AttributeError, zipfile.BadZipFile, EOFError) as err:
             warnings.warn(f"{path}: an unreadable entry of the cache is {then} ({err!r})", stacklevel=3)
             return None
+        with suppress(OSError):  # a cache on a read-only disk is still read
+            os.utime(path)  # used now: `prune` keeps it
+        return parsed
 
 
 class Digests:
@@ -124,3 +139,71 @@ class Digests:
 
     def clear(self) -> None:
         self._kept.clear()
+
+
+@dataclass(frozen=True)
+class Usage:
+    """What a cache holds of one kind of entry."""
+
+    kind: str
+    entries: int
+    size: int  # bytes
+    last_used: float | None  # the newest entry's time (written or read), seconds since the epoch; None if empty
+
+
+def usage(root: Path | str) -> list[Usage]:
+    """Per kind (`KINDS`), the entries the cache folder `root` holds."""
+    out = []
+    for kind in KINDS:
+        stats = [path.stat() for path in _entry_files(_cache_root(root), kind)]
+        out.append(Usage(kind, len(stats), sum(s.st_size for s in stats),
+                         max((s.st_mtime for s in stats), default=None)))
+    return out
+
+
+def prune(root: Path | str, unused_for: float | None, now: float) -> tuple[int, int]:
+    """Delete the entries of the cache folder `root` not written or read in the last `unused_for` seconds before
+    `now` (None: every entry), and the temporary files interrupted writers left; returns (files deleted, bytes
+    freed).
+
+    Only the cache's own files go: `root` must hold nothing but the kinds' subfolders, or `ValueError` says what
+    else it holds, so a mistyped folder loses nothing.
+    """
+    root = _cache_root(root)
+    removed = freed = 0
+    for kind in KINDS:
+        files = [(path, unused_for) for path in _entry_files(root, kind)]
+        # a temporary file younger than an hour may be a write under way
+        files += [(path, max(unused_for or 0.0, LEFTOVER_AGE)) for path in _leftovers(root, kind)]
+        for path, age in files:
+            stat = path.stat()
+            if age is None or now - stat.st_mtime > age:
+                path.unlink(missing_ok=True)
+                removed, freed = removed + 1, freed + stat.st_size
+        for sub in (root / kind).glob("??"):
+            if sub.is_dir() and not any(sub.iterdir()):
+                sub.rmdir()
+    return removed, freed
+
+
+def _cache_root(root: Path | str) -> Path:
+    root = Path(root)
+    if not root.is_dir():
+        raise ValueError(f"{root}: no such folder (nothing is cached yet: `dvc repro` fills .cache, a stage's "
+                         "`--cache DIR` another)")
+    strangers = sorted(p.name for p in root.iterdir() if p.name not in KINDS or not p.is_dir())
+    if strangers:
+        raise ValueError(f"{root}: not a cache folder, it holds {', '.join(strangers[:3])}"
+                         f"{' and more' if len(strangers) > 3 else ''} besides {' and '.join(KINDS)}")
+    return root
+
+
+def _entry_files(root: Path, kind: str) -> list[Path]:
+    return sorted(p for p in (root / kind).glob(f"??/*{KINDS[kind]}")
+                  if _KEY.fullmatch(p.stem) and p.stem[:2] == p.parent.name and p.is_file())
+
+
+def _leftovers(root: Path, kind: str) -> list[Path]:
+    """Temporary files an interrupted writer left (`runtime.atomic.atomic_file` names them `.<key>.*<suffix>`)."""
+    return sorted(p for p in (root / kind).glob(f"??/.*{KINDS[kind]}")
+                  if _KEY.fullmatch(p.name[1:].split(".")[0]) and p.is_file())

@@ -15,7 +15,7 @@ from ..demonstrations.benchmark import load_benchmark
 from ..evaluate.methods import method_params
 from ..experiments.robustness import FeedbackCondition, evaluate_conditions, feedback_rows, feedback_steps
 from ..features.dataset import read_features
-from ..methods import Lineup, method_labels
+from ..methods import Lineup, method_spec
 from ..report.csvs import OUTCOME_COLUMNS, RATE_DECIMALS, csv_text, outcome_row
 from ..report.figures import line_plot_png
 from ..runtime.atomic import write_text_atomic
@@ -68,7 +68,7 @@ def run(settings: Settings, options: EvaluationOptions, tracker: Tracker = NO_RU
             child.metrics({k: r[k] for k in DECIMALS})
             child.table([q for q in sequences if (q["method"], q["k"], q["n"]) == (name, r["k"], r["n"])],
                         "sequences")
-    series = {f"{method_labels([m])[m]}, top {k}": (list(range(len(ns))), [r["sequence_arg"] for r in rows
+    series = {f"{method_spec(m).label}, top {k}": (list(range(len(ns))), [r["sequence_arg"] for r in rows
                                                                      if r["k"] == k and r["method"] == m], None)
               for m in methods for k in feedback.k}
     line_plot_png(series, str(out / "feedback.png"), "Sequence accuracy (arg) with an observer's feedback",

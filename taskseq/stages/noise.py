@@ -15,7 +15,7 @@ from ..demonstrations.benchmark import load_benchmark
 from ..evaluate.methods import method_params
 from ..experiments.robustness import NoiseCondition, evaluate_conditions, noise_curve, noise_runs
 from ..features.dataset import read_features
-from ..methods import Lineup, method_labels
+from ..methods import Lineup, method_spec
 from ..report import paper
 from ..report.csvs import OUTCOME_COLUMNS, RATE_DECIMALS, csv_text, outcome_row
 from ..report.figures import line_plot_png
@@ -72,7 +72,7 @@ def run(settings: Settings, options: EvaluationOptions, tracker: Tracker = NO_RU
             child.metrics({"sequence_arg": row["sequence_arg"], "sequence_arg_std": row["sequence_arg_std"],
                            "sequence_prim": row["sequence_prim"], "success": row["success"]})
             child.table([r for r in sequences if r["method"] == name and r["rate"] == row["rate"]], "sequences")
-    series = {f"{method_labels([m])[m]} (mean, std over noise draws)":
+    series = {f"{method_spec(m).label} (mean, std over noise draws)":
               (list(noise.rates), [r["sequence_arg"] for r in curve if r["method"] == m],
                [r["sequence_arg_std"] for r in curve if r["method"] == m]) for m in methods}
     line_plot_png(series, str(out / "noise.png"), "Sequence accuracy (arg) with binary attributes flipped",

@@ -16,7 +16,7 @@ from ..demonstrations.benchmark import load_benchmark
 from ..evaluate.methods import method_params
 from ..experiments.recipes import PROGRAM_COLUMNS, RECIPES, evaluate_recipes, program_rows, recipe_report
 from ..features.dataset import read_features
-from ..methods import Lineup, method_labels
+from ..methods import Lineup, method_spec
 from ..report.csvs import csv_text
 from ..runtime.atomic import write_json_atomic, write_text_atomic
 from ..selection import read_selection
@@ -61,7 +61,7 @@ def run(settings: Settings, options: EvaluationOptions, tracker: Tracker = NO_RU
                 child.table([r for r in mine if r["recipe"] == name], "programs")
         totals = report["totals"]
         tracker.metrics({f"{method}.{k}": float(v) for k, v in totals.items()})
-        print(f"== {method_labels([method])[method]}")
+        print(f"== {method_spec(method).label}")
         for o in outcomes:
             print(f"{o.recipe:24s} {o.env_id} feedback={'yes' if o.feedback else 'no ':3s} "
                   f"{'SUCCESS' if o.success else 'failed '}  "

@@ -28,7 +28,7 @@ from ..demonstrations.benchmark import Benchmark, load_benchmark
 from ..demonstrations.ingest import load_logs
 from ..experiments.teaching import judged, rooms_to_teach, weighted
 from ..features.dataset import build_steps
-from ..methods import Lineup, method_labels
+from ..methods import Lineup, method_spec
 from ..report.csvs import csv_text
 from ..report.figures import line_plot_png
 from ..report.seeds import mean_sd
@@ -88,7 +88,7 @@ def run(settings: Settings, options: TeachOptions, tracker: Tracker = NO_RUN, n_
                                   max_steps)]
     programs = [row for rows in run_jobs(jobs, n_jobs) for row in rows]
     table, per_seed = _over_seeds(programs, teach.k, world.seeds)
-    out, label = Path(options.output), method_labels([shipped])[shipped]
+    out, label = Path(options.output), method_spec(shipped).label
     write_text_atomic(out / "teach_programs.csv", csv_text(list(programs[0]), programs) if programs else "")
     write_text_atomic(out / "teach_seeds.csv", csv_text(["world_seed", "k", "held_out_tasks", *FIGURES], per_seed,
                                                         dict.fromkeys(FIGURES, 2)))

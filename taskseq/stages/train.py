@@ -20,7 +20,7 @@ from ..demonstrations.people import people_records
 from ..evaluate.metrics import step_accuracy
 from ..features.dataset import build_steps, read_features
 from ..learn.ssvm import learning_curve
-from ..methods import Lineup, method_labels
+from ..methods import Lineup, method_spec
 from ..report.csvs import csv_text
 from ..runtime.atomic import write_json_atomic, write_text_atomic
 from ..selection import read_selection
@@ -78,7 +78,7 @@ def run(settings: Settings, options: TrainOptions, tracker: Tracker = NO_RUN) ->
                              "training scenarios, from the Parquet tables (--processed)")
         scenarios = {**load_benchmark(options.processed).scenarios, **Benchmark.from_records(people).scenarios}
     planner = method.fit(contexts, meta, scenarios).planner_
-    label = method_labels([name])[name]
+    label = method_spec(name).label
     planner.save(model, n_steps=len(contexts), method=name, label=label, chosen_by=chosen_by,
                  chained_starts=method.chained_starts, dagger_rounds=method.dagger_rounds, policy=method.policy,
                  **({"noise_rate": method.noise_rate, "noise_copies": method.noise_copies} if method.noise_copies
