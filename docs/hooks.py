@@ -458,22 +458,88 @@ def teach_results() -> str:
             "of programs as demonstrated for each k:\n\n" + table)
 
 
-TEACH_WEIGHT_COMMAND = "python scripts/teach_weight.py --weights 1 3 10 30 100 300 --output reports/teach_weight.json"
+FAILURES_COMMAND = "dvc repro aggregate"
+# the methods the failure analysis of docs/evaluation.md discusses, by their names in reports/failures.csv
+FAILURE_METHODS = ("symb_plan_svm", "symb_plan_manual", "full", "relations")
+
+
+def _shipped_method() -> str | None:
+    selection = _json("selection.json")
+    return None if selection is None else selection.get("method")
+
+
+def failure_kinds() -> str:
+    """The rows of `reports/failures.md`'s first table (each method's programs by kind) that the failure analysis
+    discusses: the symbolic planners, the full model, relations and the shipped method."""
+    path = REPORTS / "failures.md"
+    rows = _csv_rows("failures.csv")
+    if not path.is_file() or rows is None:
+        return _missing("failures.md", FAILURES_COMMAND)
+    labels = _failure_labels(rows)
+    wanted = [labels[m] for m in (*FAILURE_METHODS, _shipped_method()) if m in labels]
+    lines = path.read_text().split("\n\n")[1].splitlines()  # the first table: header, rule, a row per method
+    keep = lines[:2] + [line for label in wanted for line in lines[2:] if line.startswith(f"| {label} |")]
+    return "`reports/failures.md` (`" + FAILURES_COMMAND + "`), these methods' rows:\n\n" + "\n".join(keep) + "\n"
+
+
+def _failure_labels(rows: list[dict[str, str]]) -> dict[str, str]:
+    """Method name -> its label in the tables, read from the methods' specs as the report writes them."""
+    from taskseq.methods import method_labels
+
+    names = sorted({r["method"] for r in rows})
+    return method_labels(names)
+
+
+def exact_by_task() -> str:
+    """Exact programs per task and world seed of the full model and of relations (`reports/failures.csv`)."""
+    rows = _csv_rows("failures.csv")
+    if rows is None:
+        return _missing("failures.csv", FAILURES_COMMAND)
+    seeds = sorted({int(r["world_seed"]) for r in rows})
+    count: dict[tuple, int] = {}
+    for r in rows:
+        key = (int(r["world_seed"]), r["method"], r["task"])
+        count[key] = count.get(key, 0) + int(r["programs"])
+        if r["kind"] == "exact":
+            count[(*key, "exact")] = int(r["programs"])
+    tasks = sorted({r["task"] for r in rows if r["task"] != "all"})
+    table = [[f"{task} ({count[seeds[0], 'full', task]})",
+              *(f"{count.get((s, 'full', task, 'exact'), 0)} / {count.get((s, 'relations', task, 'exact'), 0)}"
+                for s in seeds)] for task in tasks]
+    return _rows(["task (programs)", *(f"seed {s}" for s in seeds)], "l" + "r" * len(seeds), table)
+
+
+TEACH_WEIGHT_COMMAND = (
+    "python scripts/teach_weight.py --weights 1 3 10 30 100 300 --dev-seeds 100 101 102 103 104 "
+    "--output reports/teach_weight.json")
 
 
 def teach_weight() -> str:
-    """How much a taught step counts, as `scripts/teach_weight.py` ranked the weights on the development world."""
+    """How much a taught step counts, as `scripts/teach_weight.py` ranked the weights on drawn development worlds."""
     choice = _json("teach_weight.json")
     if choice is None:
         return _missing("teach_weight.json", TEACH_WEIGHT_COMMAND)
+    seeds, most = [str(seed) for seed in choice["dev_seeds"]], max(choice["k"])
+
+    def removed(r: dict) -> list[str]:
+        cells = []
+        for seed in [*seeds, None]:
+            before, after = (sum(r["misses"][s][i] for s in ([seed] if seed else seeds)) for i in (0, 1))
+            share = f" ({100 * (before - after) / before:.0f}%)" if before else ""
+            cells.append(f"{before} → {after}{share}")
+        return cells
+
     rows = [[f"**{r['weight']} (chosen)**" if r["weight"] == choice["chosen"] else r["weight"],
-             f"{r['sequence_arg']:.1f}", f"{r['success']:.1f}"] for r in choice["ranked"]]
+             f"{r['sequence_arg']:.1f}", f"{r['success']:.1f}", *removed(r)] for r in choice["ranked"]]
     rows.append(["nothing taught (k = 0)", f"{choice['untaught']['sequence_arg']:.1f}",
-                 f"{choice['untaught']['success']:.1f}"])
-    return (f"`{TEACH_WEIGHT_COMMAND}`: the drawn development world {choice['dev_seed']}, rooms "
+                 f"{choice['untaught']['success']:.1f}", *[""] * (len(seeds) + 1)])
+    return (f"`{TEACH_WEIGHT_COMMAND}`: the drawn development worlds {', '.join(seeds)}, rooms "
             f"{', '.join(choice['environments'])} held out, k = {', '.join(map(str, choice['k']))}, the shipped "
-            f"planner (`{choice['method']}`, C = {choice['C']:g}); % of the programs of every k above 0 together.\n\n"
-            + _rows(["weight", "sequence arg", "success"], "rrr", rows))
+            f"planner (`{choice['method']}`, C = {choice['C']:g}); % of the programs of every k above 0 and every "
+            f"world together; then the misses of sequence arg at k = 0 and at k = {most} (the share removed) per "
+            "world and in all.\n\n"
+            + _rows(["weight", "sequence arg", "success", *(f"misses, world {s}" for s in seeds), "misses, all"],
+                    "rrr" + "r" * (len(seeds) + 1), rows))
 
 
 MULTICLASS_TOL_COMMAND = "python scripts/multiclass_tol.py --world data/dev --output reports/multiclass_tol.json"
@@ -689,6 +755,8 @@ GENERATED = {
     "transfer-seeds": transfer_seeds,
     "table1-ci": table1_ci,
     "comparisons-excerpt": comparisons_excerpt,
+    "failure-kinds": failure_kinds,
+    "exact-by-task": exact_by_task,
 }
 
 

@@ -1,16 +1,19 @@
-"""Choose how much a taught step counts (`teach.weight`) on the development world's drawn rooms.
+"""Choose how much a taught step counts (`teach.weight`) on drawn development worlds.
 
 The `teach` stage trains the shipped planner on a drawn world's steps outside
 the held-out rooms plus the k tasks a scripted person shows in each, every
 taught step counted `teach.weight` times, so that a room's own ways can
 weigh against the many steps of other rooms. This script runs the stage's
-protocol (`taskseq.stages.teach.teach_world`) on the development world drawn
-as a world of drawn rooms (`world.dev_seed`, never reported), once per weight
-of the grid, and ranks the weights by sequence arg over every k above 0
+protocol (`taskseq.stages.teach.teach_world`) on development worlds drawn as
+worlds of drawn rooms (`world.dev_seed` by default; `--dev-seeds` adds other
+draws, each one that no stage reports), once per weight of the grid, and
+ranks the weights by sequence arg over every k above 0 and every draw
 pooled, then success, then the smaller weight. The first goes into
-params.yaml by hand; docs/teach.md shows the table this writes.
+params.yaml by hand; docs/teach.md shows the table this writes, with the
+share of k = 0's misses of sequence arg that the largest k removes, per draw.
 
-    python scripts/teach_weight.py --weights 1 3 10 30 100 300 --output reports/teach_weight.json
+    python scripts/teach_weight.py --weights 1 3 10 30 100 300 --dev-seeds 100 101 102 103 104 \
+        --output reports/teach_weight.json
 
 Run it after `dvc repro` has run `select` (the shipped planner and its C are read from reports/selection.json).
 """
@@ -49,11 +52,18 @@ def main(argv: list[str] | None = None) -> int:
                         help="the shipped planner and its C (default: reports/selection.json)")
     parser.add_argument("--params", type=Path, default=ROOT / "params.yaml")
     parser.add_argument("--output", type=Path, help="also write the ranked table as JSON here")
+    parser.add_argument("--dev-seeds", type=int, nargs="+",
+                        help="seeds of the drawn development worlds (default: world.dev_seed); never a reported one")
     args = parser.parse_args(argv)
     if any(w < 1 for w in args.weights):
         parser.error("--weights: every weight must be at least 1")
     params = Params.load(args.params)
     teach, world = params.teach, params.world
+    seeds = args.dev_seeds or [world.dev_seed]
+    reported = sorted(set(seeds) & set(world.seeds))
+    if reported:
+        parser.error(f"--dev-seeds: {', '.join(map(str, reported))} is a reported world seed (world.seeds); "
+                     "settings are chosen on development draws only")
     if max(teach.k) < 1:
         parser.error("teach.k has no k above 0: nothing is taught, so no weight can matter")
     selection = read_selection(args.selection)
@@ -61,31 +71,43 @@ def main(argv: list[str] | None = None) -> int:
     if shipped is None:
         parser.error(f"{args.selection}: names no method ranked first; run `taskseq select` again")
     make = Lineup(params.methods, selection, params.train.learner, procedural=params.procedural).mrf([shipped])[shipped]
-    scenarios, _ = world_scenarios(Generate(world.dev_seed, "procedural", params.procedural))
-    bench = Benchmark.from_records(scenario_records(scenarios))
-    print(f"the shipped planner ({shipped}, C = {selection.of(shipped):g}) on the drawn development world "
-          f"{world.dev_seed}: rooms {' '.join(teach.environments)} held out, k = {' '.join(map(str, teach.k))}",
-          file=sys.stderr)
-    rows, untaught = [], None
+    benches = {}
+    for seed in seeds:
+        scenarios, _ = world_scenarios(Generate(seed, "procedural", params.procedural))
+        benches[seed] = Benchmark.from_records(scenario_records(scenarios))
+    print(f"the shipped planner ({shipped}, C = {selection.of(shipped):g}) on the drawn development worlds "
+          f"{' '.join(map(str, seeds))}: rooms {' '.join(teach.environments)} held out, "
+          f"k = {' '.join(map(str, teach.k))}", file=sys.stderr)
+    rows, untaught = [], []
     for weight in args.weights:
-        programs = teach_world(world.dev_seed, bench, replace(teach, weight=weight), make, params.crossval.max_steps)
+        programs = [p for seed in seeds for p in teach_world(seed, benches[seed], replace(teach, weight=weight), make,
+                                                             params.crossval.max_steps)]
         taught = [p for p in programs if p["k"] > 0]
         untaught = [p for p in programs if p["k"] == 0]
         rows.append({"weight": weight, **{f: 100.0 * statistics.fmean(p[f] for p in taught)
-                                          for f in ("sequence_arg", "success")}})
+                                          for f in ("sequence_arg", "success")},
+                     "misses": {str(seed): misses(programs, seed, teach.k) for seed in seeds}})
     ranked = rank(rows)
     zero = {f: 100.0 * statistics.fmean(p[f] for p in untaught) for f in ("sequence_arg", "success")}
-    print("| weight | sequence arg, k > 0 | success, k > 0 |")
-    print("|---:|---:|---:|")
+    most = max(teach.k)
+    print(f"| weight | sequence arg, k > 0 | success, k > 0 | misses at k = 0 -> k = {most} |")
+    print("|---:|---:|---:|---:|")
     for r in ranked:
         mark = " (chosen)" if r is ranked[0] else ""
-        print(f"| {r['weight']}{mark} | {r['sequence_arg']:.1f} | {r['success']:.1f} |")
-    print(f"| nothing taught (k = 0) | {zero['sequence_arg']:.1f} | {zero['success']:.1f} |")
+        before, after = (sum(m[i] for m in r["misses"].values()) for i in (0, 1))
+        print(f"| {r['weight']}{mark} | {r['sequence_arg']:.1f} | {r['success']:.1f} | {before} -> {after} |")
+    print(f"| nothing taught (k = 0) | {zero['sequence_arg']:.1f} | {zero['success']:.1f} | |")
     if args.output:
-        write_json_atomic(args.output, {"dev_seed": world.dev_seed, "method": shipped, "C": selection.of(shipped),
+        write_json_atomic(args.output, {"dev_seeds": seeds, "method": shipped, "C": selection.of(shipped),
                                         "environments": list(teach.environments), "k": list(teach.k),
                                         "chosen": ranked[0]["weight"], "ranked": ranked, "untaught": zero})
     return 0
+
+
+def misses(programs: list[dict], seed: int, ks: tuple[int, ...]) -> tuple[int, int]:
+    """World `seed`'s programs not as demonstrated at k = the smallest and at k = the largest of `ks`."""
+    return tuple(sum(1 - p["sequence_arg"] for p in programs if p["world_seed"] == seed and p["k"] == k)
+                 for k in (min(ks), max(ks)))
 
 
 if __name__ == "__main__":

@@ -223,3 +223,25 @@ def test_an_interrupt_in_a_folder_writer_leaves_no_folder(tmp_path):
         (tmp / "x").write_text("x")
         raise KeyboardInterrupt
     assert listing(tmp_path) == []
+
+
+@pytest.mark.parametrize("umask", [0o022, 0o002, 0o077])
+def test_a_new_output_takes_the_permissions_open_would_give_it(tmp_path, monkeypatch, umask):
+    monkeypatch.setattr(atomic, "_UMASK", umask)
+    atomic.write_text_atomic(tmp_path / "report.md", "hello\n")
+    with atomic.atomic_directory(tmp_path / "tables") as tmp:
+        (tmp / "a.csv").write_text("x\n")
+    assert (tmp_path / "report.md").stat().st_mode & 0o777 == 0o666 & ~umask
+    assert (tmp_path / "tables").stat().st_mode & 0o777 == 0o777 & ~umask
+
+
+def test_a_replaced_output_keeps_its_permissions(tmp_path):
+    path, folder = tmp_path / "model.npz", tmp_path / "store"
+    path.write_text("old")
+    folder.mkdir()
+    os.chmod(path, 0o640)
+    os.chmod(folder, 0o750)
+    atomic.write_text_atomic(path, "new")
+    with atomic.atomic_directory(folder) as tmp:
+        (tmp / "m").write_text("x")
+    assert path.stat().st_mode & 0o777 == 0o640 and folder.stat().st_mode & 0o777 == 0o750

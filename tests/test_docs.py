@@ -6,6 +6,7 @@ exists, a docstring mkdocstrings cannot parse. The Results page is generated fro
 `reports/` by docs/hooks.py, so the build also proves it can be made from what git holds.
 """
 
+import csv
 import importlib.util
 import os
 import re
@@ -141,6 +142,12 @@ def test_the_generated_tables_read_the_reports():
     assert f"{first['seconds']:.2f}" in hooks.bench_training()
     for report in (ROOT / "reports" / "mutation").glob("*.md"):
         assert f"`{report.stem}`" in hooks.mutation_scores()
+    with (ROOT / "reports" / "failures.csv").open(newline="") as fh:
+        exact = {(r["world_seed"], r["method"], r["task"]): r["programs"] for r in csv.DictReader(fh)
+                 if r["kind"] == "exact"}
+    stir = " | ".join(f"{exact[s, 'full', 'stir']} / {exact[s, 'relations', 'stir']}" for s in ("0", "3", "7"))
+    assert f"| {stir} |" in hooks.exact_by_task()
+    assert "| ours - full | " in hooks.failure_kinds() and "| chance |" not in hooks.failure_kinds()
     markers = set()
     for page in DOCS.rglob("*.md"):
         markers |= set(hooks.MARKER.findall(page.read_text()))

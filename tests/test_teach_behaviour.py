@@ -216,6 +216,22 @@ def test_the_weight_script_ranks_by_sequence_arg_then_success_then_the_smaller_w
     assert [r["weight"] for r in rank(rows)] == [30, 1, 3, 10]
 
 
+def test_the_weight_script_refuses_a_reported_world_as_a_development_draw(capsys):
+    main = runpy.run_path(str(ROOT / "scripts" / "teach_weight.py"))["main"]
+    with pytest.raises(SystemExit) as exit_:
+        main(["--dev-seeds", "100", "3", "--weights", "1"])
+    assert exit_.value.code == 2
+    assert "--dev-seeds: 3 is a reported world seed" in capsys.readouterr().err
+
+
+def test_the_weight_script_counts_misses_at_the_smallest_and_the_largest_k():
+    misses = runpy.run_path(str(ROOT / "scripts" / "teach_weight.py"))["misses"]
+    programs = [{"world_seed": seed, "k": k, "sequence_arg": arg} for seed, k, arg in
+                ((1, 0, 0), (1, 0, 0), (1, 0, 1), (1, 1, 1), (1, 3, 0), (1, 3, 1), (1, 3, 1), (2, 0, 0))]
+    assert misses(programs, 1, (0, 1, 3)) == (2, 1)
+    assert misses(programs, 2, (0, 1, 3)) == (1, 0)
+
+
 def test_records_are_written_by_the_servers_writer_and_read_back_as_ingest_reads_them():
     env = world_environment(0, "env01")
     tasks = [Task("pour", ("obj27",)), Task("throw_away", ("obj43",))]

@@ -22,6 +22,20 @@ from . import stopping
 
 WRITTEN: list[Path] = []
 
+# The process's umask, read once at import (reading it means setting it, which is not safe once threads run): an
+# output gets the permissions `open` would give it, not the owner-only ones of a temporary file.
+_UMASK = os.umask(0o022)
+os.umask(_UMASK)
+
+
+def _as_opened(tmp: Path, target: Path, directory: bool) -> None:
+    """Give `tmp` the permissions of the `target` it replaces, or those a new file or folder takes by default."""
+    try:
+        mode = target.stat().st_mode & 0o7777
+    except FileNotFoundError:
+        mode = (0o777 if directory else 0o666) & ~_UMASK
+    os.chmod(tmp, mode)
+
 
 @contextmanager
 def atomic_directory(target: Path | str) -> Iterator[Path]:
@@ -32,6 +46,7 @@ def atomic_directory(target: Path | str) -> Iterator[Path]:
     try:
         yield tmp
         stopping.check()  # a stop whose exception was dropped where it landed replaces nothing
+        _as_opened(tmp, target, directory=True)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
@@ -58,6 +73,7 @@ def atomic_file(path: Path | str, output: bool = True) -> Iterator[Path]:
     try:
         yield tmp
         stopping.check()
+        _as_opened(tmp, path, directory=False)
         os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)
