@@ -20,6 +20,7 @@ from typing import Any
 
 from ..evaluate.methods import Method, ScorerMethod
 from ..plan.planner import POLICIES
+from ..runtime.dvc_deps import undeclared
 from ..settings import Crossval, Learner, Procedural
 
 OWN = ""  # `MethodSpec.C_from` for a method whose C is its own entry of selection.json
@@ -111,7 +112,17 @@ def load() -> None:
     """Import every module of the package that adds a method (each registers its spec)."""
     importlib.import_module(f"{__package__}.builtin")
     for name in added_modules():
-        importlib.import_module(f"{__package__}.{name}")
+        _import_method(name)
+
+
+def _import_method(name: str) -> None:
+    """Import the module that adds method `name`; under `dvc repro`, `ValueError` if the running stage's deps do not
+    list it (`runtime.dvc_deps`), before the stage does any work with it."""
+    module = importlib.import_module(f"{__package__}.{name}")
+    problem = undeclared(module.__file__) if module.__file__ else None
+    if problem:
+        raise ValueError(f"{problem}; it runs method {name!r} (params.yaml's methods.{name}.experiments). Run "
+                         "`python scripts/stage_deps.py`, which writes every stage's code deps, then `dvc repro`")
 
 
 def method_names() -> list[str]:
@@ -129,7 +140,7 @@ def method_spec(name: str) -> MethodSpec:
     if name not in _SPECS:
         importlib.import_module(f"{__package__}.builtin")
     if name not in _SPECS and name in added_modules():
-        importlib.import_module(f"{__package__}.{name}")
+        _import_method(name)
     if name not in _SPECS:
         raise ValueError(f"no method {name!r}; known: {', '.join(method_names())}")
     return _SPECS[name]
