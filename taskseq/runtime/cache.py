@@ -153,12 +153,20 @@ class Usage:
 
 def usage(root: Path | str) -> list[Usage]:
     """Per kind (`KINDS`), the entries the cache folder `root` holds."""
-    out = []
+    root, out = _cache_root(root), []
     for kind in KINDS:
-        stats = [path.stat() for path in _entry_files(_cache_root(root), kind)]
+        stats = [stat for stat in map(_stat, _entry_files(root, kind)) if stat is not None]
         out.append(Usage(kind, len(stats), sum(s.st_size for s in stats),
                          max((s.st_mtime for s in stats), default=None)))
     return out
+
+
+def _stat(path: Path) -> os.stat_result | None:
+    """The file's status, or None if it is gone (another process pruned or replaced it meanwhile)."""
+    try:
+        return path.stat()
+    except FileNotFoundError:
+        return None
 
 
 def prune(root: Path | str, unused_for: float | None, now: float) -> tuple[int, int]:
@@ -176,8 +184,8 @@ def prune(root: Path | str, unused_for: float | None, now: float) -> tuple[int, 
         # a temporary file younger than an hour may be a write under way
         files += [(path, max(unused_for or 0.0, LEFTOVER_AGE)) for path in _leftovers(root, kind)]
         for path, age in files:
-            stat = path.stat()
-            if age is None or now - stat.st_mtime > age:
+            stat = _stat(path)
+            if stat is not None and (age is None or now - stat.st_mtime > age):
                 path.unlink(missing_ok=True)
                 removed, freed = removed + 1, freed + stat.st_size
         for sub in (root / kind).glob("??"):
