@@ -106,3 +106,22 @@ def test_unused_for_and_clear_are_one_or_the_other(tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(["cache", str(tmp_path), "--clear", "--unused-for", "3"])
     assert "not allowed with argument" in capsys.readouterr().err
+
+
+def test_a_kept_draw_of_rooms_is_counted_and_cleared_as_one_entry(root, capsys):
+    from taskseq.features.drawn_rooms import StepsCache, drawn_room_steps
+    from taskseq.settings import Procedural
+
+    drawn_room_steps.cache_clear()
+    drawn_room_steps(1, 3, Procedural())
+    drawn_room_steps.cache_clear()
+    (entry,) = (root / StepsCache.kind).glob("??/*.steps")
+    leftover = entry.parent / f".{entry.name}.old.123"  # a replaced entry an interrupted run left
+    leftover.mkdir()
+    _age(leftover, 1)
+    assert main(["cache", str(root)]) == 0
+    line = capsys.readouterr().out.splitlines()[3].split()
+    assert line[:3] == ["steps", "1", "entries"] and line[4] == "kB"
+    assert main(["cache", str(root), "--clear"]) == 0
+    assert capsys.readouterr().out.startswith("deleted 2 files")
+    assert not entry.exists() and not leftover.exists()

@@ -114,3 +114,61 @@ def test_the_choice_script_ranks_by_sequence_arg_then_success_then_fewer_rooms()
     rows = [{"rooms": 52, "sequence_arg": 90.0, "success": 99.0}, {"rooms": 26, "sequence_arg": 90.0, "success": 99.0},
             {"rooms": 13, "sequence_arg": 90.0, "success": 99.5}, {"rooms": 104, "sequence_arg": 91.0, "success": 90.0}]
     assert [r["rooms"] for r in rank(rows)] == [104, 13, 26, 52]
+
+
+# --- the steps kept in the cache -----------------------------------------------------------------------------------
+
+def _digests(steps):
+    from taskseq.learn.fit_cache import step_digest
+
+    return [step_digest(x) for x in steps]
+
+
+@pytest.fixture
+def steps_cache(tmp_path, monkeypatch):
+    from taskseq.runtime import cache
+
+    monkeypatch.setenv(cache.CACHE_ENV, str(tmp_path / "cache"))
+    drawn_room_steps.cache_clear()
+    yield tmp_path / "cache" / "steps"
+    drawn_room_steps.cache_clear()
+
+
+def test_with_the_cache_on_the_drawn_steps_are_kept_and_read_back_the_same_bytes(steps_cache, monkeypatch):
+    from taskseq.features import drawn_rooms
+
+    first = drawn_room_steps(2, 5, Procedural())
+    (entry,) = steps_cache.glob("??/*.steps")
+    assert sorted(p.name for p in entry.iterdir()) == ["objects.npz", "steps.parquet"]
+    drawn_room_steps.cache_clear()
+    draw = drawn_rooms.world_scenarios
+    monkeypatch.setattr(drawn_rooms, "world_scenarios", lambda *a: pytest.fail("drawn again, not read back"))
+    again = drawn_room_steps(2, 5, Procedural())
+    assert again is not first and _digests(again) == _digests(first)
+    drawn_room_steps.cache_clear()
+    monkeypatch.setattr(drawn_rooms, "world_scenarios", draw)
+    assert _digests(drawn_room_steps(2, 6, Procedural())) != _digests(first)  # another seed: another entry
+    assert len(list(steps_cache.glob("??/*.steps"))) == 2
+
+
+def test_an_unreadable_kept_draw_is_drawn_again_and_replaced(steps_cache):
+    first = drawn_room_steps(2, 5, Procedural())
+    (entry,) = steps_cache.glob("??/*.steps")
+    (entry / "steps.parquet").write_bytes(b"not parquet")
+    drawn_room_steps.cache_clear()
+    with pytest.warns(UserWarning, match="an unreadable entry of the cache is drawn again"):
+        again = drawn_room_steps(2, 5, Procedural())
+    assert _digests(again) == _digests(first)
+    drawn_room_steps.cache_clear()
+    assert _digests(drawn_room_steps(2, 5, Procedural())) == _digests(first)  # the entry was replaced whole
+
+
+def test_without_the_cache_no_draw_is_kept(tmp_path, monkeypatch):
+    from taskseq.runtime import cache
+
+    monkeypatch.delenv(cache.CACHE_ENV, raising=False)
+    monkeypatch.chdir(tmp_path)
+    drawn_room_steps.cache_clear()
+    drawn_room_steps(2, 5, Procedural())
+    drawn_room_steps.cache_clear()
+    assert list(tmp_path.iterdir()) == []

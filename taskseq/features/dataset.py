@@ -73,7 +73,10 @@ STEP_SCHEMA = pa.schema([
 ])
 
 
-def write_features(contexts: list[StepContext], meta: list[StepMeta], output: Path | str) -> None:
+def write_features(contexts: list[StepContext], meta: list[StepMeta], output: Path | str,
+                   is_output: bool = True) -> None:
+    """The steps as `taskseq features` writes them (`read_features` reads them back, the same bytes) into the
+    folder `output`, replaced whole; `is_output` False for a cache entry (`runtime.atomic.atomic_directory`)."""
     rows, offsets, offset = [], [], 0
     ci, cj, cs = [], [], []
     for sid, ctx in enumerate(contexts):
@@ -98,7 +101,7 @@ def write_features(contexts: list[StepContext], meta: list[StepMeta], output: Pa
         **{k: [c.prev_args[i] for c in contexts] for i, k in enumerate(HISTORY_ARG_COLUMNS)},
         **{k: [c.gold[i] for c in contexts] for i, k in enumerate(("gold_primitive", "gold_a1", "gold_a2"))},
     }
-    with atomic_directory(output) as tmp:
+    with atomic_directory(output, output=is_output) as tmp:
         pq.write_table(pa.Table.from_pydict(steps, schema=STEP_SCHEMA), tmp / "steps.parquet",
                        compression="zstd", write_statistics=False)
         np.savez_compressed(

@@ -13,18 +13,31 @@ The rooms come from their own seed, so they are other rooms than any world's
 (a world draws its rooms from `[world seed, rooms]`, these from
 `[rooms_seed, rooms]`); a test in `tests/test_drawn_rooms.py` checks that no
 drawn room of the repository's worlds is among them.
+
+Drawing and demonstrating 52 rooms takes about 2 s, and every process that
+fits such a method needs them (to fit, or to key a fit the cache holds), a
+few dozen processes a pipeline; with the cache on (`runtime.cache`), the
+steps are kept in its `steps/` folder as `taskseq features` writes them, and
+read back (in a twentieth of the time, the same bytes) while the code that
+draws them is the same.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 from dataclasses import replace
 from functools import lru_cache
 
 from ..demonstrations.records import scenario_records
+from ..runtime.cache import Entries, subfolder, versions
+from ..runtime.sources import code_fingerprint
 from ..settings import Generate, Procedural
 from ..sim.scenarios import world_scenarios
 from .context import StepContext
-from .dataset import build_steps
+from .dataset import StepMeta, build_steps, read_features, write_features
+
+FORMAT = "taskseq.drawn-rooms/1"
 
 
 @lru_cache(maxsize=4)
@@ -32,9 +45,41 @@ def drawn_room_steps(rooms: int, seed: int, distribution: Procedural) -> tuple[S
     """Every demonstrated step of a world of `rooms` rooms drawn from `distribution` with `seed`: its scenarios as
     a drawn world's (`sim.scenarios.world_scenarios`), each demonstration's steps, its `done` included.
 
-    Kept per process (a fold job's methods fit one after another on the same draw); never changed by a caller.
+    Kept per process (a fold job's methods fit one after another on the same draw), and in the cache when it is
+    on; never changed by a caller.
     """
     if rooms < 1:
         raise ValueError(f"drawn rooms: the number of rooms must be at least 1, got {rooms}")
+    directory = subfolder(StepsCache.kind)
+    cache = None if directory is None else StepsCache(directory)
+    key = _key(rooms, seed, distribution) if cache is not None else ""
+    kept = None if cache is None else cache.load(key)
+    if kept is not None:
+        return kept
     world = Generate(seed=seed, family="procedural", procedural=replace(distribution, environments=rooms))
-    return tuple(build_steps(scenario_records(world_scenarios(world)[0]))[0])
+    contexts, meta = build_steps(scenario_records(world_scenarios(world)[0]))
+    if cache is not None:
+        cache.save(key, contexts, meta)
+    return tuple(contexts)
+
+
+class StepsCache(Entries):
+    """A folder of step sets, `<key>.steps/` each: the tables `taskseq features` writes (no pickles)."""
+
+    kind = "steps"
+
+    def load(self, key: str) -> tuple[StepContext, ...] | None:
+        """The steps stored under `key`, or None if there are none or they cannot be read."""
+        return self.read(key, lambda path: tuple(read_features(path)[0]), "drawn again")
+
+    def save(self, key: str, contexts: list[StepContext], meta: list[StepMeta]) -> None:
+        """Store the steps under `key`, atomically (not one of the command's outputs)."""
+        write_features(contexts, meta, self.path(key), is_output=False)
+
+
+def _key(rooms: int, seed: int, distribution: Procedural) -> str:
+    """sha256 of what decides the steps: the draw's settings, the code that draws, demonstrates and featurises
+    them (this module's imports), and the libraries that write and read them."""
+    decided = {"format": FORMAT, "rooms": rooms, "seed": seed, "distribution": repr(distribution),
+               "code": code_fingerprint(__name__), **versions("numpy", "pyarrow")}
+    return hashlib.sha256(json.dumps(decided, sort_keys=True).encode()).hexdigest()

@@ -38,8 +38,9 @@ def _as_opened(tmp: Path, target: Path, directory: bool) -> None:
 
 
 @contextmanager
-def atomic_directory(target: Path | str) -> Iterator[Path]:
-    """Yield a fresh temporary folder that replaces `target` only if the block succeeds."""
+def atomic_directory(target: Path | str, output: bool = True) -> Iterator[Path]:
+    """Yield a fresh temporary folder that replaces `target` only if the block succeeds. `output` False: a folder
+    kept for the command's own use (a cache), which `WRITTEN` does not list."""
     target = Path(target)
     target.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
@@ -55,7 +56,8 @@ def atomic_directory(target: Path | str) -> Iterator[Path]:
         old = target.with_name(f".{target.name}.old.{os.getpid()}")
         os.replace(target, old)
     os.replace(tmp, target)
-    WRITTEN.append(target)
+    if output:
+        WRITTEN.append(target)
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)
 

@@ -1,10 +1,12 @@
 """Where results kept between runs live: one folder, named by `TASKSEQ_CACHE`, with a subfolder per kind.
 
-Two kinds of work are pure functions of what they read and the code that
+Three kinds of work are pure functions of what they read and the code that
 does them, and cost most of a re-run: fits (`taskseq.learn.fit_cache`,
-in `fits/`) and the outcomes of a method's programs on one fold
-(`taskseq.experiments.outcome_cache`, in `outcomes/`). Each keys an entry by
-a hash of its inputs and of the source files it runs (`runtime.sources`).
+in `fits/`), the outcomes of a method's programs on one fold
+(`taskseq.experiments.outcome_cache`, in `outcomes/`) and the training steps
+of rooms drawn for a method (`taskseq.features.drawn_rooms`, in `steps/`).
+Each keys an entry by a hash of its inputs and of the source files it runs
+(`runtime.sources`).
 
 The cache is used only where it is asked for: the pipeline's stages set the
 variable from their `--cache` option, and the worker processes they start
@@ -18,6 +20,7 @@ from __future__ import annotations
 
 import os
 import re
+import shutil
 import sys
 import warnings
 import weakref
@@ -33,8 +36,9 @@ from typing import Any, TypeVar
 T = TypeVar("T")
 
 CACHE_ENV = "TASKSEQ_CACHE"
-# the kinds of entry, each in a subfolder of the cache named as it, and the ending of their files
-KINDS = {"fits": ".npz", "outcomes": ".json"}
+# the kinds of entry, each in a subfolder of the cache named as it, and the ending of their names (a step set is a
+# folder of the features tables `taskseq features` writes; the others are files)
+KINDS = {"fits": ".npz", "outcomes": ".json", "steps": ".steps"}
 _KEY = re.compile(r"[0-9a-f]{64}")  # a key: a SHA-256 in hex
 LEFTOVER_AGE = 3600.0  # seconds after which a writer's temporary file is taken as left by an interrupted run
 
@@ -155,18 +159,26 @@ def usage(root: Path | str) -> list[Usage]:
     """Per kind (`KINDS`), the entries the cache folder `root` holds."""
     root, out = _cache_root(root), []
     for kind in KINDS:
-        stats = [stat for stat in map(_stat, _entry_files(root, kind)) if stat is not None]
-        out.append(Usage(kind, len(stats), sum(s.st_size for s in stats),
-                         max((s.st_mtime for s in stats), default=None)))
+        found = [(stat, _size(path)) for path in _entries(root, kind) if (stat := _stat(path)) is not None]
+        out.append(Usage(kind, len(found), sum(size for _, size in found),
+                         max((stat.st_mtime for stat, _ in found), default=None)))
     return out
 
 
 def _stat(path: Path) -> os.stat_result | None:
-    """The file's status, or None if it is gone (another process pruned or replaced it meanwhile)."""
+    """The entry's status, or None if it is gone (another process pruned or replaced it meanwhile)."""
     try:
         return path.stat()
     except FileNotFoundError:
         return None
+
+
+def _size(path: Path) -> int:
+    """Bytes of a file, or of the files in a folder entry."""
+    if path.is_dir():
+        return sum(_size(f) for f in path.rglob("*") if f.is_file())
+    stat = _stat(path)
+    return 0 if stat is None else stat.st_size
 
 
 def prune(root: Path | str, unused_for: float | None, now: float) -> tuple[int, int]:
@@ -180,14 +192,18 @@ def prune(root: Path | str, unused_for: float | None, now: float) -> tuple[int, 
     root = _cache_root(root)
     removed = freed = 0
     for kind in KINDS:
-        files = [(path, unused_for) for path in _entry_files(root, kind)]
-        # a temporary file younger than an hour may be a write under way
-        files += [(path, max(unused_for or 0.0, LEFTOVER_AGE)) for path in _leftovers(root, kind)]
-        for path, age in files:
+        found = [(path, unused_for) for path in _entries(root, kind)]
+        # a temporary file or folder younger than an hour may be a write under way
+        found += [(path, max(unused_for or 0.0, LEFTOVER_AGE)) for path in _leftovers(root, kind)]
+        for path, age in found:
             stat = _stat(path)
             if stat is not None and (age is None or now - stat.st_mtime > age):
-                path.unlink(missing_ok=True)
-                removed, freed = removed + 1, freed + stat.st_size
+                size = _size(path)
+                if path.is_dir():
+                    shutil.rmtree(path, ignore_errors=True)
+                else:
+                    path.unlink(missing_ok=True)
+                removed, freed = removed + 1, freed + size
         for sub in (root / kind).glob("??"):
             if sub.is_dir() and not any(sub.iterdir()):
                 sub.rmdir()
@@ -206,12 +222,11 @@ def _cache_root(root: Path | str) -> Path:
     return root
 
 
-def _entry_files(root: Path, kind: str) -> list[Path]:
+def _entries(root: Path, kind: str) -> list[Path]:
     return sorted(p for p in (root / kind).glob(f"??/*{KINDS[kind]}")
-                  if _KEY.fullmatch(p.stem) and p.stem[:2] == p.parent.name and p.is_file())
+                  if _KEY.fullmatch(p.stem) and p.stem[:2] == p.parent.name)
 
 
 def _leftovers(root: Path, kind: str) -> list[Path]:
-    """Temporary files an interrupted writer left (`runtime.atomic.atomic_file` names them `.<key>.*<suffix>`)."""
-    return sorted(p for p in (root / kind).glob(f"??/.*{KINDS[kind]}")
-                  if _KEY.fullmatch(p.name[1:].split(".")[0]) and p.is_file())
+    """Temporary files and folders an interrupted writer left (`runtime.atomic` names them `.<name>.*`)."""
+    return sorted(p for p in (root / kind).glob("??/.*") if _KEY.fullmatch(p.name[1:].split(".")[0]))
