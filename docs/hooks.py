@@ -11,7 +11,8 @@
   `reports/mutation/`, the development world's ranking in `reports/selection.json`, the `teach`
   stage's tables of `reports/teach/`, the VEIL pipeline's timing of `reports/veil_timing.json`,
   Table I's means and per-seed figures (`reports/crossval_means.json`, `crossval_seeds.csv`), the
-  noise and feedback tables (`reports/noise.csv`, `feedback.csv`), the
+  noise and feedback tables (`reports/noise.csv`, `feedback.csv`), the failure analysis's
+  tables (`reports/failures.md`, `failures.csv`), the
   development world's checks of the scripts (`multiclass_tol.json`, `revisits.json`, `goal_stop.json`,
   `drawn_rooms_choice.json`, `teach_weight.json`), and the package's layout from its modules'
   docstrings.
