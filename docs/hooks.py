@@ -476,19 +476,13 @@ def failure_kinds() -> str:
     rows = _csv_rows("failures.csv")
     if not path.is_file() or rows is None:
         return _missing("failures.md", FAILURES_COMMAND)
-    labels = _failure_labels(rows)
+    from taskseq.methods import method_labels
+
+    labels = method_labels(sorted({r["method"] for r in rows}))
     wanted = [labels[m] for m in (*FAILURE_METHODS, _shipped_method()) if m in labels]
     lines = path.read_text().split("\n\n")[1].splitlines()  # the first table: header, rule, a row per method
     keep = lines[:2] + [line for label in wanted for line in lines[2:] if line.startswith(f"| {label} |")]
     return "`reports/failures.md` (`" + FAILURES_COMMAND + "`), these methods' rows:\n\n" + "\n".join(keep) + "\n"
-
-
-def _failure_labels(rows: list[dict[str, str]]) -> dict[str, str]:
-    """Method name -> its label in the tables, read from the methods' specs as the report writes them."""
-    from taskseq.methods import method_labels
-
-    names = sorted({r["method"] for r in rows})
-    return method_labels(names)
 
 
 def exact_by_task() -> str:

@@ -126,7 +126,7 @@ def test_a_variable_naming_a_file_is_refused_before_any_fit(steps, tmp_path, mon
 def test_without_the_variable_nothing_is_written(steps, tmp_path, monkeypatch):
     monkeypatch.delenv(cache.CACHE_ENV, raising=False)
     monkeypatch.chdir(tmp_path)
-    assert fit_cache.active() is None
+    assert fit_cache.FitCache.active() is None
     StepScorer("full", C=1.0).fit(steps)
     assert list(tmp_path.iterdir()) == []
 
@@ -166,7 +166,7 @@ def test_the_closure_follows_relative_imports_and_packages(tmp_path):
 def test_a_benchmark_fits_afresh_whatever_the_variable_says(steps, cache_dir):
     StepScorer("full", C=1.0).fit(steps)
     with cache.disabled():
-        assert fit_cache.active() is None
+        assert fit_cache.FitCache.active() is None
         assert not StepScorer("full", C=1.0).fit(steps).from_cache_
     assert StepScorer("full", C=1.0).fit(steps).from_cache_  # the variable as it was afterwards
     assert len(_entries(cache_dir)) == 1

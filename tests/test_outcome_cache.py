@@ -168,7 +168,7 @@ def test_a_cache_that_is_a_file_is_refused(tmp_path, monkeypatch):
     not_a_folder.write_text("")
     monkeypatch.setenv(cache.CACHE_ENV, str(not_a_folder))
     with pytest.raises(ValueError, match="TASKSEQ_CACHE=.*not a folder"):
-        outcome_cache.active()
+        outcome_cache.OutcomeCache.active()
     with pytest.raises(ValueError, match="--cache .*not a folder"), cache.folder(not_a_folder):
         pass
 

@@ -46,7 +46,7 @@ from ..features.context import StepContext
 from ..features.dataset import StepMeta
 from ..learn.fit_cache import hash_steps
 from ..runtime.atomic import atomic_file
-from ..runtime.cache import Digests, Entries, subfolder, versions
+from ..runtime.cache import Digests, Entries, versions
 from ..runtime.sources import code_fingerprint
 from ..sim.scenarios import Scenario
 from ..sim.state import WorldState
@@ -83,17 +83,11 @@ def _parsed(path: Path) -> Any:
     return entry["outcomes"]
 
 
-def active() -> OutcomeCache | None:
-    """The outcome cache in force (`outcomes/` under the folder `TASKSEQ_CACHE` names), or None."""
-    directory = subfolder(OutcomeCache.kind)
-    return None if directory is None else OutcomeCache(directory)
-
-
 def read_or_run(experiment: str, make: Callable[[], Any], method: Any, data: FoldData, job: dict[str, Any],
                 run: Callable[[], T], encode: Callable[[T], Any], decode: Callable[[Any], T]) -> T:
     """`run()` (the fitted `method`'s outcomes on one fold job of `experiment`), or, with the cache on, what an
     earlier run of the same job stored (`decode`d), else `run()` stored (`encode`d as JSON)."""
-    cache = active()
+    cache = OutcomeCache.active()
     if cache is None:
         return run()
     key = job_key(experiment, make, method, *data, job)

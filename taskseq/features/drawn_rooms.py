@@ -30,7 +30,7 @@ from dataclasses import replace
 from functools import lru_cache
 
 from ..demonstrations.records import scenario_records
-from ..runtime.cache import Entries, subfolder, versions
+from ..runtime.cache import Entries, versions
 from ..runtime.sources import code_fingerprint
 from ..settings import Generate, Procedural
 from ..sim.scenarios import world_scenarios
@@ -50,17 +50,21 @@ def drawn_room_steps(rooms: int, seed: int, distribution: Procedural) -> tuple[S
     """
     if rooms < 1:
         raise ValueError(f"drawn rooms: the number of rooms must be at least 1, got {rooms}")
-    directory = subfolder(StepsCache.kind)
-    cache = None if directory is None else StepsCache(directory)
-    key = _key(rooms, seed, distribution) if cache is not None else ""
-    kept = None if cache is None else cache.load(key)
-    if kept is not None:
-        return kept
-    world = Generate(seed=seed, family="procedural", procedural=replace(distribution, environments=rooms))
-    contexts, meta = build_steps(scenario_records(world_scenarios(world)[0]))
-    if cache is not None:
+    cache = StepsCache.active()
+    if cache is None:
+        return tuple(_drawn(rooms, seed, distribution)[0])
+    key = _key(rooms, seed, distribution)
+    kept = cache.load(key)
+    if kept is None:
+        contexts, meta = _drawn(rooms, seed, distribution)
         cache.save(key, contexts, meta)
-    return tuple(contexts)
+        kept = tuple(contexts)
+    return kept
+
+
+def _drawn(rooms: int, seed: int, distribution: Procedural) -> tuple[list[StepContext], list[StepMeta]]:
+    world = Generate(seed=seed, family="procedural", procedural=replace(distribution, environments=rooms))
+    return build_steps(scenario_records(world_scenarios(world)[0]))
 
 
 class StepsCache(Entries):

@@ -129,7 +129,7 @@ class StepScorer:
             y = [x.gold for x in X]
         _check_labels(X, y)
         warm = _cuts_of(warm_start, self.features)
-        cache = fit_cache.active()
+        cache = fit_cache.FitCache.active()
         if cache is None:
             self._fit(X, y, warm, progress)
             return self

@@ -34,7 +34,7 @@ import scipy.sparse as sp
 
 from ..features.context import StepContext
 from ..runtime.atomic import atomic_file
-from ..runtime.cache import Digests, Entries, subfolder, versions
+from ..runtime.cache import Digests, Entries, versions
 from ..runtime.sources import code_fingerprint
 from .ssvm import Cuts, Iteration
 
@@ -95,12 +95,6 @@ def fit_key(params: dict[str, Any], X: Sequence[StepContext], y: Sequence[tuple[
     h.update(np.asarray(y, dtype=np.int64).tobytes())
     _hash_cuts(h, warm_start)
     return h.hexdigest()
-
-
-def active() -> FitCache | None:
-    """The fit cache in force (`runtime.cache`: `fits/` under the folder `TASKSEQ_CACHE` names), or None."""
-    directory = subfolder(FitCache.kind)
-    return None if directory is None else FitCache(directory)
 
 
 @dataclass(frozen=True)

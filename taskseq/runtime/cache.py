@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 T = TypeVar("T")
+E = TypeVar("E", bound="Entries")
 
 CACHE_ENV = "TASKSEQ_CACHE"
 # the kinds of entry, each in a subfolder of the cache named as it, and the ending of their names (a step set is a
@@ -98,6 +99,12 @@ class Entries:
 
     def __init__(self, directory: Path | str) -> None:
         self.directory = Path(directory)
+
+    @classmethod
+    def active(cls: type[E]) -> E | None:
+        """The entries of this kind in the cache in force (`subfolder`), or None when no cache is on."""
+        directory = subfolder(cls.kind)
+        return None if directory is None else cls(directory)
 
     @property
     def suffix(self) -> str:
