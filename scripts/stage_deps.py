@@ -41,6 +41,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 DVC_YAML = ROOT / "dvc.yaml"
 VEIL_YAML = ROOT / "veil" / "dvc.yaml"
+SELECTION = ROOT / "reports" / "selection.json"  # the select stage's file: which method ships
 
 LOADED = """
 import importlib, json, sys
@@ -87,18 +88,32 @@ def code_deps(stage: str) -> list[str]:
 
 
 def methods_run(stage: str) -> list[str]:
-    """The methods whose modules the stage loads when it runs (`Stage.runs`): every one, or those params.yaml's
-    `methods` section gives its experiment (and the shipped method's stages `train.method` when it names one)."""
+    """The methods whose modules the stage loads when it runs (`Stage.runs`): every one, those params.yaml's
+    `methods` section gives its experiment, or the shipped one.
+
+    The shipped method is `train.method`, or when that says best the method reports/selection.json ranks first
+    (every method select ranks while there is no such file): a stage that fits it alone then re-runs for a change
+    to its module only. Should select rank another first, the file changes with it, the stage's deps name the
+    old module, and the stage, run by DVC, stops before any work and asks for this script
+    (`taskseq.runtime.dvc_deps`).
+    """
     from taskseq.methods import method_names
+    from taskseq.selection import read_selection
     from taskseq.settings import Params
     from taskseq.stages import STAGES
 
     runs, params = STAGES[stage].runs, Params.load(ROOT / "params.yaml")
     if runs == "all":
         return method_names()
+    if runs == "shipped":
+        if params.train.method != "best":
+            return [params.train.method]
+        if SELECTION.exists() and read_selection(SELECTION).method:
+            return [read_selection(SELECTION).method]
+        runs = "select"
     named = [name for name, entry in params.methods.entries if runs and runs in entry.experiments]
-    if runs == "select" and params.train.method != "best":
-        named.append(params.train.method)
+    if runs == "select" and params.train.method not in ("best", *named):
+        named.append(params.train.method)  # select gives the shipped method its C
     return named
 
 

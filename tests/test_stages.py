@@ -16,6 +16,8 @@ import yaml
 from params_reads import keys_read
 
 from taskseq.methods import Lineup
+from taskseq.methods.spec import added_modules
+from taskseq.selection import read_selection
 from taskseq.settings import SECTIONS, Methods, Params, parse_section
 from taskseq.stages import STAGES
 
@@ -184,15 +186,31 @@ def test_a_change_to_one_methods_module_reruns_only_the_stages_that_run_it():
 
     seeds = Params.load(ROOT / "params.yaml").world.seeds
     per_world = {f"{stage}@{s}" for stage in ("fold_models", "crossval", "noise", "scenes_world") for s in seeds}
-    # noise_trained runs in select, noise and Table I (params.yaml); teach and train take the shipped method, one
-    # that select ranks; the tables over worlds name every method
+    # noise_trained runs in select, noise and Table I (params.yaml); the tables over worlds name every method; teach
+    # and train take the shipped method alone, the one selection.json ranks first
     assert listing("taskseq/methods/noise_trained.py") == per_world | {
-        "select", "train", "teach", "scenes", "aggregate", "report",
+        "select", "scenes", "aggregate", "report",
         *(f"stats@{t}" for t in ("scenario_folds", "drawn_rooms", "transfer"))}
+    shipped = read_selection(ROOT / "reports" / "selection.json").method
+    module = f"taskseq/methods/{shipped if shipped in added_modules() else 'builtin'}.py"
+    assert {"train", "teach"} <= listing(module)
     for stage in ("feedback", "recipes"):  # they run full, relations, chained and choice_chained_lookahead
         assert not {f"{stage}@{s}" for s in seeds} & listing("taskseq/methods/noise_trained.py")
         assert {f"{stage}@{s}" for s in seeds} <= listing("taskseq/methods/builtin.py")
     assert {f"recipes@{s}" for s in seeds} <= listing("taskseq/methods/choice_chained_lookahead.py")
+
+
+def test_the_shipped_methods_stages_load_the_method_selection_ranks_first_or_every_ranked_one_without_it(
+        tmp_path, monkeypatch):
+    entries = Params.load(ROOT / "params.yaml").methods.entries
+    ranked = [name for name, entry in entries if "select" in entry.experiments]
+    other = next(name for name in ranked if name != read_selection(ROOT / "reports" / "selection.json").method)
+    chosen = tmp_path / "selection.json"
+    chosen.write_text(json.dumps({"settings": {other: {"C": 1.0}}, "method": other}))
+    monkeypatch.setattr(stage_deps, "SELECTION", chosen)
+    assert stage_deps.methods_run("teach") == stage_deps.methods_run("train") == [other]
+    monkeypatch.setattr(stage_deps, "SELECTION", tmp_path / "none.json")
+    assert stage_deps.methods_run("teach") == ranked
 
 
 @pytest.mark.parametrize("stage", ["train", "select", "fold_models", "crossval", "noise", "feedback", "recipes",

@@ -31,8 +31,8 @@ class Stage:
     per_world: bool = False  # runs on one world's data (`--world-seed`)
     cached: bool = False  # fits models or runs programs: takes `--cache` (`taskseq.runtime.cache`)
     # the methods whose modules it loads (`taskseq.methods.method_spec`): "" none, "all" every one (Table I, every
-    # label), or an experiment's (those whose entry of params.yaml's `methods` names it; `select`'s for the stages
-    # that take the shipped method, which `select` ranks first, or `train.method` when it names one)
+    # label), an experiment's (those whose entry of params.yaml's `methods` names it), or "shipped": the one method
+    # `train.method` names, or when it says best the one reports/selection.json ranks first
     runs: str = ""
 
 
@@ -48,7 +48,7 @@ STAGES: dict[str, Stage] = {
     "features": Stage("build every teacher-forced step's candidates and features from the Parquet tables",
                       opts.FeaturesOptions, per_world=True),
     "train": Stage("fit the MRF weights with the structural SVM (the paper's 1-slack objective) on every step",
-                   opts.TrainOptions, per_world=True, cached=True, runs="select"),
+                   opts.TrainOptions, per_world=True, cached=True, runs="shipped"),
     "pddl": Stage("write the PDDL domain, a problem per scenario and its shortest plan (SAT)", opts.PddlOptions,
                   per_world=True),
     "fold_models": Stage("train every MRF model the evaluation stages use, once, into a model store",
@@ -71,7 +71,7 @@ STAGES: dict[str, Stage] = {
     "people": Stage("check people's demonstrations, count them, and compare the planner with and without them",
                     opts.PeopleOptions, cached=True),
     "teach": Stage("the shipped planner in drawn rooms it never saw, after a scripted person shows k tasks in each",
-                   opts.TeachOptions, True, cached=True, runs="select"),
+                   opts.TeachOptions, True, cached=True, runs="shipped"),
     "aggregate": Stage("every figure over the world seeds: mean ± sd tables, failures, noise, feedback, recipes",
                        opts.AggregateOptions, runs="all"),
     "stats": Stage("confidence intervals of Table I by a bootstrap over worlds and scenarios; paired tests of methods",
