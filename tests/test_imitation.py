@@ -278,3 +278,52 @@ def test_each_dagger_refit_starts_where_the_fit_before_it_ended(small, monkeypat
     for (n_before, _), (n, start) in zip(fits[:-1], fits[1:], strict=True):
         assert start is not None and start.n_steps_ == n_before < n
     assert last.n_steps_ == fits[-1][0]
+
+
+# --- the last round's rollouts kept in the cache ---------------------------------------------------------------------
+
+@pytest.fixture
+def steps_cache(tmp_path, monkeypatch):
+    from taskseq.runtime import cache
+
+    monkeypatch.setenv(cache.CACHE_ENV, str(tmp_path / "cache"))
+    return tmp_path / "cache" / "steps"
+
+
+def _dagger(contexts, scenarios, C=3.0, rounds=1, expert=None):
+    return fit_imitation(StepScorer("full", **{**SSVM, "C": C}), contexts, list(scenarios.values()), rounds=rounds,
+                         chained=False, expert=expert)
+
+
+def test_with_the_cache_on_the_rollouts_are_kept_and_read_back_to_the_same_fit(small, steps_cache, monkeypatch):
+    contexts, _, scenarios = small
+    monkeypatch.delenv("TASKSEQ_CACHE")
+    uncached = _dagger(contexts, scenarios)
+    monkeypatch.setenv("TASKSEQ_CACHE", str(steps_cache.parent))
+    first = _dagger(contexts, scenarios)
+    (entry,) = steps_cache.glob("??/*.steps")
+    monkeypatch.setattr(dagger_module, "rollout_contexts", lambda *a: pytest.fail("rolled out, not read back"))
+    again = _dagger(contexts, scenarios)
+    assert uncached.w_.tobytes() == first.w_.tobytes() == again.w_.tobytes()
+    assert uncached.n_steps_ == first.n_steps_ == again.n_steps_ > len(contexts)
+
+
+def test_another_policy_rolls_out_anew_and_only_the_last_round_is_kept(small, steps_cache):
+    contexts, _, scenarios = small
+    _dagger(contexts, scenarios)
+    _dagger(contexts, scenarios, C=0.3)  # another policy: other rollouts
+    assert len(list(steps_cache.glob("??/*.steps"))) == 2
+    _dagger(contexts, scenarios, rounds=2)  # its first round rolls out (not the last), its second is kept
+    assert len(list(steps_cache.glob("??/*.steps"))) == 3
+    _dagger(contexts, scenarios, C=1.0, expert=next_actions)  # an expert given by the caller: nothing kept
+    assert len(list(steps_cache.glob("??/*.steps"))) == 3
+
+
+def test_an_unreadable_kept_rollout_is_rolled_out_again(small, steps_cache):
+    contexts, _, scenarios = small
+    first = _dagger(contexts, scenarios)
+    (entry,) = steps_cache.glob("??/*.steps")
+    (entry / "objects.npz").write_bytes(b"not an archive")
+    with pytest.warns(UserWarning, match="rolled out again"):
+        again = _dagger(contexts, scenarios)
+    assert again.w_.tobytes() == first.w_.tobytes()

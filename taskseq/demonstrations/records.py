@@ -7,11 +7,13 @@ state. `demonstration.schema.json` beside this file is the formal schema.
 
 from __future__ import annotations
 
+import hashlib
 import json
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
+from ..runtime.cache import Digests
 from ..sim.objects import BINARY_ATTRIBUTES, ObjectSpec, attributes_of_box
 from ..sim.primitives import Action, execute
 from ..sim.scenarios import Scenario
@@ -116,3 +118,20 @@ def scenario_records(scenarios: Iterable[Scenario]) -> list[dict[str, Any]]:
     """The log record of every acceptable sequence of every scenario, scenario by scenario: what `taskseq
     generate` writes for them, without files."""
     return [demonstration_record(s, i) for s in scenarios for i in range(len(s.demonstrations))]
+
+
+_DIGESTS = Digests(100_000)
+
+
+def state_digest(state: WorldState) -> bytes:
+    """sha256 of a world state as a record writes it, its objects' descriptions included: what decides what a
+    planner or the demonstrator does from it (kept per state object, `runtime.cache.Digests`)."""
+    return _DIGESTS(state, lambda s: hashlib.sha256(json.dumps(
+        [state_to_dict(s), [spec_to_dict(s.specs[o]) for o in sorted(s.specs)]]).encode()).digest())
+
+
+def scenario_digest(scenario: Scenario) -> bytes:
+    """sha256 of a scenario: its room, task, demonstrations and initial world (`state_digest`)."""
+    return _DIGESTS(scenario, lambda s: hashlib.sha256(json.dumps(
+        [s.env_id, str(s.task), [[str(a) for a in d] for d in s.demonstrations]]).encode()
+        + state_digest(s.initial)).digest())

@@ -41,15 +41,14 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from ..demonstrations.benchmark import Benchmark
-from ..demonstrations.records import spec_to_dict, state_to_dict
+from ..demonstrations.records import scenario_digest, state_digest
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
 from ..learn.fit_cache import hash_steps
 from ..runtime.atomic import atomic_file
-from ..runtime.cache import Digests, Entries, versions
+from ..runtime.cache import Entries, versions
 from ..runtime.sources import code_fingerprint
 from ..sim.scenarios import Scenario
-from ..sim.state import WorldState
 
 FORMAT = "taskseq.outcomes/1"
 T = TypeVar("T")
@@ -116,11 +115,11 @@ def job_key(experiment: str, make: Callable[[], Any], method: Any, contexts: Seq
     hash_steps(h, contexts)
     h.update(json.dumps([[m.sequence_id, m.scenario_id, m.step] for m in meta]).encode())
     for sid in sorted(scenarios):
-        h.update(_scenario_digest(scenarios[sid]))
+        h.update(scenario_digest(scenarios[sid]))
     if demos is not None:
         for m in meta:
             if m.scenario_id in test:
-                h.update(_state_digest(demos.states[(m.sequence_id, m.step)]))
+                h.update(state_digest(demos.states[(m.sequence_id, m.step)]))
                 h.update(json.dumps([str(a) for a in demos.actions[m.sequence_id]]).encode())
     return h.hexdigest()
 
@@ -147,18 +146,3 @@ def _factory_modules(make: Callable[[], Any]) -> set[str]:
         elif getattr(f, "__module__", "").split(".")[0] == "taskseq":
             out.add(f.__module__)
     return out
-
-
-_DIGESTS = Digests(100_000)
-
-
-def _state_digest(state: WorldState) -> bytes:
-    return _DIGESTS(state, lambda s: hashlib.sha256(json.dumps(
-        [state_to_dict(s), [spec_to_dict(s.specs[o]) for o in sorted(s.specs)]]).encode()).digest())
-
-
-def _scenario_digest(scenario: Scenario) -> bytes:
-    return _DIGESTS(scenario, lambda s: hashlib.sha256(json.dumps(
-        [s.env_id, str(s.task), [[str(a) for a in d] for d in s.demonstrations]]).encode()
-        + _state_digest(s.initial)).digest())
-

@@ -72,9 +72,10 @@ class StepsCache(Entries):
 
     kind = "steps"
 
-    def load(self, key: str) -> tuple[StepContext, ...] | None:
-        """The steps stored under `key`, or None if there are none or they cannot be read."""
-        return self.read(key, lambda path: tuple(read_features(path)[0]), "drawn again")
+    def load(self, key: str, redone: str = "drawn again") -> tuple[StepContext, ...] | None:
+        """The steps stored under `key`, or None if there are none or they cannot be read (the warning then says
+        what happens instead: `redone`)."""
+        return self.read(key, lambda path: tuple(read_features(path)[0]), redone)
 
     def save(self, key: str, contexts: list[StepContext], meta: list[StepMeta]) -> None:
         """Store the steps under `key`, atomically (not one of the command's outputs)."""

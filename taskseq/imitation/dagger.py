@@ -7,15 +7,33 @@ would do in each state the planner reached that no demonstration passes
 through, adds those labelled steps to the training set and refits; `rounds`
 times. Every rollout follows the learner alone (the demonstrations are round
 zero).
+
+Rolling out costs seconds per training set (hundreds of programs), and a
+stage that finds DAgger's fit in the fit cache would still roll out to learn
+the steps that key it. So the last round's rollouts are kept in the cache's
+`steps/` folder too (`features.drawn_rooms.StepsCache`, as `taskseq features`
+writes steps), keyed by what decides them: this module's code with all it
+imports (planner, simulator, demonstrator, features), the fitted policy's
+settings and weights, the training data it was fitted on and every training
+scenario. Earlier rounds, whose rollouts also decide what later rounds skip,
+roll out each time.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 from collections.abc import Callable, Sequence
 
+from ..demonstrations.records import scenario_digest
 from ..features.context import StepContext, step_context
+from ..features.dataset import StepMeta
+from ..features.drawn_rooms import StepsCache
 from ..learn.estimator import StepScorer
+from ..learn.fit_cache import hash_steps
 from ..plan.planner import Policy, greedy, run_loop
+from ..runtime.cache import versions
+from ..runtime.sources import code_fingerprint
 from ..sim.primitives import Action
 from ..sim.scenarios import Scenario
 from ..sim.state import WorldState
@@ -23,6 +41,7 @@ from .expert import next_actions
 from .starts import chained_contexts, chained_scenarios
 
 ROLLOUT_STEPS = 20  # step cap of a training rollout, the evaluation's
+FORMAT = "taskseq.rollouts/1"
 
 Expert = Callable[[Scenario, Sequence[Action], WorldState], tuple[Action, ...]]
 
@@ -75,9 +94,9 @@ def fit_imitation(planner: StepScorer, contexts: list[StepContext], scenarios: S
     seconds = 0.0 if fitted is base else fitted.fit_seconds_
     refit = None
     seen: list[set[tuple[Action, ...]]] = [set() for _ in scenarios]
-    for _ in range(rounds):
-        policy = greedy(fitted, top_k=1)
-        new = [x for sc, s in zip(scenarios, seen, strict=True) for x in rollout_contexts(policy, sc, s, expert)]
+    for r in range(rounds):
+        cache = StepsCache.active() if r == rounds - 1 and expert is None else None
+        new = _rollouts(fitted, scenarios, seen, expert, cache, data)
         if not new:
             break
         data += new
@@ -88,3 +107,38 @@ def fit_imitation(planner: StepScorer, contexts: list[StepContext], scenarios: S
         seconds += fitted.fit_seconds_
     fitted.fit_seconds_ = seconds
     return fitted
+
+
+def _rollouts(fitted: StepScorer, scenarios: list[Scenario], seen: list[set[tuple[Action, ...]]],
+              expert: Expert | None, cache: StepsCache | None, data: list[StepContext]) -> list[StepContext]:
+    """The labelled steps of one round's rollouts of `fitted` on every scenario, read from `cache` when it holds
+    them (the same steps, `read_features` giving back what `write_features` wrote), else rolled out (and kept)."""
+    policy = greedy(fitted, top_k=1)
+    if cache is None:
+        return [x for sc, s in zip(scenarios, seen, strict=True) for x in rollout_contexts(policy, sc, s, expert)]
+    key = _key(fitted, scenarios, data)
+    kept = cache.load(key, "rolled out again")
+    if kept is not None:
+        return list(kept)
+    new, meta = [], []
+    for sc, s in zip(scenarios, seen, strict=True):
+        steps = rollout_contexts(policy, sc, s, expert)
+        new += steps
+        meta += [StepMeta(f"{sc.id} rollout", sc.id, k) for k in range(len(steps))]
+    if new:  # an empty round ends the rounds; rolling out again finds it as cheaply
+        cache.save(key, new, meta)
+    return new
+
+
+def _key(fitted: StepScorer, scenarios: Sequence[Scenario], data: list[StepContext]) -> str:
+    """sha256 of what decides a round's rollouts: the code, the policy's scorer (settings and weights), the steps
+    it was fitted on and the scenarios rolled out."""
+    h = hashlib.sha256()
+    h.update(json.dumps({"format": FORMAT, "code": code_fingerprint(__name__), "scorer": repr(fitted),
+                         "cap": ROLLOUT_STEPS, **versions("numpy", "scipy", "numba", "pyarrow")},
+                        sort_keys=True).encode())
+    h.update(fitted.w_.tobytes())
+    hash_steps(h, data)
+    for sc in scenarios:
+        h.update(scenario_digest(sc))
+    return h.hexdigest()
