@@ -408,7 +408,7 @@ def test_a_saved_scorer_loads_with_its_settings_weights_and_meta(steps, tmp_path
     loaded = StepScorer.load(tmp_path / "m.npz")
     assert loaded.get_params() == s.get_params() and loaded.ssvm_ is None
     assert loaded.w_.tobytes() == s.w_.tobytes() and loaded.model_.features == "edge"
-    assert loaded.meta_ == {"format": "taskseq.mrf/2", "features": "edge", **SETTINGS, "method": "mrf", "seed": 3}
+    assert loaded.meta_ == {"format": "taskseq.mrf/3", "features": "edge", **SETTINGS, "method": "mrf", "seed": 3}
     assert loaded.predict(steps) == s.predict(steps)
     save_model(tmp_path / "bare.npz", StepMRF("clique"), np.ones(StepMRF("clique").size_joint_feature), {})
     bare = StepScorer.load(tmp_path / "bare.npz")  # settings not saved: the defaults

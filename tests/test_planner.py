@@ -11,7 +11,7 @@ from taskseq.demonstrations.records import parse_record, state_from_dict
 from taskseq.features.dataset import build_steps
 from taskseq.learn.estimator import StepScorer
 from taskseq.learn.mrf import StepMRF
-from taskseq.learn.persist import FORMAT, FORMAT_1, FORMAT_1_BLOCKS, load_model
+from taskseq.learn.persist import FORMAT, FORMAT_1, FORMAT_1_BLOCKS, FORMAT_2, load_model
 from taskseq.plan.planner import DONE, plan
 
 
@@ -161,8 +161,34 @@ def test_a_model_file_of_format_1_loads_under_the_long_family_names(tmp_path):
     assert StepScorer.load(tmp_path / "old.npz").C == 2.0
     with pytest.raises(ValueError, match="feature names do not match"):
         load_model(_write(tmp_path / "fewer.npz", w[:-1], old[:-1], meta))
-    with pytest.raises(ValueError, match=rf"format 'taskseq.mrf/0', expected '{FORMAT}' \(or the older '{FORMAT_1}'\)"):
+    with pytest.raises(ValueError, match=rf"format 'taskseq.mrf/0', expected '{FORMAT}' \(or the older '{FORMAT_2}' "
+                                         rf"or '{FORMAT_1}'\)"):
         load_model(_write(tmp_path / "other.npz", w, old, {**meta, "format": "taskseq.mrf/0"}))
+
+
+def test_a_model_file_names_its_weights_in_one_utf8_text_and_one_of_format_2_still_loads(small_fit, tmp_path):
+    fit, _ = small_fit
+    fit.save(tmp_path / "mrf.npz")
+    with np.load(tmp_path / "mrf.npz", allow_pickle=False) as z:
+        assert z["feature_names"].dtype == np.uint8
+        assert bytes(z["feature_names"]).decode("utf-8").split("\n") == fit.model_.feature_names()
+        assert json.loads(str(z["meta"]))["format"] == FORMAT
+    names = fit.model_.feature_names()
+    meta = {"format": FORMAT_2, "features": "full", "C": 5.0}
+    model, w, back = load_model(_write(tmp_path / "v2.npz", fit.w_, names, meta))  # names as a string array
+    assert model.feature_names() == names and back == meta
+    np.testing.assert_array_equal(w, fit.w_)
+    with pytest.raises(ValueError, match="feature names do not match"):
+        load_model(_write(tmp_path / "v2_short.npz", fit.w_[:-1], names[:-1], meta))
+    text = np.frombuffer("\n".join(names[:-1]).encode(), dtype=np.uint8)
+    np.savez(tmp_path / "v3_short.npz", w=fit.w_[:-1], feature_names=text,
+             meta=np.array(json.dumps({**meta, "format": FORMAT})))
+    with pytest.raises(ValueError, match="feature names do not match"):
+        load_model(tmp_path / "v3_short.npz")
+    np.savez(tmp_path / "v3_bad.npz", w=fit.w_, feature_names=np.array([0xFF, 0xFE], dtype=np.uint8),
+             meta=np.array(json.dumps({**meta, "format": FORMAT})))
+    with pytest.raises(ValueError, match="not a readable taskseq model file"):
+        load_model(tmp_path / "v3_bad.npz")
 
 
 @pytest.fixture
