@@ -327,12 +327,3 @@ def test_an_unreadable_kept_rollout_is_rolled_out_again(small, steps_cache):
     with pytest.warns(UserWarning, match="rolled out again"):
         again = _dagger(contexts, scenarios)
     assert again.w_.tobytes() == first.w_.tobytes()
-
-
-def test_a_rollouts_key_holds_the_histories_earlier_rounds_labelled(small):
-    contexts, _, scenarios = small
-    fitted, listed = StepScorer("full", **SSVM).fit(contexts), list(scenarios.values())
-    none = [set() for _ in listed]
-    some = [{(Action("move_close", ("obj01",)),)}] + none[1:]
-    assert dagger_module._key(fitted, listed, none, contexts) == dagger_module._key(fitted, listed, none, contexts)
-    assert dagger_module._key(fitted, listed, some, contexts) != dagger_module._key(fitted, listed, none, contexts)
