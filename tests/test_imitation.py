@@ -327,3 +327,17 @@ def test_an_unreadable_kept_rollout_is_rolled_out_again(small, steps_cache):
     with pytest.warns(UserWarning, match="rolled out again"):
         again = _dagger(contexts, scenarios)
     assert again.w_.tobytes() == first.w_.tobytes()
+
+
+def test_a_rollouts_key_holds_the_policys_weights_beyond_its_settings_and_data(small):
+    """Two fits of the same settings and steps can differ (a warm start ends elsewhere within the gap): the
+    weights themselves are hashed."""
+    import copy
+
+    contexts, _, scenarios = small
+    fitted, listed = StepScorer("full", **SSVM).fit(contexts), list(scenarios.values())
+    other = copy.copy(fitted)
+    other.w_ = fitted.w_.copy()
+    other.w_[0] += 1e-9
+    assert repr(other) == repr(fitted)
+    assert dagger_module._key(other, listed, contexts) != dagger_module._key(fitted, listed, contexts)
