@@ -108,8 +108,9 @@ def methods_run(stage: str) -> list[str]:
     if runs == "shipped":
         if params.train.method != "best":
             return [params.train.method]
-        if SELECTION.exists() and read_selection(SELECTION).method:
-            return [read_selection(SELECTION).method]
+        shipped = read_selection(SELECTION).method if SELECTION.exists() else None
+        if shipped:
+            return [shipped]
         runs = "select"
     named = [name for name, entry in params.methods.entries if runs and runs in entry.experiments]
     if runs == "select" and params.train.method not in ("best", *named):

@@ -340,4 +340,14 @@ def test_a_rollouts_key_holds_the_policys_weights_beyond_its_settings_and_data(s
     other.w_ = fitted.w_.copy()
     other.w_[0] += 1e-9
     assert repr(other) == repr(fitted)
-    assert dagger_module._key(other, listed, contexts) != dagger_module._key(fitted, listed, contexts)
+    none = [set() for _ in listed]
+    assert dagger_module._key(other, listed, none, contexts) != dagger_module._key(fitted, listed, none, contexts)
+
+
+def test_a_rollouts_key_holds_the_histories_earlier_rounds_labelled(small):
+    contexts, _, scenarios = small
+    fitted, listed = StepScorer("full", **SSVM).fit(contexts), list(scenarios.values())
+    none = [set() for _ in listed]
+    some = [{(Action("move_close", ("obj01",)),)}] + none[1:]
+    assert dagger_module._key(fitted, listed, none, contexts) == dagger_module._key(fitted, listed, none, contexts)
+    assert dagger_module._key(fitted, listed, some, contexts) != dagger_module._key(fitted, listed, none, contexts)

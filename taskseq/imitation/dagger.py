@@ -14,9 +14,9 @@ the steps that key it. So the last round's rollouts are kept in the cache's
 `steps/` folder too (`features.drawn_rooms.StepsCache`, as `taskseq features`
 writes steps), keyed by what decides them: this module's code with all it
 imports (planner, simulator, demonstrator, features), the fitted policy's
-settings and weights, the training data it was fitted on and every training
-scenario. Earlier rounds, whose rollouts also decide what later rounds skip,
-roll out each time.
+settings and weights, the training data it was fitted on, every training
+scenario and the histories earlier rounds labelled. Earlier rounds roll out
+each time: what they see decides what later rounds skip.
 """
 
 from __future__ import annotations
@@ -116,7 +116,7 @@ def _rollouts(fitted: StepScorer, scenarios: list[Scenario], seen: list[set[tupl
     policy = greedy(fitted, top_k=1)
     if cache is None:
         return [x for sc, s in zip(scenarios, seen, strict=True) for x in rollout_contexts(policy, sc, s, expert)]
-    key = _key(fitted, scenarios, data)
+    key = _key(fitted, scenarios, seen, data)
     kept = cache.load(key, "rolled out again")
     if kept is not None:
         return list(kept)
@@ -130,13 +130,15 @@ def _rollouts(fitted: StepScorer, scenarios: list[Scenario], seen: list[set[tupl
     return new
 
 
-def _key(fitted: StepScorer, scenarios: Sequence[Scenario], data: list[StepContext]) -> str:
+def _key(fitted: StepScorer, scenarios: Sequence[Scenario], seen: list[set[tuple[Action, ...]]],
+         data: list[StepContext]) -> str:
     """sha256 of what decides a round's rollouts: the code, the policy's scorer (settings and weights), the steps
-    it was fitted on and the scenarios rolled out."""
+    it was fitted on, the scenarios rolled out and the histories earlier rounds labelled there."""
     h = hashlib.sha256()
     h.update(json.dumps({"format": FORMAT, "code": code_fingerprint(__name__), "scorer": repr(fitted),
                          "cap": ROLLOUT_STEPS, **versions("numpy", "scipy", "numba", "pyarrow")},
                         sort_keys=True).encode())
+    h.update(json.dumps([sorted(repr(history) for history in s) for s in seen]).encode())
     h.update(fitted.w_.tobytes())
     hash_steps(h, data)
     for sc in scenarios:

@@ -71,7 +71,7 @@ def load_model(path: Path | str) -> tuple[StepMRF, np.ndarray, dict[str, Any]]:
                      else [str(n) for n in stored])
     except KeyError as err:
         raise ValueError(f"{path}: not a taskseq model file (missing {err.args[0]})") from None
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError, UnicodeDecodeError) as err:
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as err:  # a bad UTF-8 text is a ValueError
         raise ValueError(f"{path}: not a readable taskseq model file ({err})") from None
     if meta.get("format") == FORMAT_1:
         names = [_format_1_name(n) for n in names]
