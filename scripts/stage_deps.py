@@ -80,11 +80,31 @@ def grouped(paths: list[str]) -> list[str]:
 
 
 def code_deps(stage: str) -> list[str]:
-    """A stage of dvc.yaml's code dependencies: what importing it loads, and the modules of the methods it runs."""
+    """A stage of dvc.yaml's code dependencies: what importing it loads, and the modules of the methods it runs
+    (for a stage run once per method, the part every run shares: each run's own module is its foreach item)."""
+    from taskseq.methods.spec import added_modules
+    from taskseq.stages import STAGES
+
+    run = [] if STAGES[stage].per_method else methods_run(stage)
+    methods = [f"taskseq.methods.{name}" for name in run if name in added_modules()]
+    return grouped(loaded_files(["taskseq.cli", f"taskseq.stages.{stage}", *methods]))
+
+
+def method_modules(stage: str) -> dict[str, str]:
+    """A stage run once per method (`Stage.per_method`): each method's one file beyond what every run loads, its
+    foreach item in dvc.yaml (the built-in methods' module for those that have none of their own)."""
     from taskseq.methods.spec import added_modules
 
-    methods = [f"taskseq.methods.{name}" for name in methods_run(stage) if name in added_modules()]
-    return grouped(loaded_files(["taskseq.cli", f"taskseq.stages.{stage}", *methods]))
+    shared = set(loaded_files(["taskseq.cli", f"taskseq.stages.{stage}"]))
+    out = {}
+    for name in methods_run(stage):
+        own = [f"taskseq.methods.{name}"] if name in added_modules() else []
+        extra = sorted(set(loaded_files(["taskseq.cli", f"taskseq.stages.{stage}", *own])) - shared)
+        if len(extra) > 1:
+            raise ValueError(f"method {name} loads {', '.join(extra)}: a stage run once per method depends on one "
+                             "file of each; keep a method's code in its own module")
+        out[name] = extra[0] if extra else "taskseq/methods/builtin.py"
+    return out
 
 
 def methods_run(stage: str) -> list[str]:
@@ -173,20 +193,48 @@ def rewrite(text: str, deps: dict[str, list[str]]) -> str:
     return "".join(out)
 
 
+def rewrite_items(text: str, items: dict[str, dict[str, str]]) -> str:
+    """dvc.yaml's text with the `foreach` mapping of each named stage replaced by `items[stage]` (name: value)."""
+    lines, out, stage, done = text.splitlines(keepends=True), [], None, set()
+    i = 0
+    while i < len(lines):
+        match = STAGE.match(lines[i])
+        if match:
+            stage = match.group(1)
+        out.append(lines[i])
+        i += 1
+        if stage in items and lines[i - 1].strip() == "foreach:":
+            indent = len(lines[i - 1]) - len(lines[i - 1].lstrip()) + 2
+            while i < len(lines) and (len(lines[i]) - len(lines[i].lstrip())) >= indent and lines[i].strip():
+                i += 1
+            out += [f"{' ' * indent}{name}: {value}\n" for name, value in items[stage].items()]
+            done.add(stage)
+    missing = sorted(set(items) - done)
+    if missing:
+        raise ValueError(f"no foreach mapping found for {', '.join(missing)}")
+    return "".join(out)
+
+
+def _dvc_yaml(text: str) -> str:
+    from taskseq.stages import STAGES
+
+    text = rewrite(text, {stage: code_deps(stage) for stage in STAGES})
+    return rewrite_items(text, {stage: method_modules(stage) for stage, s in STAGES.items() if s.per_method})
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--check", action="store_true", help="change nothing; exit 1 if a file differs")
     args = parser.parse_args(argv)
     sys.path.insert(0, str(ROOT))
-    from taskseq.stages import STAGES
 
-    files = {DVC_YAML: lambda: {stage: code_deps(stage) for stage in STAGES},
-             VEIL_YAML: lambda: {stage: veil_code_deps(stage) for stage in VEIL_STAGES}}
+    files = {DVC_YAML: _dvc_yaml,
+             VEIL_YAML: lambda text: rewrite(text, {stage: veil_code_deps(stage) for stage in VEIL_STAGES})}
     differ = []
-    for path, deps in files.items():
+    for path, written in files.items():
         text = path.read_text()
         try:
-            new = rewrite(text, deps())
+            new = written(text)
         except (RuntimeError, ValueError) as err:
             print(f"error: {path.relative_to(ROOT)}: {err}", file=sys.stderr)
             return 2

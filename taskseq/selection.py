@@ -35,7 +35,8 @@ class Selection:
             return UNTUNED_C
         if name not in self.C:
             raise ValueError(f"{self.source}: no C for method {name}: add select to methods.{name}.experiments in "
-                             "params.yaml and run `taskseq select` (or `dvc repro select`) again")
+                             "params.yaml and run `dvc repro select` again (which first chooses its C: "
+                             f"`taskseq choose_C --method {name}`)")
         return self.C[name]
 
     @classmethod
@@ -59,7 +60,8 @@ def read_selection(path: Path | str | None) -> Selection:
     try:
         data = json.loads(path.read_text())
     except FileNotFoundError:
-        raise FileNotFoundError(f"{path}: no selection file; run `taskseq select` (or `dvc repro select`)") from None
+        raise FileNotFoundError(f"{path}: no selection file; run `dvc repro select` (each method's "
+                                "`taskseq choose_C`, then `taskseq select`)") from None
     except ValueError as err:
         raise ValueError(f"{path}: not valid JSON: {err}") from None
     settings = data.get("settings") if isinstance(data, dict) else None

@@ -25,6 +25,16 @@ DVC_YAML = """stages:
     cmd: taskseq select
     deps:
       - taskseq/methods
+  choose_C:
+    foreach:
+      full: taskseq/methods/builtin.py
+      noise_trained: taskseq/methods/noise_trained.py
+    do:
+      cmd: taskseq choose_C --method ${key}
+      deps:
+        - reports/${key}
+        - ${item}
+        - taskseq/methods/builtin.py
 """
 VEIL_YAML = """stages:
   train:
@@ -53,6 +63,17 @@ def test_a_file_or_its_folder_among_the_deps_is_declared(repo, monkeypatch):
                        "so a change to it would not run the stage again")
     monkeypatch.setenv(dvc_deps.DVC_STAGE, "select")
     assert dvc_deps.undeclared(repo / "taskseq/methods/choice.py") is None  # the folder is listed
+
+
+def test_a_run_of_a_per_method_stage_lists_its_own_item(repo, monkeypatch):
+    monkeypatch.setenv(dvc_deps.DVC_STAGE, "choose_C@noise_trained")
+    assert dvc_deps.undeclared(repo / "taskseq/methods/noise_trained.py") is None
+    assert dvc_deps.undeclared(repo / "reports/noise_trained/x.json") is None  # `${key}` filled in
+    assert "stage choose_C@noise_trained does not list taskseq/methods/choice.py" in \
+        dvc_deps.undeclared(repo / "taskseq/methods/choice.py")
+    monkeypatch.setenv(dvc_deps.DVC_STAGE, "choose_C@full")
+    assert "stage choose_C@full does not list taskseq/methods/noise_trained.py" in \
+        dvc_deps.undeclared(repo / "taskseq/methods/noise_trained.py")
 
 
 def test_a_stage_of_another_dvc_file_reads_its_deps_from_its_own_folder(repo, monkeypatch):

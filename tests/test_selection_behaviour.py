@@ -241,7 +241,7 @@ def test_read_selection_names_the_file_and_what_is_wrong(tmp_path, text, message
 
 
 def test_a_missing_selection_file_says_how_to_make_it(tmp_path):
-    with pytest.raises(FileNotFoundError, match="no selection file; run `taskseq select`"):
+    with pytest.raises(FileNotFoundError, match="no selection file; run `dvc repro select`"):
         read_selection(tmp_path / "none.json")
 
 
@@ -275,3 +275,41 @@ def test_the_development_worlds_size_is_checked_where_params_are_read():
     with pytest.raises(ValueError, match="select.environments must be at least 1, got 0"):
         Params.load(None, ["select.environments=0"])
     assert Params.load(None, ["select.environments=1"]).select.environments == 1
+
+
+@pytest.fixture(scope="module")
+def dev_data(benchmark_tables):
+    """Three environments of the benchmark as a development world, cross-validated over two folds."""
+    from taskseq.features.dataset import build_steps
+
+    records = [i.record for i in benchmark_tables[1] if i.record["env_id"] in ("env01", "env02", "env03")]
+    contexts, meta = build_steps(records)
+    return DevData(contexts, meta, Benchmark.from_records(records), Folds(folds=2, seed=0, group_by="scenario"), 30)
+
+
+def _weights(store):
+    from taskseq.learn.store import ModelStore
+
+    index = json.loads((store / "index.json").read_text())["models"]
+    return {m["key"]: ModelStore(store).load(m["key"]).w_.tobytes() for m in index}
+
+
+def test_a_method_chosen_alone_fits_the_same_models_as_beside_the_plain_method_of_its_features(dev_data, tmp_path):
+    """Chained starts start from the plain model of their features (`fold_models.plan_tasks`); chosen alone, the
+    grid's round fits those plain models too, so its models, and so its figures, are the bytes it gets beside the
+    method of its features that is plain."""
+    lineup = Lineup(Params.load().methods, learner=Learner(tol=0.01, max_iter=200))
+
+    def make(name, C):
+        return lineup.at_C(C).factory(name)
+
+    grid = (0.5, 2.0)
+    beside = cross_validate_settings({"relations": grid, "chained": grid}, make, dev_data, tmp_path / "beside")
+    alone = cross_validate_settings({"chained": grid}, make, dev_data, tmp_path / "alone", plain_at=grid)
+    cold = cross_validate_settings({"chained": grid}, make, dev_data, tmp_path / "cold")
+    assert alone["chained"] == beside["chained"]
+    chained = _weights(tmp_path / "alone")
+    assert chained.items() <= _weights(tmp_path / "beside").items()  # the plain models and chained starts' own
+    assert set(_weights(tmp_path / "cold")) < set(chained)  # without plain_at: no plain models ...
+    assert not _weights(tmp_path / "cold").items() <= chained.items()  # ... and chained starts fitted from scratch
+    assert cold.keys() == {"chained"}

@@ -334,8 +334,8 @@ def test_a_selection_file_that_is_no_json_or_absent_is_named(tmp_path):
     assert got.startswith(f"{path}: not valid JSON: Expecting property name")
     with pytest.raises(FileNotFoundError) as err:
         read_selection(tmp_path / "none.json")
-    assert str(err.value) == (f"{tmp_path / 'none.json'}: no selection file; run `taskseq select` "
-                              "(or `dvc repro select`)")
+    assert str(err.value) == (f"{tmp_path / 'none.json'}: no selection file; run `dvc repro select` (each "
+                              "method's `taskseq choose_C`, then `taskseq select`)")
 
 
 def test_a_selection_gives_a_c_only_for_the_methods_it_holds():
@@ -343,8 +343,9 @@ def test_a_selection_gives_a_c_only_for_the_methods_it_holds():
     selection = Selection({"full": 2.0}, source="s.json")
     assert selection.of("full") == 2.0
     assert refused(selection.of, "dagger") == ("s.json: no C for method dagger: add select to "
-                                               "methods.dagger.experiments in params.yaml and run `taskseq select` "
-                                               "(or `dvc repro select`) again")
+                                               "methods.dagger.experiments in params.yaml and run `dvc repro "
+                                               "select` again (which first chooses its C: `taskseq choose_C "
+                                               "--method dagger`)")
     uniform = Selection.uniform(0.25, ("full", "dagger"))
     assert uniform == Selection({"full": 0.25, "dagger": 0.25}, None, "C=0.25")
     assert Selection.uniform(1e-5, ()).source == "C=1e-05"

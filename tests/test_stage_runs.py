@@ -276,12 +276,14 @@ def test_select_sees_only_the_development_world(tiny, monkeypatch, tmp_path, cap
     assert drawn == [(100, "procedural", 2)]
     assert {p.name for p in dev.iterdir()} == {"raw", "processed", "features", "world.json", "dataset.json"}
     assert json.loads((dev / "world.json").read_text())["seed"] == 100
-    assert main(["--no-mlflow", "select", *worlds, "--set", "select.C=0.5 2",
-                 *params_with(tmp_path / "p.yaml", full="select", relations="select"),
-                 "--set", "select.max_extensions=1", *FOLDS[:2], *LEARN, "--n-jobs", "1", "--world", str(dev),
-                 "--output", str(out)]) == 0
+    choices, grid = tmp_path / "choices", ["--set", "select.C=0.5 2", "--set", "select.max_extensions=1"]
+    lineup = params_with(tmp_path / "p.yaml", full="select", relations="select")
+    for name in ("full", "relations"):
+        assert main(["--no-mlflow", "choose_C", *worlds, *grid, *lineup, *FOLDS[:2], *LEARN, "--n-jobs", "1",
+                     "--method", name, "--world", str(dev), "--output", str(choices / f"{name}.json")]) == 0
     dev_scenarios = frozenset(load_benchmark(dev / "processed").scenarios)
     assert len(seen) >= 4 and set(seen) == {dev_scenarios}
+    assert main(["--no-mlflow", "select", *grid, *lineup, "--choices", str(choices), "--output", str(out)]) == 0
     result = json.loads(out.read_text())
     assert result["dev_seed"] == 100 and result["grid"] == [0.5, 2.0] and result["max_extensions"] == 1
     for name in ("full", "relations"):
@@ -295,26 +297,36 @@ def test_select_sees_only_the_development_world(tiny, monkeypatch, tmp_path, cap
     assert [r["method"] for r in result["methods"]] in (["full", "relations"], ["relations", "full"])
     first = result["methods"][0]
     assert result["method"] == first["method"] and first["C"] == result["settings"][first["method"]]["C"]
-    assert f"chose method {result['method']} at C={first['C']:g}; written to {out}" in capsys.readouterr().out
+    assert f"ranked first: {result['method']} at C={first['C']:g}; written to {out}" in capsys.readouterr().out
     model = tmp_path / "shipped.npz"
     assert main(["--no-mlflow", "train", "--features", str(tiny / "features"), *LEARN, "--selection", str(out),
                  "--model", str(model)]) == 0
     meta = StepScorer.load(model).meta_
     assert (meta["method"], meta["C"], meta["policy"]) == (first["method"], first["C"], "greedy")
-    code = main(["--no-mlflow", "select", *params_with(tmp_path / "p.yaml", full="select", chance="select"),
-                 "--world", str(dev), "--output", str(tmp_path / "s.json")])
+    code = main(["--no-mlflow", "choose_C", "--method", "chance", "--world", str(dev), "--output",
+                 str(tmp_path / "s.json")])
     assert code == 2 and "chance: not MRF methods" in capsys.readouterr().err
     code = main(["--no-mlflow", "select", *params_with(tmp_path / "p.yaml", relations="select", dagger="select"),
-                 "--world", str(dev), "--output", str(tmp_path / "s.json")])
+                 "--choices", str(choices), "--output", str(tmp_path / "s.json")])
     assert code == 2 and "methods.full.experiments must include select" in capsys.readouterr().err
+    # a method without its choice, or with one made on another grid, is named with the command that makes it
+    code = main(["--no-mlflow", "select", *params_with(tmp_path / "p.yaml", full="select", dagger="select"),
+                 *grid, "--choices", str(choices), "--output", str(tmp_path / "s.json")])
+    assert code == 1 and f"{choices / 'dagger.json'}: no choice of C for method dagger; run `taskseq choose_C " \
+                         "--method dagger" in capsys.readouterr().err
+    code = main(["--no-mlflow", "select", *lineup, "--set", "select.C=0.5 3", "--choices", str(choices),
+                 "--output", str(tmp_path / "s.json")])
+    assert code == 2 and "chosen on the grid [0.5, 2.0] with 1 extensions, but params.yaml's select has " \
+                         "[0.5, 3.0]" in capsys.readouterr().err
     # a development world that is also reported: refused when it would be drawn, and when it is read
     code = main(["--no-mlflow", "dev_world", "--set", "world.seeds=[0, 100]", "--set", "world.dev_seed=100",
                  "--output", str(tmp_path / "d")])
     assert code == 2 and "also a reported seed" in capsys.readouterr().err
-    code = main(["--no-mlflow", "select", "--set", "world.seeds=[0, 100]", "--world", str(dev),
+    code = main(["--no-mlflow", "choose_C", "--method", "full", "--set", "world.seeds=[0, 100]", "--world", str(dev),
                  "--output", str(tmp_path / "s.json")])
     assert code == 2 and "the development world's seed 100 is also a reported seed" in capsys.readouterr().err
-    code = main(["--no-mlflow", "select", "--world", str(tmp_path / "nowhere"), "--output", str(tmp_path / "s.json")])
+    code = main(["--no-mlflow", "choose_C", "--method", "full", "--world", str(tmp_path / "nowhere"), "--output",
+                 str(tmp_path / "s.json")])
     assert code == 1 and "world.json: no such file" in capsys.readouterr().err
     assert not (tmp_path / "d").exists() and not (tmp_path / "s.json").exists()
 

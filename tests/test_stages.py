@@ -57,6 +57,16 @@ def test_the_deps_writer_replaces_a_stages_code_deps_and_keeps_everything_else()
         stage_deps.rewrite(text, {"c": ["taskseq/c.py"]})
 
 
+def test_the_deps_writer_replaces_a_per_method_stages_items_and_keeps_everything_else():
+    text = ("stages:\n  a:\n    foreach:\n      x: taskseq/methods/x.py\n      gone: taskseq/methods/gone.py\n"
+            "    do:\n      cmd: run ${key}\n      deps:\n        - ${item}\n  b:\n    cmd: y\n")
+    new = stage_deps.rewrite_items(text, {"a": {"x": "taskseq/methods/builtin.py", "y": "taskseq/methods/y.py"}})
+    assert new == text.replace("      x: taskseq/methods/x.py\n      gone: taskseq/methods/gone.py\n",
+                               "      x: taskseq/methods/builtin.py\n      y: taskseq/methods/y.py\n")
+    with pytest.raises(ValueError, match="no foreach mapping found for b"):
+        stage_deps.rewrite_items(text, {"b": {"x": "taskseq/methods/x.py"}})
+
+
 VEIL_DVC = yaml.safe_load((ROOT / "veil" / "dvc.yaml").read_text())["stages"]
 
 
@@ -186,10 +196,10 @@ def test_a_change_to_one_methods_module_reruns_only_the_stages_that_run_it():
 
     seeds = Params.load(ROOT / "params.yaml").world.seeds
     per_world = {f"{stage}@{s}" for stage in ("fold_models", "crossval", "noise", "scenes_world") for s in seeds}
-    # noise_trained runs in select, noise and Table I (params.yaml); the tables over worlds name every method; teach
-    # and train take the shipped method alone, the one selection.json ranks first
+    # noise_trained runs in select (its own choice of C), noise and Table I (params.yaml); the tables over worlds
+    # name every method; teach and train take the shipped method alone, the one selection.json ranks first
     assert listing("taskseq/methods/noise_trained.py") == per_world | {
-        "select", "scenes", "aggregate", "report",
+        "choose_C@noise_trained", "scenes", "aggregate", "report",
         *(f"stats@{t}" for t in ("scenario_folds", "drawn_rooms", "transfer"))}
     shipped = read_selection(ROOT / "reports" / "selection.json").method
     module = f"taskseq/methods/{shipped if shipped in added_modules() else 'builtin'}.py"
@@ -198,6 +208,11 @@ def test_a_change_to_one_methods_module_reruns_only_the_stages_that_run_it():
         assert not {f"{stage}@{s}" for s in seeds} & listing("taskseq/methods/noise_trained.py")
         assert {f"{stage}@{s}" for s in seeds} <= listing("taskseq/methods/builtin.py")
     assert {f"recipes@{s}" for s in seeds} <= listing("taskseq/methods/choice_chained_lookahead.py")
+    # every method's choice of C loads the built-in methods' module; a change to an added one re-does its own only
+    chosen = {s for s in listing("taskseq/methods/builtin.py") if s.startswith("choose_C@")}
+    assert chosen == {f"choose_C@{name}" for name in stage_deps.methods_run("choose_C")}
+    assert {s for s in listing("taskseq/methods/drawn_rooms.py") if s.startswith("choose_C")} == {
+        "choose_C@drawn_rooms"}
 
 
 def test_the_shipped_methods_stages_load_the_method_selection_ranks_first_or_every_ranked_one_without_it(
@@ -269,7 +284,7 @@ def test_stage_commands_carry_paths_and_the_world_seed_only(stage):
     options = re.findall(r"--([a-z-]+)", cmd)
     allowed = {f.name.replace("_", "-") for f in fields(STAGES[stage].options)} | {"world-seed", "cache"}
     assert set(options) <= allowed, f"{stage} passes {sorted(set(options) - allowed)}"
-    rest = re.sub(r"\$\{item(\.\w+)?\}", "", cmd).replace("${world.seeds[0]}", "").replace("${cache}", "")
+    rest = re.sub(r"\$\{(item(\.\w+)?|key)\}", "", cmd).replace("${world.seeds[0]}", "").replace("${cache}", "")
     assert "${" not in rest, cmd
 
 

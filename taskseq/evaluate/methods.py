@@ -170,6 +170,13 @@ class ScorerMethod:
     def key(self, contexts: list[StepContext]) -> str:
         return training_key(self.features, self.learner_params(), contexts)
 
+    def plain(self) -> ScorerMethod:
+        """This method's features and learner settings fitted on the demonstrated steps alone (no chained starts,
+        DAgger, noisy copies or drawn rooms): the model a fit of its richer training data starts from
+        (`experiments.fold_models.plan_tasks`)."""
+        return replace(self, chained_starts=False, dagger_rounds=0, noise_rate=0.0, noise_copies=0,
+                       training_rooms=0, rooms_seed=0, rooms_from=Procedural())
+
     def estimator(self) -> StepScorer:
         """The unfitted scorer with this method's feature set and learner settings."""
         return StepScorer(self.features, C=self.C, tol=self.tol, max_iter=self.max_iter, n_slacks=self.n_slacks)

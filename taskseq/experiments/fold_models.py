@@ -77,7 +77,7 @@ def _fit(makes: tuple[MakeScorerMethod, ...], starts: tuple[Start, ...], context
 
 def _plain(method: ScorerMethod) -> bool:
     """Fitted on the demonstrated steps alone: the model any other of its features and steps can start from."""
-    return not (method.chained_starts or method.dagger_rounds or method.noise_copies or method.training_rooms)
+    return method.learner_params() == method.plain().learner_params()
 
 
 def _recipe(method: ScorerMethod) -> dict[str, Any]:

@@ -9,12 +9,16 @@ criterion is the headline figure, closed-loop sequence accuracy (arg); ties go
 to the higher success rate, then to the smaller C (the simpler model). The
 methods, each at its own C, are then ranked the same way (ties to the one
 listed first); the `train` stage ships the first of them.
+
+Each method's C is chosen on its own (`choose_method_C`), so a change to one
+method re-does its choice alone; ranking reads the choices back.
 """
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -102,21 +106,26 @@ class DevData:
 
 def cross_validate_settings(pending: dict[str, tuple[float, ...]],
                             make: Callable[[str, float], Callable[[], ScorerMethod]], data: DevData, store: Path,
-                            n_jobs: int = 1, verbose: int = 0) -> dict[str, dict[float, dict[str, float]]]:
+                            n_jobs: int = 1, verbose: int = 0,
+                            plain_at: Sequence[float] = ()) -> dict[str, dict[float, dict[str, float]]]:
     """Each method at each of its values of C (`make(method, C)`: its unfitted method at that C), cross-validated
     on the same folds: every distinct model is fitted
     once into the folder `store` (replaced), as the `fold_models` stage does (a DAgger model starts from the
     model without DAgger; `feasible` is `dagger`'s models run with another policy), then every method is run
-    from it."""
+    from it. At each value of `plain_at` the plain model of each method's features (`ScorerMethod.plain`) is
+    fitted too, and not run: the fits of richer training data start from it (`fold_models.plan_tasks`)."""
     makes = {}
     for method, values in pending.items():
         for c in values:
             makes[(method, c)] = partial(configured, make(method, c), name=f"{method} C={c:g}", store=None)
-    by_name = {make().name: make for make in makes.values()}
+    starts = {f"{method} plain C={c:g}": partial(_plain_of, make(method, c), name=f"{method} plain C={c:g}")
+              for method in pending for c in plain_at}
+    by_name = {**{make().name: make for make in makes.values()}, **starts}
     folds = data.folds
     jobs = training_jobs(by_name, data.meta, data.bench.scenarios, folds.folds, folds.seed, folds.group_by, ())
     train_fold_models(by_name, data.contexts, data.meta, data.bench.scenarios, jobs, store, n_jobs, verbose)
-    stored = {name: partial(configured, make, name=name, store=str(store)) for name, make in by_name.items()}
+    stored = {name: partial(configured, make, name=name, store=str(store)) for name, make in by_name.items()
+              if name not in starts}
     results = cross_validate(stored, data.contexts, data.meta, data.bench, n_folds=folds.folds, seed=folds.seed,
                              group_by=folds.group_by, max_steps=data.max_steps, n_jobs=n_jobs, verbose=verbose)
     summary = summarize(results, data.contexts, dict.fromkeys(stored, True))
@@ -124,6 +133,37 @@ def cross_validate_settings(pending: dict[str, tuple[float, ...]],
     for (method, c), make in makes.items():
         out[method][c] = _figures(summary, make().name)
     return out
+
+
+def _plain_of(make: Callable[[], ScorerMethod], name: str) -> ScorerMethod:
+    """The plain model of the method `make()` makes, named `name`, without a store (a module-level function, so
+    it goes to a worker process)."""
+    return replace(make().plain(), name=name, store=None)
+
+
+def choose_method_C(method: str, make: Callable[[str, float], Callable[[], ScorerMethod]], data: DevData,
+                    grid: Sequence[float], max_extensions: int, scratch: Path, n_jobs: int = 1,
+                    verbose: int = 0) -> tuple[dict[str, Any], list[float]]:
+    """`method`'s choice of C (`choose_C` for it alone) and each round's seconds; the rounds' fold models go to
+    folders under `scratch`.
+
+    The grid's round also fits the plain model of the method's features at
+    each value of the grid, which its fits of richer training data (chained
+    starts, DAgger, noisy copies, drawn rooms) start from, as they do in
+    `fold_models`: a method's choice then depends on its own settings only,
+    whatever other methods are chosen beside it. A round beyond the grid fits
+    its one new value alone.
+    """
+    seconds: list[float] = []
+
+    def evaluate(pending: dict[str, tuple[float, ...]]) -> dict[str, dict[float, dict[str, float]]]:
+        start = time.perf_counter()
+        out = cross_validate_settings(pending, make, data, scratch / str(len(seconds)), n_jobs, verbose,
+                                      plain_at=() if seconds else tuple(sorted(set(grid))))
+        seconds.append(time.perf_counter() - start)
+        return out
+
+    return choose_C([method], grid, evaluate, max_extensions)[method], seconds
 
 
 def _figures(summary: dict[str, Any], name: str) -> dict[str, float]:

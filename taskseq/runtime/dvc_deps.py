@@ -13,6 +13,7 @@ before any work, saying what to run. Run by hand, a stage checks nothing.
 from __future__ import annotations
 
 import os
+import re
 from functools import cache
 from pathlib import Path
 
@@ -47,10 +48,21 @@ def _deps(root: str, stage: str) -> tuple[Path, tuple[Path, ...]] | None:
     deps as absolute paths; None if it cannot be read."""
     file, _, name = stage.rpartition(":")
     dvcfile = Path(root) / (file or "dvc.yaml")
+    base, _, key = name.partition("@")
     try:
-        entry = yaml.safe_load(dvcfile.read_text(encoding="utf-8"))["stages"][name.split("@")[0]]
-        body = entry.get("do", entry)  # a `foreach` stage's deps are its `do`'s
-        deps = [d for d in body.get("deps") or [] if isinstance(d, str)]
+        entry = yaml.safe_load(dvcfile.read_text(encoding="utf-8"))["stages"][base]
+        body = entry.get("do", entry)  # a `foreach` stage's deps are its `do`'s, with its item's values in them
+        items = entry.get("foreach")
+        item = items.get(key) if isinstance(items, dict) else key
+        deps = [_with_item(d, key, item) for d in body.get("deps") or [] if isinstance(d, str)]
     except (OSError, yaml.YAMLError, KeyError, TypeError, AttributeError):
         return None
     return dvcfile, tuple((dvcfile.parent / d).resolve() for d in deps)
+
+
+def _with_item(dep: str, key: str, item: object) -> str:
+    """A dep of a `foreach` stage's run as DVC reads it: `${key}`, `${item}` and `${item.NAME}` filled in."""
+    dep = dep.replace("${key}", key)
+    if isinstance(item, dict):
+        return re.sub(r"\$\{item\.(\w+)\}", lambda m: str(item[m.group(1)]), dep)
+    return dep.replace("${item}", str(item))

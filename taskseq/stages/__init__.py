@@ -34,13 +34,16 @@ class Stage:
     # label), an experiment's (those whose entry of params.yaml's `methods` names it), or "shipped": the one method
     # `train.method` names, or when it says best the one reports/selection.json ranks first
     runs: str = ""
+    # dvc.yaml runs it once per method it runs (`NAME@method`), each run depending on that method's module alone
+    per_method: bool = False
 
 
 STAGES: dict[str, Stage] = {
     "dev_world": Stage("draw the development world (logs, tables, features) into one folder",
                        opts.WorldFolderOptions),
-    "select": Stage("cross-validate each MRF method on the development world to choose its own C; rank them",
-                    opts.SelectOptions, True, cached=True, runs="select"),
+    "choose_C": Stage("cross-validate one MRF method on the development world at each C of the grid to choose its C",
+                      opts.ChooseCOptions, True, cached=True, runs="select", per_method=True),
+    "select": Stage("rank the MRF methods, each at the C the development world chose for it", opts.SelectOptions),
     "generate": Stage("simulate the demonstrator and write demonstration logs (JSON Lines)", opts.GenerateOptions,
                       per_world=True),
     "ingest": Stage("validate logs and write them as Parquet tables plus dataset metrics", opts.IngestOptions,

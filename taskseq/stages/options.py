@@ -46,10 +46,18 @@ class WorldFolderOptions:
 
 
 @dataclass(frozen=True, kw_only=True)
-class SelectOptions:
+class ChooseCOptions:
+    method: str = option("the MRF method whose C to choose (a name of params.yaml's methods section)", kind=str)
     world: Path = option("the development world's folder as `taskseq dev_world` writes it (its world.json, "
                          "processed tables and features)", Path("data/dev"), input=True)
-    output: Path = option("the choice (JSON)")
+    output: Path = option("the method's choice: every C tried with its figures, the chosen C (JSON)")
+
+
+@dataclass(frozen=True, kw_only=True)
+class SelectOptions:
+    choices: Path = option("folder of the files `taskseq choose_C` wrote, one per method (NAME.json)",
+                           Path("reports/select"), input=True)
+    output: Path = option("each method's C and the ranking (JSON; the file every `--selection` option reads)")
 
 
 @dataclass(frozen=True, kw_only=True)
