@@ -48,6 +48,7 @@ def _fake_fold_runs(calls):
     def train_fold_models(methods, contexts, meta, scenarios, jobs, output, n_jobs, verbose):
         calls.append(("fit", sorted((name, make().C, make().store) for name, make in methods.items()), output))
         calls.append({"fit data": (contexts, meta, scenarios), "jobs": jobs, "workers": (n_jobs, verbose)})
+        return [{"from_cache": name.startswith("full")} for name in methods]  # one record per model
 
     def cross_validate(methods, contexts, meta, bench, n_folds, seed, group_by, max_steps, n_jobs, verbose):
         calls.append({"data": (contexts, meta, bench), "n_folds": n_folds, "seed": seed, "group_by": group_by,
@@ -67,7 +68,7 @@ def _fake_fold_runs(calls):
     return train_fold_models, cross_validate
 
 
-def test_each_method_is_cross_validated_at_each_of_its_own_values_of_c(monkeypatch, tmp_path):
+def test_each_method_is_cross_validated_at_each_of_its_own_values_of_c(monkeypatch, tmp_path, capsys):
     calls = []
     fit, cv = _fake_fold_runs(calls)
     monkeypatch.setattr(selection, "train_fold_models", fit)
@@ -93,6 +94,7 @@ def test_each_method_is_cross_validated_at_each_of_its_own_values_of_c(monkeypat
     assert calls[0] == ("fit", [("feasible C=8", 8.0, None), ("full C=0.5", 0.5, None), ("full C=2", 2.0, None)],
                         store)  # fitted without a store, into it
     assert calls[1] == {"fit data": (contexts, meta, bench.scenarios), "jobs": "the jobs", "workers": (3, 2)}
+    assert "3 models, 2 of them read back from the fit cache" in capsys.readouterr().out
     assert calls[2] == {"data": (contexts, meta, bench), "n_folds": 3, "seed": 4, "group_by": "environment",
                         "max_steps": 9, "workers": (3, 2)}
     assert calls[3:] == [("full C=0.5", 0.5, 0.02, 7, "greedy", str(store)), ("full C=2", 2.0, 0.02, 7, "greedy",

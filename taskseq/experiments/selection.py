@@ -123,7 +123,9 @@ def cross_validate_settings(pending: dict[str, tuple[float, ...]],
     by_name = {**{make().name: make for make in makes.values()}, **starts}
     folds = data.folds
     jobs = training_jobs(by_name, data.meta, data.bench.scenarios, folds.folds, folds.seed, folds.group_by, ())
-    train_fold_models(by_name, data.contexts, data.meta, data.bench.scenarios, jobs, store, n_jobs, verbose)
+    fitted = train_fold_models(by_name, data.contexts, data.meta, data.bench.scenarios, jobs, store, n_jobs, verbose)
+    if verbose:
+        print(f"{len(fitted)} models, {sum(r['from_cache'] for r in fitted)} of them read back from the fit cache")
     stored = {name: partial(configured, make, name=name, store=str(store)) for name, make in by_name.items()
               if name not in starts}
     results = cross_validate(stored, data.contexts, data.meta, data.bench, n_folds=folds.folds, seed=folds.seed,
