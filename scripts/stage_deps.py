@@ -13,6 +13,9 @@ A stage of dvc.yaml enters through its module, `taskseq.stages.<name>`, and
 the modules of the methods it runs (`Stage.runs`: every method, or those
 whose entry of params.yaml's `methods` names the stage's experiment), which a
 stage imports only when it asks for them (`taskseq.methods.method_spec`). A
+stage run once per method (`Stage.per_method`: `choose_C`) is a `foreach` over
+those methods: its deps list what every run loads, and each item, written here
+too, is that method's own module, which its run's deps name as `${item}`. A
 stage of veil/dvc.yaml is the `taskseq veil` sub-command of its name, which
 imports what it needs when it runs (so that `taskseq --help` stays quick):
 its entry modules are those its function imports, read from the function's
@@ -168,15 +171,23 @@ def veil_code_deps(stage: str) -> list[str]:
     return [f"../{d}" for d in grouped(files)]
 
 
+def _stages(lines: list[str]) -> list[str | None]:
+    """The stage each line of dvc.yaml belongs to (None before the first)."""
+    out, stage = [], None
+    for line in lines:
+        match = STAGE.match(line)
+        stage = match.group(1) if match else stage
+        out.append(stage)
+    return out
+
+
 def rewrite(text: str, deps: dict[str, list[str]]) -> str:
     """dvc.yaml's text with each named stage's run of `- taskseq/...` lines replaced by its deps."""
-    lines, out, stage, done = text.splitlines(keepends=True), [], None, set()
+    lines, out, done = text.splitlines(keepends=True), [], set()
+    stages = _stages(lines)
     i = 0
     while i < len(lines):
-        match = STAGE.match(lines[i])
-        if match:
-            stage = match.group(1)
-        code = CODE_DEP.match(lines[i])
+        code, stage = CODE_DEP.match(lines[i]), stages[i]
         if code and stage in deps:
             if stage in done:
                 raise ValueError(f"stage {stage} lists its code deps in more than one run of lines")
@@ -195,17 +206,16 @@ def rewrite(text: str, deps: dict[str, list[str]]) -> str:
 
 def rewrite_items(text: str, items: dict[str, dict[str, str]]) -> str:
     """dvc.yaml's text with the `foreach` mapping of each named stage replaced by `items[stage]` (name: value)."""
-    lines, out, stage, done = text.splitlines(keepends=True), [], None, set()
+    lines, out, done = text.splitlines(keepends=True), [], set()
+    stages = _stages(lines)
     i = 0
     while i < len(lines):
-        match = STAGE.match(lines[i])
-        if match:
-            stage = match.group(1)
-        out.append(lines[i])
+        line, stage = lines[i], stages[i]
+        out.append(line)
         i += 1
-        if stage in items and lines[i - 1].strip() == "foreach:":
-            indent = len(lines[i - 1]) - len(lines[i - 1].lstrip()) + 2
-            while i < len(lines) and (len(lines[i]) - len(lines[i].lstrip())) >= indent and lines[i].strip():
+        if stage in items and line.strip() == "foreach:":
+            indent = len(line) - len(line.lstrip()) + 2
+            while i < len(lines) and len(lines[i]) - len(lines[i].lstrip()) >= indent and lines[i].strip():
                 i += 1
             out += [f"{' ' * indent}{name}: {value}\n" for name, value in items[stage].items()]
             done.add(stage)
