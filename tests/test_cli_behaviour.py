@@ -18,9 +18,9 @@ SUBCOMMANDS = build_parser()._subparsers._group_actions[0].choices  # name -> pa
 
 def test_the_subcommands_are_the_documented_ones():
     assert set(SUBCOMMANDS) == {"generate", "replay", "ingest", "features", "train", "plan", "crossval", "noise",
-                                "feedback", "recipes", "fold_models", "choose_C", "select", "aggregate", "report", "pddl", "bench",
-                                "scaling", "dev_world", "drawn_world", "scenes_world", "scenes", "people", "teach",
-                                "serve", "layout", "stats", "veil", "cache"}
+                                "feedback", "recipes", "fold_models", "choose_C", "select", "aggregate", "report",
+                                "pddl", "bench", "scaling", "dev_world", "drawn_world", "scenes_world", "scenes",
+                                "people", "teach", "serve", "layout", "stats", "veil", "cache"}
 
 
 def test_the_top_level_help_lists_every_subcommand(capsys):
