@@ -315,3 +315,19 @@ def test_a_method_chosen_alone_fits_the_same_models_as_beside_the_plain_method_o
     assert set(_weights(tmp_path / "cold")) < set(chained)  # without plain_at: no plain models ...
     assert not _weights(tmp_path / "cold").items() <= chained.items()  # ... and chained starts fitted from scratch
     assert cold.keys() == {"chained"}
+
+
+def test_a_methods_grid_round_fits_the_plain_models_of_its_features_and_an_extension_round_does_not(
+        monkeypatch, tmp_path):
+    rounds = []
+
+    def cross_validate_settings(pending, make, data, store, n_jobs, verbose, plain_at):
+        rounds.append((pending, store, plain_at))
+        return {m: {c: {"sequence_arg": c, "success": 0.0, "average_arg": 0.0} for c in values}
+                for m, values in pending.items()}  # best at the largest C: the grid is extended upwards
+
+    monkeypatch.setattr(selection, "cross_validate_settings", cross_validate_settings)
+    choice, seconds = selection.choose_method_C("chained", "make", "data", (3.0, 1.0), 1, tmp_path)
+    assert rounds == [({"chained": (1.0, 3.0)}, tmp_path / "0", (1.0, 3.0)),
+                      ({"chained": (9.0,)}, tmp_path / "1", ())]
+    assert choice["C"] == 9.0 and choice["extensions"] == 1 and choice["capped"] and len(seconds) == 2
