@@ -57,6 +57,13 @@ def test_the_deps_writer_replaces_a_stages_code_deps_and_keeps_everything_else()
         stage_deps.rewrite(text, {"c": ["taskseq/c.py"]})
 
 
+@pytest.mark.parametrize("stage", [name for name, s in STAGES.items() if s.per_method])
+def test_a_per_method_stage_runs_once_for_each_method_it_chooses_with_that_methods_module(stage):
+    assert DVC[stage]["foreach"] == stage_deps.method_modules(stage), \
+        f"dvc.yaml stage {stage}: run python scripts/stage_deps.py"
+    assert list(DVC[stage]["foreach"]) == stage_deps.methods_run(stage)
+
+
 def test_the_deps_writer_replaces_a_per_method_stages_items_and_keeps_everything_else():
     text = ("stages:\n  a:\n    foreach:\n      x: taskseq/methods/x.py\n      gone: taskseq/methods/gone.py\n"
             "    do:\n      cmd: run ${key}\n      deps:\n        - ${item}\n  b:\n    cmd: y\n")

@@ -35,7 +35,8 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
 def _choice(options: SelectOptions, name: str, select: Select) -> dict[str, Any]:
     """Method `name`'s choice file, checked against the grid and cap of params.yaml."""
     path = options.choices / f"{name}.json"
-    redo = f"run `taskseq choose_C --method {name} --output {path}` (or `dvc repro choose_C@{name}`)"
+    redo = (f"run `taskseq choose_C --method {name} --output {path}`, or `dvc repro choose_C@{name}` (for a method "
+            "new to select, after `python scripts/stage_deps.py`, which adds its stage)")
     try:
         data = json.loads(path.read_text())
     except FileNotFoundError:
