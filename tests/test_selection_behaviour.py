@@ -331,3 +331,15 @@ def test_a_methods_grid_round_fits_the_plain_models_of_its_features_and_an_exten
     assert rounds == [({"chained": (1.0, 3.0)}, tmp_path / "0", (1.0, 3.0)),
                       ({"chained": (9.0,)}, tmp_path / "1", ())]
     assert choice["C"] == 9.0 and choice["extensions"] == 1 and choice["capped"] and len(seconds) == 2
+
+
+@pytest.mark.parametrize("richer, plain", [("chained", "relations"), ("dagger", "relations"),
+                                           ("noise_trained", "relations"), ("drawn_rooms", "choice"),
+                                           ("relations", "relations")])
+def test_a_methods_plain_model_is_the_plain_method_of_its_features(richer, plain):
+    """`ScorerMethod.plain` drops every kind of added training data and keeps the rest: its model is the one the
+    plain method of the same features fits (the same key), the start of the richer method's fits."""
+    lineup = Lineup(Params.load().methods).at_C(2.0)
+    made, expected = lineup.factory(richer)().plain(), lineup.factory(plain)()
+    assert made.features == expected.features and made.learner_params() == expected.learner_params()
+    assert made.key([]) == expected.key([])
