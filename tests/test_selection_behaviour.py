@@ -343,3 +343,29 @@ def test_a_methods_plain_model_is_the_plain_method_of_its_features(richer, plain
     made, expected = lineup.factory(richer)().plain(), lineup.factory(plain)()
     assert made.features == expected.features and made.learner_params() == expected.learner_params()
     assert made.key([]) == expected.key([])
+
+
+def test_a_methods_choice_of_c_reads_its_own_entry_of_params_alone(monkeypatch, tmp_path):
+    # dvc.yaml's choose_C runs list methods.NAME, not the whole section: an edit of another method's entry must not
+    # be able to change this choice
+    from taskseq.stages import choose_C as stage
+    from taskseq.stages.options import ChooseCOptions
+
+    seen = []
+
+    class Stop(Exception):
+        pass
+
+    def chosen(*args, **kwargs):
+        raise Stop
+
+    monkeypatch.setattr(stage, "read_manifest", lambda world: {"seed": 99})
+    monkeypatch.setattr(stage, "read_features", lambda folder: ([], []))
+    monkeypatch.setattr(stage, "load_benchmark", lambda folder: Benchmark([], {}, {}, {}))
+    monkeypatch.setattr(stage, "Lineup", lambda methods, **kw: seen.append(methods) or Lineup(methods, **kw))
+    monkeypatch.setattr(stage, "choose_method_C", chosen)
+    settings = stage.settings(Params.load())
+    with pytest.raises(Stop):
+        stage.run(settings, ChooseCOptions(world=tmp_path, method="noise_trained", output=tmp_path / "c.json"))
+    assert seen[0].entries == ((("noise_trained", settings.methods.entry("noise_trained")),))
+    assert len(settings.methods.entries) > 1 and not (tmp_path / "c.json").exists()

@@ -272,6 +272,9 @@ def leaf_keys(entries: list[str]) -> set[str]:
     """dvc.yaml params entries as `section.key`: a whole section stands for each of its keys."""
     out = set()
     for entry in entries:
+        # a per-method stage's run lists its own method's entry (`methods.${key}`), which is all it reads of the
+        # section (tests/test_selection_behaviour.py)
+        entry = "methods.entries" if entry == "methods.${key}" else entry
         section, _, key = entry.partition(".")
         out |= {f"{section}.{f.name}" for f in fields(SECTIONS[section])} if not key else {entry}
     return out

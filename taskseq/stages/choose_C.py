@@ -34,7 +34,7 @@ class Settings:
     learner: Learner  # the structural SVM's settings as `train` sets them; C is the value tried
     folds: Folds
     max_steps: int  # step cap of closed-loop runs
-    methods: Methods  # the method's own settings
+    methods: Methods  # params.yaml's methods; a run reads its own method's entry alone (`own_entry`)
 
 
 def settings(params: Params, world_seed: int | None = None) -> Settings:
@@ -50,7 +50,7 @@ def run(settings: Settings, options: ChooseCOptions, tracker: Tracker = NO_RUN, 
         raise ValueError(f"{options.world}: the development world's seed {dev_seed} is also a reported seed; "
                          "settings must be chosen on a world that is never reported")
     # a wrong name or entry stops here, before minutes of work
-    lineup = Lineup(settings.methods, learner=settings.learner, procedural=settings.procedural)
+    lineup = Lineup(own_entry(settings.methods, name), learner=settings.learner, procedural=settings.procedural)
     lineup.mrf([name])
     contexts, meta = read_features(options.world / "features")
     bench = load_benchmark(options.world / "processed")
@@ -76,3 +76,10 @@ def run(settings: Settings, options: ChooseCOptions, tracker: Tracker = NO_RUN, 
     print(f"{name} chose C={choice['C']:g} after {choice['extensions']} extensions{capped}; {len(rounds)} rounds "
           f"took {' + '.join(f'{s:.0f}' for s in rounds)} s; written to {options.output}")
     return result
+
+
+def own_entry(methods: Methods, name: str) -> Methods:
+    """`methods` with method `name`'s entry alone: a run's choice then cannot depend on another method's entry,
+    which is why dvc.yaml's runs list `methods.NAME` among their params, not the whole section (an edit of one
+    method's entry re-does that method's choice alone)."""
+    return Methods(tuple(entry for entry in methods.entries if entry[0] == name))
