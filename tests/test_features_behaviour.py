@@ -3,6 +3,7 @@ against the world's own queries or a formula, every score against the dot produc
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import replace
 
@@ -22,6 +23,7 @@ from taskseq.features.context import (
     _log_ratio,
     _spec_row,
     candidate_index,
+    is_candidate,
     relations,
     scale_attribute,
     step_context,
@@ -305,6 +307,16 @@ def test_candidates_respect_arity_in_primitive_then_argument_order(n):
     assert list(zip(p.tolist(), a1.tolist(), a2.tolist(), strict=True)) == expected
     assert all(a.dtype == np.int64 and not a.flags.writeable for a in (p, a1, a2))
     assert candidate_index(n)[0] is p
+
+
+@pytest.mark.parametrize("n", [1, 2, 4])
+def test_a_label_is_a_candidate_exactly_when_candidate_index_lists_it(n):
+    listed = set(zip(*(a.tolist() for a in candidate_index(n)), strict=True))
+    values = range(-2, max(n, len(ALL_PRIMITIVES)) + 2)
+    for label in itertools.product(values, repeat=3):
+        assert is_candidate(label, n) == (label in listed), label
+        assert is_candidate(np.array(label, dtype=np.int64), n) == (label in listed), label
+    assert not is_candidate((0.5, -1, -1), n) and not is_candidate((len(ALL_PRIMITIVES), -1, -1), n)
 
 
 # --- the model's score ---------------------------------------------------------------------------------------

@@ -129,3 +129,19 @@ def test_noisy_training_settings_are_checked_where_the_methods_are_configured(se
         methods = Params.load(None, [f"methods.noise_trained.noise_rate={rate}",
                                      "methods.noise_trained.noise_copies=0"]).methods
         assert Lineup(methods).factory("noise_trained")().noise_copies == 0
+
+
+def test_each_copy_is_the_draw_seeded_by_its_copy_scenario_and_objects(steps):
+    # the copies are made once per (copy, scenario, objects); each must equal the draw made at its own step, so
+    # noisy training's fits (and their cached keys) keep their bytes
+    from zlib import crc32
+
+    from taskseq.features.perception import flip_masks, noisy_perception
+
+    contexts, meta = steps
+    copies, _ = noisy_copies(contexts, meta, 0.3, 2)
+    for k, copy in enumerate(copies):
+        c, x, m = k // len(contexts), contexts[k % len(contexts)], meta[k % len(contexts)]
+        rng = np.random.default_rng([c, crc32(m.scenario_id.encode())])
+        drawn = noisy_perception(flip_masks(sorted(x.object_ids), 0.3, rng))(x)
+        assert copy.objects.tobytes() == drawn.objects.tobytes()

@@ -222,6 +222,21 @@ def test_a_change_to_one_methods_module_reruns_only_the_stages_that_run_it():
         "choose_C@drawn_rooms"}
 
 
+
+@pytest.mark.filterwarnings("ignore::DeprecationWarning")  # DVC's own, from its graph of outputs
+def test_an_edit_of_one_methods_entry_of_params_re_does_that_methods_choice_of_c_alone():
+    from dvc.dependency.param import ParamsDependency
+    from dvc.repo import Repo
+
+    def covers(key: str, entry: str) -> bool:
+        return key == entry or key.startswith(entry + ".")
+
+    repo = Repo(str(ROOT))
+    reading = {s.addressing for s in repo.index.graph if s.addressing.startswith("choose_C@")
+               and any(covers("methods.noise_trained.noise_rate", p) for d in s.deps
+                       if isinstance(d, ParamsDependency) for p in d.params)}
+    assert reading == {"choose_C@noise_trained"}
+
 def test_the_shipped_methods_stages_load_the_method_selection_ranks_first_or_every_ranked_one_without_it(
         tmp_path, monkeypatch):
     entries = Params.load(ROOT / "params.yaml").methods.entries

@@ -14,6 +14,7 @@ set: lengths on a log scale from 1 cm to 10 m, volume on a log scale from
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -245,6 +246,20 @@ def step_context(
     if gold is not None:
         ctx.gold = ctx.encode(gold)
     return ctx
+
+
+def is_candidate(label: Sequence[int], n: int) -> bool:
+    """Whether `label` (p, a1, a2) is among `candidate_index(n)`, decided from the arities alone (a fit checks every
+    label, and scanning each step's candidates cost more than the check is worth)."""
+    p, a1, a2 = label
+    if p not in range(len(ARITIES)):
+        return False
+    arity, objects = ARITIES[int(p)], range(n)
+    if arity == 0:
+        return a1 == -1 and a2 == -1
+    if arity == 1:
+        return a1 in objects and a2 == -1
+    return a1 in objects and a2 in objects and a1 != a2
 
 
 @lru_cache(maxsize=64)

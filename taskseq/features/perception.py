@@ -61,9 +61,14 @@ def noisy_copies(contexts: Sequence[StepContext], meta: Sequence[StepMeta], rate
     if copies < 0:
         raise ValueError(f"noisy copies: the number of copies must be 0 or more, got {copies}")
     out, out_meta = [], []
+    # a draw depends on the copy, the scenario and its objects alone: made once for each, not at every step
+    runs: dict[tuple[int, str, tuple[str, ...]], Callable[[StepContext], StepContext]] = {}
     for c in range(copies):
         for ctx, m in zip(contexts, meta, strict=True):
-            rng = np.random.default_rng([c, zlib.crc32(m.scenario_id.encode())])
-            out.append(noisy_perception(flip_masks(sorted(ctx.object_ids), rate, rng))(ctx))
+            key = (c, m.scenario_id, tuple(sorted(ctx.object_ids)))
+            if key not in runs:
+                rng = np.random.default_rng([c, zlib.crc32(m.scenario_id.encode())])
+                runs[key] = noisy_perception(flip_masks(list(key[2]), rate, rng))
+            out.append(runs[key](ctx))
             out_meta.append(m)
     return out, out_meta

@@ -24,7 +24,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
-from ..features.context import StepContext, candidate_index
+from ..features.context import StepContext, is_candidate
 from . import fit_cache
 from .fit_cache import FitRecord, fit_key
 from .mrf import FEATURE_SETS, StepMRF
@@ -256,7 +256,6 @@ def _check_labels(X: list[StepContext], y: list) -> None:
     if len(y) != len(X):
         raise ValueError(f"{len(X)} steps but {len(y)} labels")
     for i, (x, label) in enumerate(zip(X, y, strict=True)):
-        p, a1, a2 = candidate_index(x.n)
-        if not np.any((p == label[0]) & (a1 == label[1]) & (a2 == label[2])):
+        if not is_candidate(label, x.n):
             raise ValueError(f"label {i} {tuple(label)} is not a candidate of its step ({x.n} objects): a "
                              "primitive index, then argument indices among the step's objects or -1")
