@@ -16,6 +16,20 @@ def test_log_to_parquet_to_log_round_trip(benchmark_tables, tmp_path):
     assert records_from_tables(read_tables(tmp_path / "processed")) == [r.record for r in records]
 
 
+
+def test_a_world_is_decoded_once_while_its_tables_stay_and_again_when_they_change(benchmark_tables, tmp_path):
+    from taskseq.demonstrations.benchmark import load_benchmark
+
+    tables, records = benchmark_tables
+    write_tables(tables, tmp_path / "processed")
+    first = load_benchmark(tmp_path / "processed")
+    assert load_benchmark(str(tmp_path / "processed")) is first  # the same tables: the one decoded benchmark
+    fewer = {t: table.slice(0, 1) if t == "sequences" else table for t, table in tables.items()}
+    write_tables(fewer, tmp_path / "processed")
+    again = load_benchmark(tmp_path / "processed")
+    assert again is not first and len(again.records) == 1 < len(first.records)
+    assert [r["demo_id"] for r in again.records] == [records[0].record["demo_id"]]
+
 def test_ingest_writes_tables_and_metrics(benchmark_logs, tmp_path):
     out, metrics = tmp_path / "processed", tmp_path / "reports" / "dataset.json"
     assert main(["ingest", "--input", str(benchmark_logs), "--output", str(out), "--metrics", str(metrics)]) == 0
