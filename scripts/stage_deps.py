@@ -97,10 +97,15 @@ def method_modules(stage: str) -> dict[str, str]:
     """A stage run once per method (`Stage.per_method`): each method's one file beyond what every run loads, its
     foreach item in dvc.yaml (the built-in methods' module for those that have none of their own)."""
     from taskseq.methods.spec import added_modules
+    from taskseq.settings import Params
 
     shared = set(loaded_files(["taskseq.cli", f"taskseq.stages.{stage}"]))
+    entries = Params.load(ROOT / "params.yaml").methods
     out = {}
     for name in methods_run(stage):
+        if entries.entry(name) is None:  # each run lists its own entry among its params (methods.${key})
+            raise ValueError(f"stage {stage} runs once for method {name}, which has no entry in params.yaml's "
+                             f"methods section; add one ({name}: {{}} keeps its defaults)")
         own = [f"taskseq.methods.{name}"] if name in added_modules() else []
         extra = sorted(set(loaded_files(["taskseq.cli", f"taskseq.stages.{stage}", *own])) - shared)
         if len(extra) > 1:

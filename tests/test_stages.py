@@ -74,6 +74,14 @@ def test_the_deps_writer_replaces_a_per_method_stages_items_and_keeps_everything
         stage_deps.rewrite_items(text, {"b": {"x": "taskseq/methods/x.py"}})
 
 
+
+def test_a_per_method_stage_refuses_a_method_without_an_entry_of_params(monkeypatch):
+    # each run lists methods.NAME among its params, which DVC refuses when params.yaml has no such key
+    monkeypatch.setattr(stage_deps, "methods_run", lambda stage: ["full", "no_entry"])
+    with pytest.raises(ValueError, match=r"choose_C runs once for method no_entry, which has no entry in "
+                                         r"params.yaml's methods section; add one \(no_entry: \{\} keeps"):
+        stage_deps.method_modules("choose_C")
+
 VEIL_DVC = yaml.safe_load((ROOT / "veil" / "dvc.yaml").read_text())["stages"]
 
 
