@@ -373,8 +373,8 @@ def _pairwise_steps(gram: np.ndarray, losses: np.ndarray, groups: np.ndarray, al
     best_up = np.empty(B)
     own_gap = np.empty(B)
     low = np.empty(B)
-    seen = np.full(B, -1, np.int64)  # the pass in which a group was last met among the active cuts
-    touched = np.empty(B, np.int64)  # the groups met in this pass
+    seen = np.full(B, -1, np.int64)  # the listing of `touched` in which a group was last met
+    touched = np.empty(B, np.int64)  # the groups of the active cuts, in order of their first active cut
     local = np.empty(K, np.int64)  # a group's active cuts, during its visit
     moved = np.zeros(K)  # weight moved per cut during a visit
     moved_cut = np.empty(K, np.int64)  # the cuts that moved in a visit, and by how much
@@ -382,19 +382,28 @@ def _pairwise_steps(gram: np.ndarray, losses: np.ndarray, groups: np.ndarray, al
     saved = np.empty(K)  # a visited group's own gradients, kept across the update of the others
     gap = np.inf
     steps = shrinks = 0
-    sweep = 0
+    listing, stale = 0, True
+    n_touched = 0
     while True:
-        sweep += 1
-        n_touched = 0
+        if stale:
+            # the groups change only with the active cuts (shrinking, unshrinking), not every pass: listed again
+            # only then, a pass reads each active cut once, with no test of whether its group was met before
+            listing += 1
+            n_touched = 0
+            for q in range(n_active):
+                g = groups[active[q]]
+                if seen[g] != listing:
+                    seen[g] = listing
+                    touched[n_touched] = g
+                    n_touched += 1
+            stale = False
+        for t in range(n_touched):
+            g = touched[t]
+            best_up[g] = 0.0  # the spare's gradient: a group's slack is never negative
+            own_gap[g] = 0.0
         for q in range(n_active):
             k = active[q]
             g = groups[k]
-            if seen[g] != sweep:
-                seen[g] = sweep
-                touched[n_touched] = g
-                n_touched += 1
-                best_up[g] = 0.0  # the spare's gradient: a group's slack is never negative
-                own_gap[g] = 0.0
             if grad[k] > best_up[g]:
                 best_up[g] = grad[k]
             own_gap[g] -= alpha[k] * grad[k]
@@ -411,7 +420,7 @@ def _pairwise_steps(gram: np.ndarray, losses: np.ndarray, groups: np.ndarray, al
             _gradients(gram, losses, alpha, grad)
             active = np.arange(K)
             is_active[:] = True
-            n_active, shrunk, since_shrink = K, False, 0
+            n_active, shrunk, since_shrink, stale = K, False, 0, True
             continue
         if since_shrink >= shrink_every:
             # set aside the cuts with no weight whose gradient is below every cut (or spare) that could give
@@ -432,7 +441,7 @@ def _pairwise_steps(gram: np.ndarray, losses: np.ndarray, groups: np.ndarray, al
                 else:
                     is_active[k] = False
             if kept < n_active:
-                shrunk = True
+                shrunk, stale = True, True
                 shrinks += 1
             n_active, since_shrink = kept, 0
         for t in range(n_touched):
