@@ -162,7 +162,8 @@ class WorkingSet:
         if m == 0:
             return
         new = sp.csr_matrix(deltas, dtype=float)
-        new.sort_indices()
+        new.sum_duplicates()  # one entry per feature, in ascending order, as `_cross_products` needs (sums made by
+        # scipy, as the oracle's cuts are, have it already: then this only sorts)
         k = self._size
         w = self.w
         if self._gram is not None and k + m > self.gram_limit:
@@ -234,7 +235,6 @@ class WorkingSet:
                 a[:size].copy() for a in (self._losses, self._groups, self._last_active, self._alpha, self._grad))
             self._gram = np.empty((size, size))
             _gram_columns(self._deltas, self._deltas, self._gram, 0)
-            _mirror_upper(self._gram, size)
         if self._gram is None:
             d = self._deltas
             gap, steps, sweeps = _sweeps(d.indptr, d.indices, d.data, self.losses, self.groups, self.alpha,
@@ -257,19 +257,10 @@ def _gram_columns(deltas: sp.csr_matrix, new: sp.csr_matrix, gram: np.ndarray, k
 
 
 @njit(cache=True)
-def _mirror_upper(gram: np.ndarray, K: int) -> None:
-    """gram[j, i] = gram[i, j] for i < j < K: a Gram matrix formed at once is then exactly symmetric, as one
-    formed cut by cut is."""
-    for i in range(K):
-        for j in range(i + 1, K):
-            gram[j, i] = gram[i, j]
-
-
-@njit(cache=True)
 def _cross_products(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, f_indptr: np.ndarray,
                     f_indices: np.ndarray, f_data: np.ndarray, gram: np.ndarray, k: int) -> None:
     """gram[i, k + j] = d_i . n_j for the rows d_i of a CSR matrix (the k cuts held, then the m new ones) and the
-    columns n_j of a CSC one (the new cuts, a row per feature), mirrored to gram[k + j, i] for the held cuts.
+    columns n_j of a CSC one (the new cuts, a row per feature), mirrored to gram[k + j, i].
 
     The products are summed over each d_i's features in ascending order, as
     scipy's sparse product sums them, so the Gram matrix is the same bits;
@@ -278,21 +269,37 @@ def _cross_products(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, f
     Each row goes straight into the Gram matrix (and its mirror): a K x m block
     written out and then copied in twice added 1 GB to the peak memory of a fit
     on 8,570 steps (5.1 GB, now 4.1).
+
+    Among the new cuts, row k + r takes only the columns j >= r and mirrors
+    them: d_r . n_j and d_j . n_r add the same products (one per feature the
+    two share, the rows having one entry per feature) in the same ascending
+    order, so the entries left out are the same bits as their mirror. That
+    halves the work of a set formed at once (k = 0) and of the first
+    iterations, whose cuts are mostly new (a third less time in this function
+    over a full fit). Each column of the CSC matrix lists its cuts in
+    ascending order, so `first` skips, once per feature and row, the cuts
+    before r.
     """
     n_rows = indptr.shape[0] - 1
     m = n_rows - k
     row = np.empty(m)
+    first = f_indptr[:-1].copy()  # per feature, where its new cuts from the current row's own on begin
     for i in range(n_rows):
-        row[:] = 0.0
+        lo = max(i - k, 0)  # the first new cut to take: the row's own for a new cut, else all
+        row[lo:] = 0.0
         for p in range(indptr[i], indptr[i + 1]):
             f, a = indices[p], data[p]
-            for q in range(f_indptr[f], f_indptr[f + 1]):
+            begin, end = first[f], f_indptr[f + 1]
+            if lo:
+                while begin < end and f_indices[begin] < lo:
+                    begin += 1
+                first[f] = begin
+            for q in range(begin, end):
                 row[f_indices[q]] += a * f_data[q]
-        for j in range(m):
+        for j in range(lo, m):
             gram[i, k + j] = row[j]
-        if i < k:
-            for j in range(m):
-                gram[k + j, i] = row[j]
+        for j in range(lo + 1 if i >= k else 0, m):
+            gram[k + j, i] = row[j]
 
 
 @njit(cache=True)
