@@ -1,4 +1,5 @@
-"""Write the code dependencies of every stage in dvc.yaml and veil/dvc.yaml: exactly the project files it loads.
+"""Write the code dependencies of every stage in dvc.yaml and veil/dvc.yaml (exactly the project files it loads) and
+the methods' labels.
 
 A stage's `deps` list the data it reads (written by hand, with the command
 that reads it) and the project code it runs. The code part is generated here:
@@ -21,11 +22,16 @@ imports what it needs when it runs (so that `taskseq --help` stays quick):
 its entry modules are those its function imports, read from the function's
 source, and from the functions of `taskseq/veil/command.py` it calls.
 
-    python scripts/stage_deps.py           # rewrite the code deps of both files
+It also writes `taskseq/methods/labels.json`, every method's label from its
+spec: the stages that only write tables read labels there instead of
+importing every method's module, so a change to one method's code does not
+re-run them (a stage that loads `taskseq/methods/spec.py` lists the file).
+
+    python scripts/stage_deps.py           # rewrite the code deps of both files and the labels
     python scripts/stage_deps.py --check   # exit 1 and name every file whose code deps differ
 
-Run it after adding a stage or a method, changing what a stage imports or which experiments a method's entry of
-params.yaml names; tests/test_stages.py fails until both files agree.
+Run it after adding a stage or a method, changing a method's label, what a stage imports or which experiments a
+method's entry of params.yaml names; tests/test_stages.py fails until the files agree.
 """
 
 from __future__ import annotations
@@ -45,6 +51,7 @@ ROOT = Path(__file__).resolve().parents[1]
 DVC_YAML = ROOT / "dvc.yaml"
 VEIL_YAML = ROOT / "veil" / "dvc.yaml"
 SELECTION = ROOT / "reports" / "selection.json"  # the select stage's file: which method ships
+LABELS = "taskseq/methods/labels.json"  # every method's label (`taskseq.methods.spec.LABELS_FILE`), written here too
 
 LOADED = """
 import importlib, json, sys
@@ -79,6 +86,8 @@ def grouped(paths: list[str]) -> list[str]:
     methods = {str(p.relative_to(ROOT)) for p in (ROOT / "taskseq" / "methods").glob("*.py")}
     if methods <= deps:
         deps = deps - methods | {"taskseq/methods"}
+    elif "taskseq/methods/spec.py" in deps:
+        deps.add(LABELS)  # the labels `method_labels` reads instead of the methods' modules
     return sorted(deps)
 
 
@@ -176,6 +185,13 @@ def veil_code_deps(stage: str) -> list[str]:
     return [f"../{d}" for d in grouped(files)]
 
 
+def labels_json() -> str:
+    """The text of the labels file: every method's label from its spec, in the tables' order."""
+    from taskseq.methods.spec import spec_labels
+
+    return json.dumps(spec_labels(), indent=2, ensure_ascii=False) + "\n"
+
+
 def _stages(lines: list[str]) -> list[str | None]:
     """The stage each line of dvc.yaml belongs to (None before the first)."""
     out, stage = [], None
@@ -244,10 +260,11 @@ def main(argv: list[str] | None = None) -> int:
     sys.path.insert(0, str(ROOT))
 
     files = {DVC_YAML: _dvc_yaml,
-             VEIL_YAML: lambda text: rewrite(text, {stage: veil_code_deps(stage) for stage in VEIL_STAGES})}
+             VEIL_YAML: lambda text: rewrite(text, {stage: veil_code_deps(stage) for stage in VEIL_STAGES}),
+             ROOT / LABELS: lambda text: labels_json()}
     differ = []
     for path, written in files.items():
-        text = path.read_text()
+        text = path.read_text() if path.exists() else ""
         try:
             new = written(text)
         except (RuntimeError, ValueError) as err:
@@ -255,17 +272,17 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         name = path.relative_to(ROOT)
         if new == text:
-            print(f"{name}: every stage's code deps are the files it loads")
+            print(f"{name}: as the code says")
             continue
         differ.append(name)
         if not args.check:
-            tmp = path.with_suffix(".yaml.tmp")
+            tmp = path.with_suffix(path.suffix + ".tmp")
             tmp.write_text(new)
             tmp.replace(path)
-            print(f"{name}: code deps rewritten; review with git diff {name}")
+            print(f"{name}: rewritten; review with git diff {name}")
     if differ and args.check:
-        print(f"{', '.join(map(str, differ))}: code deps differ from the files the stages load; run python "
-              "scripts/stage_deps.py", file=sys.stderr)
+        print(f"{', '.join(map(str, differ))}: differ from what the code says (the files the stages load, the "
+              "methods' labels); run python scripts/stage_deps.py", file=sys.stderr)
         return 1
     return 0
 

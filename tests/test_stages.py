@@ -16,7 +16,7 @@ import yaml
 from params_reads import keys_read
 
 from taskseq.methods import Lineup
-from taskseq.methods.spec import added_modules
+from taskseq.methods.spec import added_modules, specs
 from taskseq.selection import read_selection
 from taskseq.settings import SECTIONS, Methods, Params, parse_section
 from taskseq.stages import STAGES
@@ -73,6 +73,12 @@ def test_the_deps_writer_replaces_a_per_method_stages_items_and_keeps_everything
     with pytest.raises(ValueError, match="no foreach mapping found for b"):
         stage_deps.rewrite_items(text, {"b": {"x": "taskseq/methods/x.py"}})
 
+
+
+def test_the_labels_file_holds_every_methods_label_as_its_spec_gives_it():
+    # the stages that write tables read it instead of the methods' modules: python scripts/stage_deps.py writes it
+    assert (ROOT / stage_deps.LABELS).read_text() == stage_deps.labels_json()
+    assert json.loads(stage_deps.labels_json()) == {name: spec.label for name, spec in specs().items()}
 
 
 def test_a_per_method_stage_refuses_a_method_without_an_entry_of_params(monkeypatch):
@@ -212,10 +218,11 @@ def test_a_change_to_one_methods_module_reruns_only_the_stages_that_run_it():
     seeds = Params.load(ROOT / "params.yaml").world.seeds
     per_world = {f"{stage}@{s}" for stage in ("fold_models", "crossval", "noise", "scenes_world") for s in seeds}
     # noise_trained runs in select (its own choice of C), noise and Table I (params.yaml); the tables over worlds
-    # name every method; teach and train take the shipped method alone, the one selection.json ranks first
-    assert listing("taskseq/methods/noise_trained.py") == per_world | {
-        "choose_C@noise_trained", "scenes", "aggregate", "report",
-        *(f"stats@{t}" for t in ("scenario_folds", "drawn_rooms", "transfer"))}
+    # read every method's label from labels.json, not its module; teach and train take the shipped method alone,
+    # the one selection.json ranks first
+    assert listing("taskseq/methods/noise_trained.py") == per_world | {"choose_C@noise_trained"}
+    tables = {"scenes", "aggregate", "report", *(f"stats@{t}" for t in ("scenario_folds", "drawn_rooms", "transfer"))}
+    assert tables <= listing("taskseq/methods/labels.json")
     shipped = read_selection(ROOT / "reports" / "selection.json").method
     module = f"taskseq/methods/{shipped if shipped in added_modules() else 'builtin'}.py"
     assert {"train", "teach"} <= listing(module)

@@ -12,10 +12,13 @@ changes (`scripts/stage_deps.py`).
 from __future__ import annotations
 
 import importlib
+import json
 import pkgutil
 import sys
 from collections.abc import Callable, Iterable
 from dataclasses import MISSING, dataclass, fields, is_dataclass
+from functools import cache
+from pathlib import Path
 from typing import Any
 
 from ..evaluate.methods import Method, ScorerMethod
@@ -152,6 +155,28 @@ def specs() -> dict[str, MethodSpec]:
     return {name: method_spec(name) for name in method_names()}
 
 
+# every method's label as its spec gives it, written by `scripts/stage_deps.py` (tests/test_stages.py fails until it
+# agrees with the specs): the stages that only write tables read labels from here, so they load no method's code
+# and a change to one method's module does not re-run them
+LABELS_FILE = Path(__file__).with_name("labels.json")
+
+
 def method_labels(names: Iterable[str] | None = None) -> dict[str, str]:
-    """The labels of `names` (default: every method, in the tables' order), importing only their modules."""
-    return {name: method_spec(name).label for name in (method_names() if names is None else names)}
+    """The labels of `names` (default: every method, in the tables' order), from `LABELS_FILE`; a method it does
+    not list yet (added since the script last ran) from its spec, importing its module."""
+    written = _written_labels()
+    return {name: written.get(name) or method_spec(name).label for name in (method_names() if names is None else names)}
+
+
+@cache
+def _written_labels() -> dict[str, str]:
+    try:
+        return json.loads(LABELS_FILE.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        return {}
+
+
+def spec_labels() -> dict[str, str]:
+    """Every method's label from its spec, in the tables' order (imports every method's module): what
+    `LABELS_FILE` holds."""
+    return {name: spec.label for name, spec in specs().items()}

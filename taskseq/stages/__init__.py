@@ -30,9 +30,10 @@ class Stage:
     parallel: bool = False  # takes `n_jobs`
     per_world: bool = False  # runs on one world's data (`--world-seed`)
     cached: bool = False  # fits models or runs programs: takes `--cache` (`taskseq.runtime.cache`)
-    # the methods whose modules it loads (`taskseq.methods.method_spec`): "" none, "all" every one (Table I, every
-    # label), an experiment's (those whose entry of params.yaml's `methods` names it), or "shipped": the one method
-    # `train.method` names, or when it says best the one reports/selection.json ranks first
+    # the methods whose modules it loads (`taskseq.methods.method_spec`): "" none (a stage that writes tables reads
+    # the labels from taskseq/methods/labels.json), "all" every one (Table I), an experiment's (those whose entry of
+    # params.yaml's `methods` names it), or "shipped": the one method `train.method` names, or when it says best the
+    # one reports/selection.json ranks first
     runs: str = ""
     # dvc.yaml runs it once per method it runs (`NAME@method`), each run depending on that method's module alone
     per_method: bool = False
@@ -70,15 +71,14 @@ STAGES: dict[str, Stage] = {
                           "feedback there too), and models of the paper-shaped rooms run in drawn ones",
                           opts.ScenesWorldOptions, True, True, cached=True, runs="all"),
     "scenes": Stage("Table I, failures and the transfer with rooms held out, over the world seeds",
-                    opts.ScenesOptions, runs="all"),
+                    opts.ScenesOptions),
     "people": Stage("check people's demonstrations, count them, and compare the planner with and without them",
                     opts.PeopleOptions, cached=True),
     "teach": Stage("the shipped planner in drawn rooms it never saw, after a scripted person shows k tasks in each",
                    opts.TeachOptions, True, cached=True, runs="shipped"),
     "aggregate": Stage("every figure over the world seeds: mean ± sd tables, failures, noise, feedback, recipes",
-                       opts.AggregateOptions, runs="all"),
+                       opts.AggregateOptions),
     "stats": Stage("confidence intervals of Table I by a bootstrap over worlds and scenarios; paired tests of methods",
-                   opts.StatsOptions, runs="all"),
-    "report": Stage("write reports/summary.md: every result next to the paper's figures", opts.ReportOptions,
-                    runs="all"),
+                   opts.StatsOptions),
+    "report": Stage("write reports/summary.md: every result next to the paper's figures", opts.ReportOptions),
 }
