@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from taskseq.features.dataset import read_features, write_features
-from taskseq.learn.mrf import CLIQUE_FAMILIES, EDGE_FAMILIES, StepMRF, candidate_index
+from taskseq.learn.mrf import CLIQUE_FAMILIES, EDGE_FAMILIES, FEATURE_SETS, N_PRIM, StepMRF, candidate_index
+from taskseq.learn.products import matmul
 from taskseq.sim.primitives import ALL_PRIMITIVES, ARITY
 
 
@@ -171,3 +172,45 @@ def test_the_lazy_ranking_is_top_k_of_every_candidate(some_steps, features):
     order = np.lexsort((np.arange(len(s)), -s))
     assert [y for y, _ in model.ranked(x, few)] == [(int(cp[i]), int(ca1[i]), int(ca2[i])) for i in order]
     assert len(np.unique(s)) < len(s) // 10  # the ties are there to break
+
+
+def _numpy_argument_tables(model: StepMRF, b, w: np.ndarray) -> list[np.ndarray]:
+    """U1 and U2 as the broadcast NumPy sums of `products.matmul` made them: the bits the kernel must give."""
+    S, N = b.valid.shape
+    holding = (b.objects[:, :, 0] > 0.5).any(axis=1)
+    U = []
+    for s in (1, 2):
+        unary = np.zeros((S, N))
+        if (wt := model._w(w, f"argument_environment{s}")) is not None:
+            unary += matmul(b.objects[:, :, [0, 1]], wt)
+        if (wt := model._w(w, f"argument_environment_task_relation{s}")) is not None:
+            unary += matmul(b.task_rel, wt[b.task][:, :, None])[:, :, 0]
+        if (wt := model._w(w, f"argument_environment_task_object{s}")) is not None:
+            unary += matmul(b.objects, wt[b.task, np.where(holding, 0, 1)][:, :, None])[:, :, 0]
+        table = np.repeat(unary[:, :, None], N_PRIM, axis=2)
+        for family, rows in (("primitive_argument_environment", b.objects),
+                             ("primitive_argument_previous_argument", b.hist)):
+            if (wt := model._w(w, f"{family}{s}")) is not None:
+                table += matmul(rows, wt.T)
+        for family, rows in (("relations", b.relations_rows), ("cues", b.cues_rows)):
+            if (wt := model._w(w, f"{family}{s}")) is not None:
+                table += matmul(rows, wt[b.task].transpose(0, 2, 1))
+        U.append(table.transpose(0, 2, 1))
+    return U
+
+
+@pytest.mark.parametrize("features", sorted(FEATURE_SETS))
+def test_the_compiled_tables_and_oracle_give_the_bits_of_the_numpy_sums(some_steps, features):
+    """The kernels sum each table entry and each pair's score in the order the broadcast NumPy sums did, and
+    the oracle breaks ties as `argmax` over the per-candidate scores does."""
+    model = StepMRF(features)
+    b = model._batch(some_steps)
+    rng = np.random.default_rng(7)
+    gold = np.array([x.gold for x in some_steps])
+    for w in (rng.normal(size=model.size_joint_feature) * 10.0 ** rng.integers(-3, 4, model.size_joint_feature),
+              np.round(rng.normal(size=model.size_joint_feature), 1), np.zeros(model.size_joint_feature)):
+        f = model.batch_tables(b, w)
+        for table, expected in zip((f.U1, f.U2), _numpy_argument_tables(model, b, w), strict=True):
+            assert table.tobytes() == np.ascontiguousarray(expected).tobytes()
+        for x, y in zip(some_steps, model.batch_loss_augmented_inference(some_steps, gold, w), strict=True):
+            assert tuple(y) == model.loss_augmented_inference(x, x.gold, w)

@@ -1,9 +1,9 @@
 """`learn.products.matmul` sums every entry in one order, whatever the shapes it is handed.
 
-The score tables read it with a matrix for every row of a batch, with a matrix
-per step, and with both slots' weights side by side (`mrf._slot_products`); each
-way must give the bits of the plain loop that adds a[..., i, k] * b[..., k, j]
-for k = 0, 1, 2, ... and skips the zero terms of `a`.
+It is read with a matrix for every row of a batch, with a matrix per step,
+and with several weight matrices side by side; each way must give the bits of
+the plain loop that adds a[..., i, k] * b[..., k, j] for k = 0, 1, 2, ... and
+skips the zero terms of `a` (the sum the score tables' kernel makes too).
 """
 
 from __future__ import annotations

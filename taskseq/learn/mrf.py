@@ -100,6 +100,10 @@ N_OBJ = len(OBJECT_COLUMNS)
 _ARGUMENT_ENVIRONMENT_COLUMNS = (0, 1)  # the object columns `argument_environment` reads: held, distance
 _PREV = ALL_PRIMITIVES + ("none",)
 
+_BINARY = np.flatnonzero(np.asarray(ARITIES) == 2)  # the primitives with two arguments
+_EVERY = np.arange(N_PRIM)
+_ARGUMENTS = (np.flatnonzero(np.asarray(ARITIES) >= 1), _BINARY)  # the primitives that fill slot 1, slot 2
+
 Y = tuple[int, int, int]
 
 
@@ -168,17 +172,11 @@ class StepBatch:
     valid: np.ndarray  # (S, N) bool
     task: np.ndarray  # (S,)
     prev: np.ndarray  # (S, 2)
-    # (task, its steps, their relations_rows as one (steps * N, len(RELATIONS_ROW)) matrix): a weight block indexed
-    # by task multiplies each task's rows in one matrix product
-    relations_by_task: list[tuple[int, np.ndarray, np.ndarray]]
-    # the same for the choice cues (`features.cues`), empty when the batch is built without them
-    cues_by_task: list[tuple[int, np.ndarray, np.ndarray]]
 
     @cached_property
-    def pair_valid(self) -> np.ndarray:
-        """(S, N, N) bool: both objects present and different (made when the oracle first asks)."""
-        N = self.valid.shape[1]
-        return self.valid[:, :, None] & self.valid[:, None, :] & ~np.eye(N, dtype=bool)[None]
+    def counts(self) -> np.ndarray:
+        """(S,): the objects of each step, present at the start of its row (`of` pads at the end)."""
+        return self.valid.sum(axis=1)
 
     @cached_property
     def valid_neg(self) -> np.ndarray:
@@ -208,17 +206,7 @@ class StepBatch:
         relations_rows = relations_row(objects, rel, raw_relations) if relations else np.zeros((S, N, 0))
         with_cues = relations and cues
         cues_rows = raw_cues if with_cues else np.zeros((S, N, 0))
-        return cls(objects, rel, relations_rows, cues_rows, hist, collide, valid, task, prev,
-                   _by_task(task, relations_rows) if relations else [], _by_task(task, cues_rows) if with_cues else [])
-
-
-def _by_task(task: np.ndarray, rows: np.ndarray) -> list[tuple[int, np.ndarray, np.ndarray]]:
-    """Per task: its steps of the batch and their (S, N, k) `rows` as one (steps * N, k) matrix."""
-    out = []
-    for t in np.unique(task):
-        steps = np.flatnonzero(task == t)
-        out.append((int(t), steps, rows[steps].reshape(len(steps) * rows.shape[1], -1)))
-    return out
+        return cls(objects, rel, relations_rows, cues_rows, hist, collide, valid, task, prev)
 
 
 @dataclass
@@ -273,11 +261,14 @@ class _Batched:
         scorer would otherwise carry wherever it goes (a worker hands it back to the parent)."""
         self._batch_cache = None
 
-    def batch_tables(self: StepMRF, b: StepBatch, w: np.ndarray) -> Tables:  # type: ignore[misc]
+    def batch_tables(self: StepMRF, b: StepBatch, w: np.ndarray,  # type: ignore[misc]
+                     arguments: tuple[np.ndarray, np.ndarray] = (_EVERY, _EVERY)) -> Tables:
         """The score's factor tables for every step of the batch: the one place a score is computed.
 
-        Its products are `products.matmul`, not `@`: BLAS sums in an order that depends on the processor, and
-        equal candidates must score equal bits everywhere for the oracle's ties to fall alike.
+        `arguments` names the primitives whose U1 and whose U2 (and low-rank pair factor) to make; the others' are
+        left 0.0 (the oracle reads no table of an argument slot a primitive does not fill, `_ARGUMENTS`).
+        Its products sum as `products.matmul` does, not as `@`: BLAS sums in an order that depends on the
+        processor, and equal candidates must score equal bits everywhere for the oracle's ties to fall alike.
         """
         S, N = b.valid.shape
         P = np.zeros((S, N_PRIM))
@@ -287,43 +278,41 @@ class _Batched:
             if (wt := self._w(w, name)) is not None:
                 P += wt[b.task, b.prev[:, k]]
         holding = (b.objects[:, :, 0] > 0.5).any(axis=1)
-
-        K = b.objects.shape[2]
-        flat_objects, flat_hist = b.objects.reshape(S * N, K), b.hist.reshape(S * N, -1)
-        # the products of a family's two slots in one pass over its rows (each entry's sum as alone), split below
-        by_prim = {family: _slot_products(flat, self._w(w, f"{family}1"), self._w(w, f"{family}2"))
-                   for family, flat in (("primitive_argument_environment", flat_objects),
-                                        ("primitive_argument_previous_argument", flat_hist))}
-        by_task = {family: [(rows, _slot_products(flat, w1[t], w2[t])) for t, rows, flat in groups]
-                   for family, groups in (("relations", b.relations_by_task), ("cues", b.cues_by_task))
-                   if (w1 := self._w(w, f"{family}1")) is not None and (w2 := self._w(w, f"{family}2")) is not None}
-        U = []  # per slot, (S, N_PRIM, N) as views of (S, N, N_PRIM) tables
-        for s in (1, 2):
-            unary = np.zeros((S, N))  # terms that do not depend on the primitive
-            if (wt := self._w(w, f"argument_environment{s}")) is not None:
-                unary += matmul(b.objects[:, :, list(_ARGUMENT_ENVIRONMENT_COLUMNS)], wt)
-            if (wt := self._w(w, f"argument_environment_task_relation{s}")) is not None:
-                unary += matmul(b.task_rel, wt[b.task][:, :, None])[:, :, 0]
-            if (wt := self._w(w, f"argument_environment_task_object{s}")) is not None:
-                unary += matmul(b.objects, wt[b.task, np.where(holding, 0, 1)][:, :, None])[:, :, 0]
-            table = np.repeat(unary[:, :, None], N_PRIM, axis=2)
-            for family in ("primitive_argument_environment", "primitive_argument_previous_argument"):
-                if (both := by_prim[family]) is not None:
-                    table += both[s - 1].reshape(S, N, N_PRIM)
-            for family in ("relations", "cues"):
-                for rows, both in by_task.get(family, ()):
-                    table[rows] += both[s - 1].reshape(len(rows), N, N_PRIM)
-            U.append(table.transpose(0, 2, 1))
+        columns = np.concatenate([arguments[0], N_PRIM + arguments[1]])
+        U, left = _argument_tables(b.counts, b.task, np.where(holding, 0, 1), b.objects, b.task_rel, b.hist,
+                                   b.relations_rows, b.cues_rows, columns, arguments[1],
+                                   *self._argument_weights(w, columns, arguments[1]))
         pair_weight = float(wt[0]) if (wt := self._w(w, "argument_environment_pair")) is not None else 0.0
-        # the task relations of a1 and a2, crossed, are a rank-4 term per primitive: (task_rel W_p) task_rel^T,
-        # every primitive's in one product (columns p * 4 + r), seen as (N_PRIM, S, N, 4) without a copy
-        left, right = np.zeros((N_PRIM, S, N, 0)), np.zeros((S, N, 0))
-        if (w_pair := self._w(w, "relations_pair")) is not None:
-            R = w_pair.shape[-1]
-            per_step = w_pair[b.task].transpose(0, 2, 1, 3).reshape(S, b.task_rel.shape[2], N_PRIM * R)
-            left = matmul(b.task_rel, per_step).reshape(S, N, N_PRIM, R).transpose(2, 0, 1, 3)
-            right = b.task_rel
+        right = b.task_rel if left.shape[-1] else np.zeros((S, N, 0))
         return Tables(P, U[0], U[1], pair_weight, b.collide, left, right)
+
+    def _argument_weights(self: StepMRF, w: np.ndarray, columns: np.ndarray,  # type: ignore[misc]
+                          pairs: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The weights `_argument_tables` reads; a family the model lacks is an empty array (no term, no add).
+
+        Per slot (a leading axis of 2) the primitive-free weights: `argument_environment`,
+        `argument_environment_task` by relation and by object. Then the per-primitive ones as (rows' width,
+        len(columns)) matrices (per task for `relations` and `cues`), column c the weights of table column
+        columns[c] (slot * N_PRIM + primitive). Then `relations_pair` as (N_TASK, 4, len(pairs) * R), column
+        c * R + r the weight of a1's task relation k with a2's relation r for primitive pairs[c].
+        """
+        def slots(name: str, ndim: int) -> np.ndarray:
+            w1, w2 = self._w(w, f"{name}1"), self._w(w, f"{name}2")
+            return np.zeros((0,) * (ndim + 1)) if w1 is None or w2 is None else np.stack([w1, w2])
+
+        def by_column(name: str, ndim: int) -> np.ndarray:  # (..., width, len(columns)) from (..., N_PRIM, width)
+            both = slots(name, ndim)
+            if not both.size:
+                return np.zeros((0,) * ndim)
+            return np.ascontiguousarray(np.concatenate([both[0], both[1]], axis=-2).swapaxes(-1, -2)[..., columns])
+
+        pair = self._w(w, "relations_pair")
+        return (slots("argument_environment", 1), slots("argument_environment_task_relation", 2),
+                slots("argument_environment_task_object", 3), by_column("primitive_argument_environment", 2),
+                by_column("primitive_argument_previous_argument", 2), by_column("relations", 3),
+                by_column("cues", 3),
+                np.zeros((0, 0, 0)) if pair is None
+                else np.ascontiguousarray(pair[:, pairs].transpose(0, 2, 1, 3).reshape(N_TASK, 4, -1)))
 
     def _batch_best(self: StepMRF, b: StepBatch, w: np.ndarray, gold: np.ndarray | None = None) -> np.ndarray:  # type: ignore[misc]
         """(S, 3): the best candidate of every step; with `gold` (S, 3), of score plus Hamming loss.
@@ -333,7 +322,7 @@ class _Batched:
         a1 and a2, which is `candidate_index` order, as in `inference`.
         """
         S, N = b.valid.shape
-        f = self.batch_tables(b, w)
+        f = self.batch_tables(b, w, _ARGUMENTS)
         P = f.P
         prim_loss, l1, l2, none1, none2 = hamming_terms(gold, S, N_PRIM, N)
         P = P + prim_loss
@@ -349,11 +338,9 @@ class _Batched:
                 sc = f.U1[:, p] + l1 + b.valid_neg
                 a = sc.argmax(axis=1)
                 best[:, p], arg1[:, p] = P[:, p] + sc[rows, a] + none2, a
-            else:
-                value, a = _best_pairs(f.pair_weight, f.collide, b.pair_valid, f.U2[:, p] + l2, f.U1[:, p] + l1,
-                                       f.left[p], f.right)
-                best[:, p] = P[:, p] + value
-                arg1[:, p], arg2[:, p] = np.divmod(a, N)
+        value, a = _best_pairs(_BINARY, b.counts, f.pair_weight, f.collide, f.U1, l1, f.U2, l2, f.left, f.right)
+        best[:, _BINARY] = P[:, _BINARY] + value
+        arg1[:, _BINARY], arg2[:, _BINARY] = np.divmod(a, N)
         prim = best.argmax(axis=1)
         return np.stack([prim, arg1[rows, prim], arg2[rows, prim]], axis=1)
 
@@ -424,53 +411,161 @@ class _Batched:
         return out
 
 
-def _slot_products(rows: np.ndarray, w1: np.ndarray | None,
-                   w2: np.ndarray | None) -> tuple[np.ndarray, np.ndarray] | None:
-    """(rows @ w1.T, rows @ w2.T) of the two argument slots' (N_PRIM, k) weights, from one product.
-
-    Each entry is summed as the product with its own slot's weights alone
-    would sum it (`products.matmul` adds in k order whatever the columns), so
-    the tables are the same bits; the rows, most of a batch's memory, are read
-    once instead of twice.
-    """
-    if w1 is None or w2 is None:
-        return None
-    both = matmul(rows, np.concatenate([w1.T, w2.T], axis=1))
-    return both[:, : len(w1)], both[:, len(w1) :]
+@njit(cache=True)
+def _nonzero(row: np.ndarray, at: np.ndarray) -> int:
+    """Writes the indices of the non-zero entries of `row` to the start of `at`, in order; returns how many.
+    Without a branch: feature rows are zeros and non-zeros in no pattern a branch predictor could learn."""
+    m = 0
+    for k in range(row.shape[0]):
+        at[m] = k
+        m += row[k] != 0.0
+    return m
 
 
 @njit(cache=True)
-def _best_pairs(pair_weight: float, collide: np.ndarray, pair_valid: np.ndarray, u2: np.ndarray, u1: np.ndarray,
-                left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per step s, max and flat argmax over the valid (a1, a2) of
-    pair[a1, a2] + u2[a2] + u1[a1] + left[a1] . right[a2], with pair = pair_weight * collide.
+def _products(row: np.ndarray, at: np.ndarray, m: int, weights: np.ndarray, acc: np.ndarray) -> None:
+    """acc = row @ weights over the `m` non-zero entries `at` of `row` (`_nonzero`): each entry's terms added in
+    row order from 0.0, the zeros of `row` skipped, the sum `products.matmul` makes of a row."""
+    acc[:] = 0.0
+    for q in range(m):
+        k = at[q]
+        x = row[k]
+        for j in range(acc.shape[0]):
+            acc[j] += x * weights[k, j]
 
-    The same sum NumPy would broadcast into an (S, N, N) array, fused so that
+
+@njit(cache=True)
+def _argument_tables(counts: np.ndarray, task: np.ndarray, hand: np.ndarray, objects: np.ndarray,
+                     task_rel: np.ndarray, hist: np.ndarray, relations_rows: np.ndarray, cues_rows: np.ndarray,
+                     columns: np.ndarray, pairs: np.ndarray, ae: np.ndarray, aet_relation: np.ndarray,
+                     aet_object: np.ndarray, pae: np.ndarray, paae: np.ndarray, relations: np.ndarray,
+                     cues: np.ndarray, pair: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """U (2, S, N_PRIM, N), the argument slots' tables, at `columns` (slot * N_PRIM + primitive), and left
+    (N_PRIM, S, N, R), the low-rank pair factor, of the primitives `pairs`, from the weights
+    `StepMRF._argument_weights` arranges (a family it leaves empty adds nothing); the rest stays 0.0.
+
+    Every entry is the sum the NumPy tables made, in their order: per slot the
+    primitive-free terms from 0.0 (argument_environment, then
+    argument_environment_task's relation and object products), then per
+    primitive the products of primitive_argument_environment,
+    primitive_argument_previous_argument, relations and cues added in turn;
+    each product is `products.matmul`'s (`_products`). Made in one pass per
+    object with no (S, N, N_PRIM) temporaries, and not at all for the padding,
+    which stays 0.0 as the tables of its zero rows were.
+    """
+    S, N = objects.shape[0], objects.shape[1]
+    R = pair.shape[2] // max(len(pairs), 1)
+    U = np.zeros((2, S, N_PRIM, N))
+    left = np.zeros((N_PRIM, S, N, R))
+    unary, table = np.empty(2), np.empty(len(columns))
+    per_column, by_pair = np.empty(len(columns)), np.empty(pair.shape[2])
+    at_obj, at_rel = np.empty(objects.shape[2], np.int64), np.empty(task_rel.shape[2], np.int64)
+    at = np.empty(max(hist.shape[2], relations_rows.shape[2], cues_rows.shape[2]), np.int64)
+    for s in range(S):
+        t, h = task[s], hand[s]
+        for a in range(counts[s]):
+            m_obj = _nonzero(objects[s, a], at_obj)
+            m_rel = _nonzero(task_rel[s, a], at_rel)
+            for slot in range(2):
+                unary[slot] = 0.0
+                if ae.size:
+                    total = 0.0
+                    for k, column in enumerate(_ARGUMENT_ENVIRONMENT_COLUMNS):
+                        x = objects[s, a, column]
+                        if x != 0.0:
+                            total += x * ae[slot, k]
+                    unary[slot] += total
+                if aet_relation.size:
+                    total = 0.0
+                    for q in range(m_rel):
+                        k = at_rel[q]
+                        total += task_rel[s, a, k] * aet_relation[slot, t, k]
+                    unary[slot] += total
+                if aet_object.size:
+                    total = 0.0
+                    for q in range(m_obj):
+                        k = at_obj[q]
+                        total += objects[s, a, k] * aet_object[slot, t, h, k]
+                    unary[slot] += total
+            for c in range(len(columns)):
+                table[c] = unary[columns[c] // N_PRIM]
+            if pae.size:
+                _products(objects[s, a], at_obj, m_obj, pae, per_column)
+                table += per_column
+            if paae.size:
+                row = hist[s, a]
+                _products(row, at, _nonzero(row, at), paae, per_column)
+                table += per_column
+            if relations.size:
+                row = relations_rows[s, a]
+                _products(row, at, _nonzero(row, at), relations[t], per_column)
+                table += per_column
+            if cues.size:
+                row = cues_rows[s, a]
+                _products(row, at, _nonzero(row, at), cues[t], per_column)
+                table += per_column
+            for c in range(len(columns)):
+                U[columns[c] // N_PRIM, s, columns[c] % N_PRIM, a] = table[c]
+            if R:
+                _products(task_rel[s, a], at_rel, m_rel, pair[t], by_pair)
+                for c in range(len(pairs)):
+                    for r in range(R):
+                        left[pairs[c], s, a, r] = by_pair[c * R + r]
+    return U, left
+
+
+@njit(cache=True)
+def _best_pairs(primitives: np.ndarray, counts: np.ndarray, pair_weight: float, collide: np.ndarray, U1: np.ndarray,
+                l1: np.ndarray, U2: np.ndarray, l2: np.ndarray, left: np.ndarray,
+                right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per step s and binary primitive p = primitives[c], max (value[s, c]) and flat argmax (arg[s, c]) over the
+    valid (a1, a2) of
+
+        pair[a1, a2] + (U2[s, p, a2] + l2[s, a2]) + (U1[s, p, a1] + l1[s, a1]) + left[p, s, a1] . right[s, a2],
+
+    with pair = pair_weight * collide, the objects of step s its first counts[s] and a1 != a2.
+
+    The same sums NumPy would broadcast into (S, N, N) arrays, fused so that
     no such array is written: the oracle reads two bits per pair, not the
     (S, N, N) pair table and its mask as floats (150 MB each for 28,000 steps
     of 26 objects). Each entry is the pair term plus 0, then the same sums in
-    the same order, so the values are the bits the broadcast sum gave. Ties
-    go to the first (a1, a2) in row-major order, as `argmax` does; an invalid
-    pair (padding, or a1 = a2) is never chosen, and with none valid the
+    the same order (the low-rank dot product from 0.0 in r order), so the
+    values are the bits the broadcast sum gave. A row of a1 is summed over
+    all a2 in straight loops, which the compiler vectorises across a2 (each
+    a2's own sum in its own order), then scanned. Ties go to the first
+    (a1, a2) in row-major order, as `argmax` does; a1 = a2 scans as -inf, never
+    above the running maximum, which starts at -inf: with no valid pair the
     value is -inf at (0, 0).
     """
-    S, N, R = collide.shape[0], collide.shape[1], left.shape[2]
-    value, arg = np.empty(S), np.zeros(S, np.int64)
+    S, N, R = collide.shape[0], collide.shape[1], right.shape[2]
+    value, arg = np.empty((S, len(primitives))), np.zeros((S, len(primitives)), np.int64)
+    by_rank, u2, row, low = np.empty((R, N)), np.empty(N), np.empty(N), np.empty(N)
     for s in range(S):
-        best, at = -np.inf, 0
-        for i in range(N):
-            for j in range(N):
-                if not pair_valid[s, i, j]:
-                    continue
-                v = (pair_weight * (1.0 if collide[s, i, j] else 0.0) + 0.0) + u2[s, j] + u1[s, i]
+        n = counts[s]
+        for j in range(n):
+            for r in range(R):
+                by_rank[r, j] = right[s, j, r]
+        for c, p in enumerate(primitives):
+            for j in range(n):
+                u2[j] = U2[s, p, j] + l2[s, j]
+            best, at = -np.inf, 0
+            for i in range(n):
+                u1 = U1[s, p, i] + l1[s, i]
+                for j in range(n):
+                    row[j] = (pair_weight * (1.0 if collide[s, i, j] else 0.0) + 0.0) + u2[j] + u1
                 if R:
-                    low = 0.0
+                    low[:n] = 0.0
                     for r in range(R):
-                        low += left[s, i, r] * right[s, j, r]
-                    v += low
-                if v > best:
-                    best, at = v, i * N + j
-        value[s], arg[s] = best, at
+                        x = left[p, s, i, r]
+                        for j in range(n):
+                            low[j] += x * by_rank[r, j]
+                    for j in range(n):
+                        row[j] += low[j]
+                row[i] = -np.inf
+                for j in range(n):
+                    if row[j] > best:
+                        best, at = row[j], i * N + j
+            value[s, c], arg[s, c] = best, at
     return value, arg
 
 
