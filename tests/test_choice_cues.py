@@ -110,6 +110,24 @@ def test_the_nearest_of_each_kind_is_marked():
     assert nearest == ["obj01", "obj06", "obj08", "obj10", "obj11", "obj12"]
 
 
+def test_a_padded_batch_has_each_steps_own_cues():
+    """The cues of a batch (`StepBatch.of`) are each step's alone: the padding and the other steps' objects
+    never take part in a step's comparisons, and the padding has none."""
+    from taskseq.learn.mrf import StepBatch
+
+    state = kitchen()
+    steps = [step_context(state, Task.parse(task), []) for task in ("pour(obj03)", "stir(obj08)")]
+    small = WorldState({o: s for o, s in state.specs.items() if o not in ("obj05", "obj06", "obj10")},
+                       {o: p for o, p in state.poses.items() if o not in ("obj05", "obj06", "obj10")},
+                       {o: s for o, s in state.support.items() if o not in ("obj05", "obj06", "obj10")},
+                       robot=state.robot)
+    steps.append(step_context(small, Task.parse("pour(obj03)"), []))
+    batch = StepBatch.of(steps, relations=True, cues=True)
+    for s, x in enumerate(steps):
+        assert batch.cues_rows[s, : x.n].tobytes() == choice_cues(x.objects, x.relations).tobytes()
+        assert not batch.cues_rows[s, x.n :].any()
+
+
 def test_the_choice_cue_method_is_a_labelled_row_of_table1():
     methods = Lineup(Methods(), Selection({**dict.fromkeys(specs(), 2.0), "choice": 0.5}, source="s")).factories()
     choice = methods["choice"]()

@@ -52,24 +52,32 @@ _FLAGS = [_OBJ[f] for f in BINARY_ATTRIBUTES]
 
 
 def _least(values: np.ndarray, among: np.ndarray) -> np.ndarray:
-    """(n, k): 1.0 where object i is in `among[:, j]` and has the smallest of their `values` (all 0 when none is)."""
-    smallest = np.where(among, values[:, None], np.inf).min(axis=0)
-    return (among & (values[:, None] == smallest[None, :])).astype(float)
+    """(..., n, k): 1.0 where object i is in `among[..., :, j]` and has the smallest of their `values` (all 0 when
+    none is)."""
+    smallest = np.where(among, values[..., None], np.inf).min(axis=-2)
+    return (among & (values[..., None] == smallest[..., None, :])).astype(float)
 
 
-def choice_cues(objects: np.ndarray, relations: np.ndarray) -> np.ndarray:
-    """(n, len(CUE_COLUMNS)) from one step's (n, len(OBJECT_COLUMNS)) object rows and (n, len(RELATION_COLUMNS))
-    relations. Volumes and lengths are compared on their scaled values, which keep their order."""
-    flag = {name: objects[:, _OBJ[name]] > 0.5 for name in ("container", "movable", "liquid", "holds_liquid")}
+def choice_cues(objects: np.ndarray, relations: np.ndarray, present: np.ndarray | None = None) -> np.ndarray:
+    """(..., n, len(CUE_COLUMNS)) from one step's (n, len(OBJECT_COLUMNS)) object rows and (n, len(RELATION_COLUMNS))
+    relations, or from a padded batch's (S, n, ...) arrays with `present` (S, n) marking its objects (the padding's
+    cues are 0, the other objects' those of their step alone). Volumes and lengths are compared on their scaled
+    values, which keep their order."""
+    if present is None:
+        present = np.ones(objects.shape[:-1], dtype=bool)
+    flag = {name: objects[..., _OBJ[name]] > 0.5 for name in ("container", "movable", "liquid", "holds_liquid")}
     # the task's object is no candidate for itself, and without it there is nothing to compare volumes with (the
     # log ratio is 0 in its own row and in every row when it is missing, which would read as "at least 1x")
-    is_object = relations[:, _IS_OBJECT] > 0.5
-    empty = flag["container"] & flag["movable"] & ~flag["holds_liquid"] & ~is_object & is_object.any()
-    thin = flag["movable"] & ~flag["container"] & ~flag["liquid"] & (objects[:, _OBJ["median_over_max"]] <= ELONGATED)
-    flags = objects[:, _FLAGS] > 0.5
-    same_kind = (flags[:, None, :] == flags[None, :, :]).all(axis=2)  # (n, n), symmetric: column j is j's kind
-    return np.hstack([
-        _least(objects[:, _OBJ["volume"]], empty[:, None] & (relations[:, [_LOG_RATIO]] >= _LOG_STEPS[None, :])),
-        _least(objects[:, _OBJ["max_wl"]], thin[:, None] & (relations[:, _REACHES] > 0.5)),
-        _least(objects[:, _OBJ["distance"]], same_kind).diagonal()[:, None],
-    ])
+    is_object = relations[..., _IS_OBJECT] > 0.5
+    empty = (flag["container"] & flag["movable"] & ~flag["holds_liquid"] & ~is_object
+             & is_object.any(axis=-1, keepdims=True) & present)
+    thin = (flag["movable"] & ~flag["container"] & ~flag["liquid"]
+            & (objects[..., _OBJ["median_over_max"]] <= ELONGATED) & present)
+    flags = objects[..., _FLAGS] > 0.5
+    # (..., n, n), symmetric among the objects: column j is j's kind
+    same_kind = (flags[..., :, None, :] == flags[..., None, :, :]).all(axis=-1) & present[..., :, None]
+    return np.concatenate([
+        _least(objects[..., _OBJ["volume"]], empty[..., None] & (relations[..., [_LOG_RATIO]] >= _LOG_STEPS)),
+        _least(objects[..., _OBJ["max_wl"]], thin[..., None] & (relations[..., _REACHES] > 0.5)),
+        np.diagonal(_least(objects[..., _OBJ["distance"]], same_kind), axis1=-2, axis2=-1)[..., None],
+    ], axis=-1)

@@ -191,21 +191,22 @@ class StepBatch:
         K = len(OBJECT_COLUMNS)
         objects, rel, hist = np.zeros((S, N, K)), np.zeros((S, N, 4)), np.zeros((S, N, 4))
         raw_relations = np.zeros((S, N, len(RELATION_COLUMNS)))
-        raw_cues = np.zeros((S, N, len(CUE_COLUMNS)))
         collide, valid = np.zeros((S, N, N), dtype=bool), np.zeros((S, N), dtype=bool)
+        with_relations = np.zeros(S, dtype=bool)
         for s, x in enumerate(steps):
             objects[s, : x.n], rel[s, : x.n], hist[s, : x.n] = x.objects, x.task_rel, x.history_equal()
             collide[s, : x.n, : x.n] = x.collide
             if relations and x.relations is not None:
                 raw_relations[s, : x.n] = x.relations
-                if cues:
-                    raw_cues[s, : x.n] = choice_cues(x.objects, x.relations)
+                with_relations[s] = True
             valid[s, : x.n] = True
         task = np.array([x.task for x in steps])
         prev = np.array([x.prev_prims for x in steps])
         relations_rows = relations_row(objects, rel, raw_relations) if relations else np.zeros((S, N, 0))
         with_cues = relations and cues
-        cues_rows = raw_cues if with_cues else np.zeros((S, N, 0))
+        # every step's cues at once (a step without relations has none)
+        cues_rows = (choice_cues(objects, raw_relations, valid & with_relations[:, None]) if with_cues
+                     else np.zeros((S, N, 0)))
         return cls(objects, rel, relations_rows, cues_rows, hist, collide, valid, task, prev)
 
 
