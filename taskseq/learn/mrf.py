@@ -361,55 +361,102 @@ class _Batched:
         """(S, d) sparse: the joint feature of each (x_i, y_i), one row per step, as `joint_feature` writes it.
 
         A row has a few hundred non-zeros out of thousands; the learner's cuts
-        are differences of such rows. Built block by block as (row, column,
-        value) triples: no Python loop over steps.
+        are differences of such rows. Written straight into CSR arrays by
+        `_joint_feature_rows`, each row's columns in order (blocks in weight
+        order, then their entries): no Python loop over steps or blocks, no
+        (row, column) sort.
         """
         b = self._batch(X)
-        y = np.asarray(Y_, dtype=np.int64)
-        S = len(y)
-        rows_all = np.arange(S)
-        p = y[:, 0]
-        parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
-
-        def put(name: str, rows: np.ndarray, index: tuple[np.ndarray, ...], values: np.ndarray) -> None:
-            """Entries of block `name` at (leading indices per row) x (the trailing axis of `values`)."""
-            sl = self._slices.get(name)
-            if sl is None or not len(rows):
-                return
-            shape = sl[2]
-            width = values.shape[1]
-            lead = np.ravel_multi_index(index, shape[: len(index)]) if index else np.zeros(len(rows), np.int64)
-            cols = sl[0] + lead[:, None] * width + np.arange(width)[None, :]
-            parts.append((np.repeat(rows, width), cols.ravel(), values.ravel()))
-
-        ones = np.ones((S, 1))
-        put("primitive_task", rows_all, (b.task, p), ones)
-        for k, name in enumerate(("primitive_previous_task1", "primitive_previous_task2")):
-            put(name, rows_all, (b.task, b.prev[:, k], p), ones)
+        y = np.asarray(Y_, dtype=np.int64).reshape(-1, 3)
         holding = (b.objects[:, :, 0] > 0.5).any(axis=1)
-        for s in (1, 2):
-            a = y[:, s]
-            r = rows_all[a >= 0]
-            a_sel, t_sel, p_sel = a[r], b.task[r], p[r]
-            obj = b.objects[r, a_sel]
-            put(f"argument_environment{s}", r, (), obj[:, list(_ARGUMENT_ENVIRONMENT_COLUMNS)])
-            put(f"argument_environment_task_relation{s}", r, (t_sel,), b.task_rel[r, a_sel])
-            put(f"argument_environment_task_object{s}", r, (t_sel, np.where(holding[r], 0, 1)), obj)
-            put(f"primitive_argument_environment{s}", r, (p_sel,), obj)
-            put(f"primitive_argument_previous_argument{s}", r, (p_sel,), b.hist[r, a_sel])
-            put(f"relations{s}", r, (t_sel, p_sel), b.relations_rows[r, a_sel])  # (m, 0) rows without relations: none
-            put(f"cues{s}", r, (t_sel, p_sel), b.cues_rows[r, a_sel])  # likewise without cues
-        r = rows_all[(y[:, 1] >= 0) & (y[:, 2] >= 0)]
-        put("argument_environment_pair", r, (), b.collide[r, y[r, 1], y[r, 2]].astype(float)[:, None])
-        outer = b.task_rel[r, y[r, 1]][:, :, None] * b.task_rel[r, y[r, 2]][:, None, :]
-        put("relations_pair", r, (b.task[r], p[r]), outer.reshape(len(r), outer.shape[1] * outer.shape[2]))
-        row = np.concatenate([q[0] for q in parts])
-        col = np.concatenate([q[1] for q in parts])
-        val = np.concatenate([q[2] for q in parts])
-        nz = val != 0.0
-        out = sp.csr_matrix((val[nz], (row[nz], col[nz])), shape=(S, self.size_joint_feature))
-        out.sort_indices()
-        return out
+        indptr, indices, data = _joint_feature_rows(self._layout, y, b.task, b.prev, np.where(holding, 0, 1),
+                                                    b.objects, b.task_rel, b.hist, b.relations_rows, b.cues_rows,
+                                                    b.collide)
+        return sp.csr_matrix((data, indices, indptr), shape=(len(y), self.size_joint_feature))
+
+
+# How `_joint_feature_rows` writes a block (`StepMRF._layout`): its family's kind, by its place in this tuple
+_ROW_KINDS = ("primitive_task", "primitive_previous_task", "argument_environment", "argument_environment_pair",
+              "argument_environment_task_relation", "argument_environment_task_object",
+              "primitive_argument_environment", "primitive_argument_previous_argument", "relations", "relations_pair",
+              "cues")
+(_PT, _PPT, _AE, _AE_PAIR, _AET_RELATION, _AET_OBJECT, _PAE, _PAAE, _RELATIONS, _RELATIONS_PAIR,
+ _CUES) = range(len(_ROW_KINDS))
+
+
+def _row_kind(name: str) -> tuple[int, int]:
+    """A block's kind (index in `_ROW_KINDS`) and its argument slot or history step (0 for neither)."""
+    if name[-1] in "12":
+        return _ROW_KINDS.index(name[:-1].removesuffix("_")), int(name[-1])
+    return _ROW_KINDS.index(name), 0
+
+
+@njit(cache=True)
+def _joint_feature_rows(layout: np.ndarray, y: np.ndarray, task: np.ndarray, prev: np.ndarray, hand: np.ndarray,
+                        objects: np.ndarray, task_rel: np.ndarray, hist: np.ndarray, relations_rows: np.ndarray,
+                        cues_rows: np.ndarray, collide: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(indptr, indices, data) of the joint features of labellings `y` (S, 3), one CSR row per step: the
+    non-zero entries `StepMRF.joint_feature` writes, with the same values (copies of the step's feature
+    rows, ones, the collision bit, the products of the two arguments' task relations), in column order.
+
+    `layout` has a row (kind, slot or history step, first column) per block of the model, in weight order, so
+    a row's entries come out sorted: a block's columns follow those of the blocks before it, and within a block
+    an index's entries follow one another. Columns of a block indexed by task, primitive or the like are
+    those of `np.ravel_multi_index` over its shape.
+    """
+    S, K = y.shape[0], objects.shape[2]
+    width_relations, width_cues = relations_rows.shape[2], cues_rows.shape[2]
+    most = 3 + 2 * (len(_ARGUMENT_ENVIRONMENT_COLUMNS) + 3 * K + 8 + width_relations + width_cues) + 1 + 16
+    indptr = np.zeros(S + 1, np.int32)
+    indices, data = np.empty(S * most, np.int32), np.empty(S * most)
+    m = 0
+    for s in range(S):
+        p, t = y[s, 0], task[s]
+        for block in range(layout.shape[0]):
+            kind, slot, first = layout[block, 0], layout[block, 1], layout[block, 2]
+            a = y[s, slot] if slot else 0
+            if kind == _PT:
+                indices[m], data[m] = first + t * N_PRIM + p, 1.0
+                m += 1
+            elif kind == _PPT:
+                indices[m], data[m] = first + (t * (N_PRIM + 1) + prev[s, slot - 1]) * N_PRIM + p, 1.0
+                m += 1
+            elif kind == _AE_PAIR:
+                if y[s, 1] >= 0 and y[s, 2] >= 0:
+                    indices[m], data[m] = first, 1.0 if collide[s, y[s, 1], y[s, 2]] else 0.0
+                    m += data[m] != 0.0
+            elif kind == _RELATIONS_PAIR:
+                if y[s, 1] >= 0 and y[s, 2] >= 0:
+                    R = task_rel.shape[2]
+                    at = first + (t * N_PRIM + p) * R * R
+                    for k in range(R):
+                        for r in range(R):
+                            indices[m], data[m] = at + k * R + r, task_rel[s, y[s, 1], k] * task_rel[s, y[s, 2], r]
+                            m += data[m] != 0.0
+            elif a < 0:
+                continue
+            elif kind == _AE:
+                for k, column in enumerate(_ARGUMENT_ENVIRONMENT_COLUMNS):
+                    indices[m], data[m] = first + k, objects[s, a, column]
+                    m += data[m] != 0.0
+            else:
+                if kind == _AET_RELATION:
+                    row, at = task_rel[s, a], first + t * task_rel.shape[2]
+                elif kind == _AET_OBJECT:
+                    row, at = objects[s, a], first + (t * 2 + hand[s]) * K
+                elif kind == _PAE:
+                    row, at = objects[s, a], first + p * K
+                elif kind == _PAAE:
+                    row, at = hist[s, a], first + p * hist.shape[2]
+                elif kind == _RELATIONS:
+                    row, at = relations_rows[s, a], first + (t * N_PRIM + p) * width_relations
+                else:
+                    row, at = cues_rows[s, a], first + (t * N_PRIM + p) * width_cues
+                for k in range(row.shape[0]):
+                    indices[m], data[m] = at + k, row[k]
+                    m += data[m] != 0.0
+        indptr[s + 1] = m
+    return indptr, indices[:m].copy(), data[:m].copy()
 
 
 @njit(cache=True)
@@ -593,6 +640,8 @@ class StepMRF(_Batched):
             self._slices[b.name] = (offset, offset + b.size, b.shape)
             offset += b.size
         self.size_joint_feature = offset
+        # (kind, slot or history step, first column) of every block, for `_joint_feature_rows`
+        self._layout = np.array([(*_row_kind(b.name), self._slices[b.name][0]) for b in self.blocks], np.int64)
 
     # --- naming -------------------------------------------------------------
     def feature_names(self) -> list[str]:
