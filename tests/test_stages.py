@@ -81,6 +81,17 @@ def test_the_labels_file_holds_every_methods_label_as_its_spec_gives_it():
     assert json.loads(stage_deps.labels_json()) == {name: spec.label for name, spec in specs().items()}
 
 
+
+def test_every_label_is_read_without_importing_an_added_methods_module():
+    # the stages that write tables read labels only: under DVC, importing a method's module their deps do not
+    # list would stop them (taskseq.runtime.dvc_deps)
+    code = ("import json, sys; from taskseq.methods import method_labels; labels = method_labels(); "
+            "print(json.dumps([len(labels), sorted(n for n in sys.modules if n.startswith('taskseq.methods.'))]))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT)
+    count, loaded = json.loads(out.stdout)
+    assert count == len(specs())
+    assert not {f"taskseq.methods.{name}" for name in added_modules()} & set(loaded)
+
 def test_a_per_method_stage_refuses_a_method_without_an_entry_of_params(monkeypatch):
     # each run lists methods.NAME among its params, which DVC refuses when params.yaml has no such key
     monkeypatch.setattr(stage_deps, "methods_run", lambda stage: ["full", "no_entry"])
