@@ -1,15 +1,20 @@
-"""The job grid: values shared by every job reach each worker once, and costly jobs start first."""
+"""The job grid: values shared by every job reach each worker once, costly jobs start first, and jobs the cache
+answers run in the calling process."""
 
 from __future__ import annotations
 
+import hashlib
 import os
 import pickle
 import uuid
+import warnings
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from taskseq.experiments.outcome_cache import OutcomeCache
+from taskseq.runtime import cache
 from taskseq.runtime.jobs import Shared, run_jobs
 
 CALLS: list[int] = []
@@ -70,3 +75,54 @@ def test_costly_jobs_start_first_and_results_keep_the_jobs_order():
     assert CALLS == [1, 3, 2, 0, 4]  # ties keep their order
     with pytest.raises(ValueError, match="2 costs for 5 jobs"):
         run_jobs([(_record, (k,)) for k in range(5)], cost=[1.0, 2.0])
+
+
+def _stored_square(k: int, root: str) -> tuple[int, int]:
+    """k * k, read back from the outcome cache at `root` when it holds it (else stored there); and which process
+    answered."""
+    entries = OutcomeCache(Path(root) / "outcomes")
+    key = hashlib.sha256(str(k).encode()).hexdigest()
+    kept = entries.load(key)
+    if kept is None:
+        kept = k * k
+        entries.save(key, kept)
+    return os.getpid(), kept
+
+
+def test_with_stored_first_the_jobs_found_in_the_cache_run_here_and_the_rest_in_workers(tmp_path, monkeypatch):
+    root = str(tmp_path / "cache")
+    jobs = [(_stored_square, (k, root)) for k in range(6)]
+    monkeypatch.delenv(cache.CACHE_ENV, raising=False)
+    unprobed = run_jobs(jobs, n_jobs=2, stored_first=True)  # no cache in force: every job goes to the workers
+    assert [v for _, v in unprobed] == [k * k for k in range(6)]
+    assert os.getpid() not in {pid for pid, _ in unprobed}
+    monkeypatch.setenv(cache.CACHE_ENV, root)
+    for k in (1, 4):  # two entries gone: those jobs miss
+        (OutcomeCache(Path(root) / "outcomes").path(hashlib.sha256(str(k).encode()).hexdigest())).unlink()
+    out = run_jobs(jobs, n_jobs=2, cost=[1.0, 2.0, 3.0, 4.0, 5.0, 6.0], stored_first=True)
+    assert [v for _, v in out] == [k * k for k in range(6)]  # in the jobs' order, whoever ran them
+    here = [k for k, (pid, _) in enumerate(out) if pid == os.getpid()]
+    assert here == [0, 2, 3, 5]
+    assert run_jobs(jobs, n_jobs=2, stored_first=True) == [(os.getpid(), k * k) for k in range(6)]  # all stored now
+    assert [pid for pid, _ in run_jobs(jobs, n_jobs=2)] != [os.getpid()] * 6  # not asked: workers, as before
+    entries = OutcomeCache(Path(root) / "outcomes")
+    for k in range(4):  # the first four tried all miss: a grid run afresh, so the two stored ones are not tried
+        entries.path(hashlib.sha256(str(k).encode()).hexdigest()).unlink()
+    out = run_jobs(jobs, n_jobs=2, stored_first=True)
+    assert [v for _, v in out] == [k * k for k in range(6)]
+    assert os.getpid() not in {pid for pid, _ in out}
+
+
+def test_within_stored_only_a_missing_or_unreadable_entry_raises_and_nothing_is_written(tmp_path):
+    entries = OutcomeCache(tmp_path / "outcomes")
+    key = hashlib.sha256(b"k").hexdigest()
+    with cache.stored_only(), pytest.raises(cache.NotStored):
+        _stored_square(7, str(tmp_path))
+    assert not (tmp_path / "outcomes").exists()
+    entries.path(key).parent.mkdir(parents=True)
+    entries.path(key).write_text("{not json", encoding="utf-8")
+    with cache.stored_only(), pytest.raises(cache.NotStored), warnings.catch_warnings():
+        warnings.simplefilter("error")  # the process that redoes the work warns, not this one
+        entries.load(key)
+    with pytest.warns(UserWarning, match="unreadable entry"):
+        assert entries.load(key) is None  # outside the block, as before

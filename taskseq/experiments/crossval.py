@@ -159,7 +159,7 @@ def cross_validate(methods: dict[str, Callable[[], Method]], contexts: list[Step
     parts = run_jobs([(run_folds, (tuple(methods[name] for name in names), k, steps, shared_meta, shared_scenarios,
                                    folds[k], max_steps, demos, tuple(keep.get(name, frozenset()) for name in names)))
                       for names, k in tasks], n_jobs, verbose, cost=[sum(cost[name] for name in names)
-                                                                     for names, _ in tasks])
+                                                                     for names, _ in tasks], stored_first=True)
     done = {(name, k): result for (names, k), part in zip(tasks, parts, strict=True)
             for name, result in zip(names, part, strict=True)}
     return [done[job] for job in jobs]

@@ -157,7 +157,8 @@ def train_fold_models(methods: Mapping[str, MakeScorerMethod], contexts: list[St
     cost = [sum(_expected_cost(unfitted[k], len(keyed[k][0].index)) for k in keys) for keys, _ in tasks]
     steps, shared_meta, shared_scenarios = Shared(contexts), Shared(meta), Shared(scenarios)
     parts = run_jobs([(_fit, (tuple(make[k] for k in keys), tuple(plans), steps, shared_meta, shared_scenarios,
-                              keyed[keys[0]][0].index)) for keys, plans in tasks], n_jobs, verbose, cost=cost)
+                              keyed[keys[0]][0].index)) for keys, plans in tasks], n_jobs, verbose, cost=cost,
+                     stored_first=True)
     fitted = {k: m for (keys, _), part in zip(tasks, parts, strict=True) for k, m in zip(keys, part, strict=True)}
     records, seconds, curves, cached = [], [], [], []
     with atomic_directory(output) as tmp:

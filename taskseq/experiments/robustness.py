@@ -125,7 +125,7 @@ def evaluate_conditions(makes: Mapping[str, Callable[[], ScorerMethod]], context
     jobs = [(name, k) for name in makes for k in range(folds.folds)]
     steps, shared_meta, shared_scenarios = Shared(contexts), Shared(meta), Shared(scenarios)
     parts = run_jobs([(_fold, (makes[name], steps, shared_meta, shared_scenarios, tests[k], conditions, max_steps,
-                               seed)) for name, k in jobs], n_jobs)
+                               seed)) for name, k in jobs], n_jobs, stored_first=True)
     out: dict[str, list[tuple[Condition, SequenceOutcome]]] = {name: [] for name in makes}
     for (name, _), part in zip(jobs, parts, strict=True):
         out[name] += part

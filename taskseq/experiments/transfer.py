@@ -49,5 +49,5 @@ def transfer(methods: dict[str, Callable[[], ScorerMethod]], train: World, test:
         steps, shared_meta, scenarios, demos = Shared(contexts), Shared(meta), Shared(bench.scenarios), Shared(bench)
         jobs = [(run_fold, (partial(configured, make, store=store), 0, steps, shared_meta, scenarios, tested, max_steps,
                             demos)) for make in methods.values()]
-        results = run_jobs(jobs, n_jobs)
+        results = run_jobs(jobs, n_jobs, stored_first=True)
     return results, contexts, meta

@@ -64,6 +64,32 @@ def folder(directory: Path | str | None) -> Iterator[None]:
             os.environ[CACHE_ENV] = before
 
 
+class NotStored(Exception):
+    """A lookup missed while `stored_only` was in force: the work it stands for is to be done elsewhere."""
+
+
+_stored_only = False  # this process only: set by `stored_only`, never inherited by the workers it starts
+
+
+@contextmanager
+def stored_only() -> Iterator[None]:
+    """Within the block, a lookup of any kind of entry that finds none (or one that cannot be read) raises
+    `NotStored` instead of returning None, so the caller computes nothing and stores nothing.
+
+    Why: a grid of jobs re-run after a small change mostly reads back what it
+    stored (`runtime.jobs.run_jobs(stored_first=True)`); reading an entry
+    takes milliseconds, while starting worker processes and importing the
+    package there takes seconds. Work that needs computing goes to the
+    workers as before.
+    """
+    global _stored_only
+    before, _stored_only = _stored_only, True
+    try:
+        yield
+    finally:
+        _stored_only = before
+
+
 def disabled() -> AbstractContextManager[None]:
     """No cache within the block, whatever `TASKSEQ_CACHE` says: a benchmark that times work must do it (usable
     as a decorator too)."""
@@ -115,13 +141,18 @@ class Entries:
 
     def read(self, key: str, parse: Callable[[Path], T], then: str) -> T | None:
         """`parse` of the entry under `key`; None if there is none, or (with a warning that it is `then`: done
-        again) if it cannot be read, whatever the reason: a half-copied folder, another format, a file edited."""
+        again) if it cannot be read, whatever the reason: a half-copied folder, another format, a file edited.
+        Within `stored_only`, either case raises `NotStored` instead."""
         path = self.path(key)
         if not path.exists():
+            if _stored_only:
+                raise NotStored(key)
             return None
         try:
             parsed = parse(path)
         except (OSError, ValueError, KeyError, TypeError, AttributeError, zipfile.BadZipFile, EOFError) as err:
+            if _stored_only:  # the process that redoes the work warns, once
+                raise NotStored(key) from err
             warnings.warn(f"{path}: an unreadable entry of the cache is {then} ({err!r})", stacklevel=3)
             return None
         with suppress(OSError):  # a cache on a read-only disk is still read

@@ -30,6 +30,7 @@ import numpy as np
 from joblib import Parallel, delayed, parallel_config
 
 from . import stopping
+from .cache import CACHE_ENV, NotStored, stored_only
 
 SCHEDULER_ENV = "TASKSEQ_DASK_SCHEDULER"
 
@@ -95,22 +96,55 @@ def default_jobs() -> int:
 
 
 def run_jobs(jobs: Iterable[Job], n_jobs: int = 1, verbose: int = 0,
-             cost: Sequence[float] | None = None) -> list[Any]:
+             cost: Sequence[float] | None = None, stored_first: bool = False) -> list[Any]:
     """`[f(*args) for f, args in jobs]`, in that order, run in parallel where the setting says.
 
     An argument may be a `Shared` (the job gets its value). `cost`, one
     number per job, sends the costliest first, so that no long job starts
     last while the other workers idle; the results keep the jobs' order.
+
+    `stored_first`, for grids whose jobs look their work up in the cache
+    (`runtime.cache`) before doing much of it: with a cache in force, the
+    jobs first run here, in their order, with only stored entries to go on
+    (`cache.stored_only`), and only those that miss one go to the workers. A
+    re-run after a change to one method then starts no worker for the jobs
+    it does not touch. Once most of the jobs tried have missed (at least
+    `PROBES` tried), the grid is taken as run afresh and the rest go to the
+    workers untried, so a first run pays for a few lookups only. The results
+    are the same either way: an entry holds what the work gave.
     """
     jobs = list(jobs)
     if cost is not None and len(cost) != len(jobs):
         raise ValueError(f"run_jobs: {len(cost)} costs for {len(jobs)} jobs")
     order = list(range(len(jobs))) if cost is None else sorted(range(len(jobs)), key=lambda i: -cost[i])
-    results = _dispatch([delayed(_call)(*jobs[i]) for i in order], n_jobs, verbose)
     out: list[Any] = [None] * len(jobs)
+    if stored_first and os.environ.get(CACHE_ENV):
+        answered = _read_back(jobs, out)
+        order = [i for i in order if i not in answered]
+    results = _dispatch([delayed(_call)(*jobs[i]) for i in order], n_jobs, verbose) if order else []
     for i, r in zip(order, results, strict=True):
         out[i] = r
     return out
+
+
+PROBES = 4  # jobs tried here before a grid whose tries mostly missed is sent to the workers whole
+
+
+def _read_back(jobs: list[Job], out: list[Any]) -> set[int]:
+    """The jobs run in this process from stored entries alone (their results into `out`), tried in order until
+    most of those tried have missed."""
+    answered: set[int] = set()
+    for i, job in enumerate(jobs):
+        missed = i - len(answered)
+        if i >= PROBES and 2 * missed > i:
+            break
+        try:
+            with stored_only():
+                out[i] = _call(*job)
+        except NotStored:
+            continue
+        answered.add(i)
+    return answered
 
 
 def _dispatch(calls: list[Any], n_jobs: int, verbose: int) -> list[Any]:
