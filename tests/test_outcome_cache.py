@@ -86,6 +86,25 @@ def test_replayed_conditions_read_back_are_those_run(small, cache_dir, runs, mon
     assert runs == [("full", "robustness")] * 2  # another noise seed: other draws, run again
 
 
+def test_a_baseline_read_back_is_not_fitted_unless_a_kept_program_needs_it(small, cache_dir, monkeypatch):
+    contexts, meta, bench = small
+    kept = frozenset(sorted(bench.scenarios)[:2])
+    svm = partial(SymbolicMethod, goals="svm", name="symb_plan_svm")
+    baselines = {"chance": ChanceMethod, "multiclass": MulticlassMethod, "symb_plan_svm": svm}
+    first = _cv(small, baselines, keep_programs={"symb_plan_svm": kept})
+    fits = []
+    for kind in (ChanceMethod, MulticlassMethod, SymbolicMethod):
+        def counted(self, *args, _fit=kind.fit, **kw):
+            fits.append(self.name)
+            return _fit(self, *args, **kw)
+        monkeypatch.setattr(kind, "fit", counted)
+    assert _cv(small, baselines) == [replace(r, programs={}) for r in first]
+    assert fits == []  # read back: the key never held their fitted state, so nothing was fitted
+    assert _cv(small, baselines, keep_programs={"symb_plan_svm": kept}) == first  # the kept programs run again,
+    holding = {r.fold for r in first if r.programs}
+    assert holding and fits == ["symb_plan_svm"] * len(holding)  # fitted for them, in the folds that hold them
+
+
 def test_whatever_decides_a_fold_misses_the_cache(small, cache_dir, runs):
     _cv(small, {"full": MRF})
     runs.clear()

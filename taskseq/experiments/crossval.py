@@ -74,18 +74,28 @@ def run_fold(make: Callable[[], Method], fold: int, contexts: list[StepContext],
 def _run_fold(make, fold, contexts, meta, scenarios, test_scenarios, max_steps, demos, keep_programs) -> FoldResult:
     train_index = training_index(meta, test_scenarios)
     test_index = [i for i, m in enumerate(meta) if m.scenario_id in test_scenarios]
-    method = make().fit([contexts[i] for i in train_index], [meta[i] for i in train_index], scenarios)
+    method = make()
+
+    def fitted() -> Method:
+        return method.fit([contexts[i] for i in train_index], [meta[i] for i in train_index], scenarios)
+
+    # a scorer's weights key its outcomes (the store may hold a model trained otherwise), so it is fitted (read
+    # from the store) first; the baselines' fits (scikit-learn's SVMs) are decided by what the key already holds,
+    # and are done only when their outcomes are not read back
+    if isinstance(method, ScorerMethod):
+        method = fitted()
     data = (contexts, meta, scenarios, test_scenarios, demos)
 
     def decoded(entry: dict) -> FoldResult:  # the programs kept for recordings run again: an entry holds none
         result = _decoded(entry)
         kept = sorted(keep_programs & test_scenarios) if result.sequences is not None else []
-        return replace(result, programs={sid: method.run(scenarios[sid], max_steps) for sid in kept})
+        runner = fitted() if kept and not isinstance(method, ScorerMethod) else method
+        return replace(result, programs={sid: runner.run(scenarios[sid], max_steps) for sid in kept})
 
     return outcome_cache.read_or_run(
         "crossval", make, method, data, {"fold": fold, "max_steps": max_steps},
-        lambda: _tested(method, fold, contexts, meta, scenarios, test_scenarios, test_index, max_steps, demos,
-                        keep_programs), _encoded, decoded)
+        lambda: _tested(method if isinstance(method, ScorerMethod) else fitted(), fold, contexts, meta, scenarios,
+                        test_scenarios, test_index, max_steps, demos, keep_programs), _encoded, decoded)
 
 
 def _tested(method, fold, contexts, meta, scenarios, test_scenarios, test_index, max_steps, demos,
