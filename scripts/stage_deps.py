@@ -1,5 +1,5 @@
-"""Write the code dependencies of every stage in dvc.yaml and veil/dvc.yaml (exactly the project files it loads) and
-the methods' labels.
+"""Write the code dependencies of every stage of the pipeline (dvc.yaml and its parts, pipelines/*/dvc.yaml) and of
+veil/dvc.yaml (exactly the project files it loads), and the methods' labels.
 
 A stage's `deps` list the data it reads (written by hand, with the command
 that reads it) and the project code it runs. The code part is generated here:
@@ -27,7 +27,7 @@ spec: the stages that only write tables read labels there instead of
 importing every method's module, so a change to one method's code does not
 re-run them (a stage that loads `taskseq/methods/spec.py` lists the file).
 
-    python scripts/stage_deps.py           # rewrite the code deps of both files and the labels
+    python scripts/stage_deps.py           # rewrite the code deps of every dvc.yaml and the labels
     python scripts/stage_deps.py --check   # exit 1 and name every file whose code deps differ
 
 Run it after adding a stage or a method, changing a method's label, what a stage imports or which experiments a
@@ -48,7 +48,6 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-DVC_YAML = ROOT / "dvc.yaml"
 VEIL_YAML = ROOT / "veil" / "dvc.yaml"
 SELECTION = ROOT / "reports" / "selection.json"  # the select stage's file: which method ships
 LABELS = "taskseq/methods/labels.json"  # every method's label (`taskseq.methods.spec.LABELS_FILE`), written here too
@@ -246,11 +245,35 @@ def rewrite_items(text: str, items: dict[str, dict[str, str]]) -> str:
     return "".join(out)
 
 
+def stages_in(text: str) -> list[str]:
+    """The stages a dvc.yaml's text defines, in its order."""
+    return [stage for stage in dict.fromkeys(_stages(text.splitlines())) if stage]
+
+
 def _dvc_yaml(text: str) -> str:
+    """A pipeline file's text with the code deps (and per-method items) of the stages it defines."""
     from taskseq.stages import STAGES
 
-    text = rewrite(text, {stage: code_deps(stage) for stage in STAGES})
-    return rewrite_items(text, {stage: method_modules(stage) for stage, s in STAGES.items() if s.per_method})
+    here = [stage for stage in stages_in(text) if stage in STAGES]
+    text = rewrite(text, {stage: code_deps(stage) for stage in here})
+    return rewrite_items(text, {stage: method_modules(stage) for stage in here if STAGES[stage].per_method})
+
+
+def misplaced(texts: dict[Path, str]) -> str | None:
+    """Why the pipeline's files (path: text) do not define every stage of `taskseq.stages` exactly once, if so."""
+    from taskseq.stages import STAGES
+
+    where: dict[str, list[str]] = {}
+    for path, text in texts.items():
+        for stage in stages_in(text):
+            where.setdefault(stage, []).append(str(path.relative_to(ROOT)))
+    problems = [f"stage {s} is in no dvc.yaml of the pipeline: add it to dvc.yaml or a part (pipelines/NAME/"
+                f"dvc.yaml)" for s in STAGES if s not in where]
+    problems += [f"stage {s} is in {' and '.join(files)}: keep it in one" for s, files in where.items()
+                 if len(files) > 1]
+    problems += [f"{files[0]}: stage {s} has no module taskseq/stages/{s}.py" for s, files in where.items()
+                 if s not in STAGES]
+    return "; ".join(problems) or None
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -258,8 +281,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--check", action="store_true", help="change nothing; exit 1 if a file differs")
     args = parser.parse_args(argv)
     sys.path.insert(0, str(ROOT))
+    from taskseq.runtime.dvc_deps import pipeline_files
 
-    files = {DVC_YAML: _dvc_yaml,
+    pipeline = pipeline_files(ROOT)
+    problem = misplaced({path: path.read_text() for path in pipeline})
+    if problem:
+        print(f"error: {problem}", file=sys.stderr)
+        return 2
+    files = {**dict.fromkeys(pipeline, _dvc_yaml),
              VEIL_YAML: lambda text: rewrite(text, {stage: veil_code_deps(stage) for stage in VEIL_STAGES}),
              ROOT / LABELS: lambda text: labels_json()}
     differ = []

@@ -83,6 +83,18 @@ def test_a_stage_of_another_dvc_file_reads_its_deps_from_its_own_folder(repo, mo
         dvc_deps.undeclared(repo / "taskseq/veil/lookahead.py")
 
 
+def test_a_stage_of_a_part_run_in_the_root_reads_its_deps_from_the_root(repo, monkeypatch):
+    part = repo / dvc_deps.PARTS / "table1"
+    part.mkdir(parents=True)
+    (part / "dvc.yaml").write_text(DVC_YAML.replace("    do:\n", "    do:\n      wdir: ../..\n", 1))
+    monkeypatch.setenv(dvc_deps.DVC_STAGE, "pipelines/table1/dvc.yaml:noise@3")
+    assert dvc_deps.undeclared(repo / "taskseq/methods/noise_trained.py") is None
+    assert dvc_deps.undeclared(repo / "data/worlds/3/features/steps.parquet") is None
+    assert "pipelines/table1/dvc.yaml: stage pipelines/table1/dvc.yaml:noise@3 does not list " \
+           "taskseq/methods/choice.py" in dvc_deps.undeclared(repo / "taskseq/methods/choice.py")
+    assert dvc_deps.pipeline_files(repo) == [repo / "dvc.yaml", part / "dvc.yaml"]
+
+
 @pytest.mark.parametrize("stage", [None, "nosuch", "nosuch/dvc.yaml:train"])
 def test_outside_dvc_or_an_unknown_stage_checks_nothing(repo, monkeypatch, stage):
     if stage is None:

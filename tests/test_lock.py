@@ -61,6 +61,8 @@ def test_dvc_reads_the_pipelines_files_with_the_c_parser_and_the_same_values():
 
     assert main.CParser is not None, "ruamel.yaml.clib is not installed (pyproject.toml lists it)"
     root = LOCK.parent
-    for name in ("dvc.yaml", "dvc.lock", "params.yaml", "veil/dvc.yaml", "veil/params.yaml"):
+    parts = [str(p.relative_to(root)) for p in sorted(root.glob("pipelines/*/dvc.*"))]
+    assert parts  # the pipeline's parts, each with its dvc.yaml and dvc.lock
+    for name in ("dvc.yaml", "dvc.lock", "params.yaml", "veil/dvc.yaml", "veil/params.yaml", *parts):
         text = (root / name).read_text()
         assert YAML(typ="safe").load(text) == YAML(typ="safe", pure=True).load(text), name

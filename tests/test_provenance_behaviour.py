@@ -55,6 +55,12 @@ def test_the_lock_hash_follows_the_lock_file(repo):
     (repo / "dvc.lock").write_text("schema: '2.0'\nstages: {a: {}}\n")
     after = provenance("ingest", [])["dvc.lock.md5"]
     assert after != before and after == hashlib.md5((repo / "dvc.lock").read_bytes()).hexdigest()
+    part = repo / "pipelines" / "table1" / "dvc.lock"  # a part's lock counts too
+    part.parent.mkdir(parents=True)
+    part.write_text("schema: '2.0'\nstages: {}\n")
+    with_part = provenance("ingest", [])["dvc.lock.md5"]
+    part.write_text("schema: '2.0'\nstages: {b: {}}\n")
+    assert len({after, with_part, provenance("ingest", [])["dvc.lock.md5"]}) == 3
     (repo / "dvc.lock").unlink()
     assert provenance("ingest", [])["dvc.lock.md5"] == "none"
 

@@ -17,12 +17,15 @@ from params_reads import keys_read
 
 from taskseq.methods import Lineup
 from taskseq.methods.spec import added_modules, specs
+from taskseq.runtime.dvc_deps import pipeline_files
 from taskseq.selection import read_selection
 from taskseq.settings import SECTIONS, Methods, Params, parse_section
 from taskseq.stages import STAGES
 
 ROOT = Path(__file__).resolve().parents[1]
-DVC = yaml.safe_load((ROOT / "dvc.yaml").read_text())["stages"]
+PIPELINE = pipeline_files(ROOT)  # dvc.yaml and its parts, pipelines/*/dvc.yaml
+PIPELINE_FILES = {str(path.relative_to(ROOT)) for path in PIPELINE}
+DVC = {name: stage for path in PIPELINE for name, stage in yaml.safe_load(path.read_text())["stages"].items()}
 _spec = importlib.util.spec_from_file_location("stage_deps", ROOT / "scripts" / "stage_deps.py")
 stage_deps = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(stage_deps)
@@ -36,6 +39,34 @@ def dvc_stage(name: str) -> dict:
 
 def test_every_stage_of_dvc_yaml_has_its_module():
     assert sorted(DVC) == sorted(STAGES)
+    assert stage_deps.misplaced({path: path.read_text() for path in PIPELINE}) is None
+
+
+def test_a_stage_in_no_pipeline_file_or_in_two_is_named():
+    texts = {path: path.read_text() for path in PIPELINE}
+    root, part = PIPELINE[0], PIPELINE[1]
+    moved = next(iter(yaml.safe_load(texts[part])["stages"]))
+    problem = stage_deps.misplaced({root: texts[root]})
+    assert f"stage {moved} is in no dvc.yaml of the pipeline: add it to dvc.yaml or a part" in problem
+    twice = stage_deps.misplaced({**texts, ROOT / "pipelines" / "copy" / "dvc.yaml": texts[part]})
+    assert f"stage {moved} is in {part.relative_to(ROOT)} and pipelines/copy/dvc.yaml: keep it in one" in twice
+
+
+@pytest.mark.filterwarnings("ignore::DeprecationWarning")  # DVC's own, from its graph of outputs
+def test_every_stage_of_a_part_runs_in_the_root_and_is_upstream_of_the_roots_stages():
+    """`dvc repro` in the root runs the root's stages and what they need: a part's stage downstream of nothing
+    there would never run."""
+    import networkx as nx
+    from dvc.repo import Repo
+
+    graph = Repo(str(ROOT)).index.graph
+    roots = [s for s in graph if s.dvcfile.relpath == "dvc.yaml"]
+    needed = {s for r in roots for s in nx.descendants(graph, r)} | set(roots)
+    for path in PIPELINE[1:]:
+        for name, stage in yaml.safe_load(path.read_text())["stages"].items():
+            assert stage.get("do", stage).get("wdir") == "../..", f"{path}: stage {name} runs in its own folder"
+        part = {s for s in graph if s.dvcfile.relpath == str(path.relative_to(ROOT))}
+        assert part and part <= needed, f"{path}: {sorted(s.addressing for s in part - needed)} never run"
 
 
 @pytest.mark.parametrize("stage", STAGES)
@@ -175,18 +206,24 @@ def test_what_a_veil_stage_loads_imports_project_code_when_loaded_so_its_deps_se
                     assert _project_imports_in_functions(file) == [], stage
 
 
-def _stages_a_change_can_rerun(repo, graph, path: str, dvcfile: str = "dvc.yaml") -> set[str]:
-    """The stages of dvc.yaml that `dvc repro` may re-run after a change to the file `path`, as DVC's own graph
-    has them: those that list it among their deps, and every stage downstream of those (re-run only when an
-    output it reads changed)."""
+def _stages_a_change_can_rerun(repo, graph, path: str, dvcfiles: set[str] = PIPELINE_FILES) -> set[str]:
+    """The stages of the pipeline (or of `dvcfiles`) that `dvc repro` may re-run after a change to the file `path`,
+    as DVC's own graph has them: those that list it among their deps, and every stage downstream of those (re-run
+    only when an output it reads changed)."""
     import networkx as nx
 
     def covers(dep: str) -> bool:
         return path == dep or path.startswith(dep.rstrip("/") + "/")
 
-    direct = [s for s in graph if s.dvcfile.relpath == dvcfile
+    direct = [s for s in graph if s.dvcfile.relpath in dvcfiles
               and any(covers(os.path.relpath(d.fs_path, repo.root_dir)) for d in s.deps)]
-    return {s.addressing for s in direct} | {a.addressing for s in direct for a in nx.ancestors(graph, s)}
+    return {_named(s) for s in direct} | {_named(a) for s in direct for a in nx.ancestors(graph, s)}
+
+
+def _named(stage) -> str:
+    """A stage of the pipeline by its name (`crossval@0`, whichever of its files holds it), another by DVC's
+    address (`veil/dvc.yaml:train`)."""
+    return stage.name if stage.dvcfile.relpath in PIPELINE_FILES else stage.addressing
 
 
 @pytest.mark.filterwarnings("ignore::DeprecationWarning")  # DVC's own, from its graph of outputs
@@ -203,7 +240,7 @@ def test_a_change_to_one_stages_code_reaches_only_that_stage_and_what_reads_its_
     assert reruns("taskseq/serve/app.py") == {"teach"}  # the web app's record writer, which teach writes through
     assert reruns("taskseq/stages/scenes.py") == {"scenes", "report"}
     assert reruns("taskseq/bench/speed.py") == set()  # a tool's code
-    veil = "veil/dvc.yaml"
+    veil = {"veil/dvc.yaml"}
     for path in ("taskseq/stages/teach.py", "taskseq/evaluate/methods.py", "taskseq/experiments/crossval.py",
                  "taskseq/methods/choice.py", "taskseq/serve/app.py"):
         assert _stages_a_change_can_rerun(repo, graph, path, veil) == set(), path  # none of VEIL's code
@@ -222,7 +259,7 @@ def test_a_change_to_one_methods_module_reruns_only_the_stages_that_run_it():
     repo = Repo(str(ROOT))
 
     def listing(path: str) -> set[str]:  # the stages whose deps DVC checks for this file
-        return {s.addressing for s in repo.index.graph if s.dvcfile.relpath == "dvc.yaml"
+        return {s.name for s in repo.index.graph if s.dvcfile.relpath in PIPELINE_FILES
                 and any(path == d or path.startswith(d + "/")
                         for d in (os.path.relpath(dep.fs_path, repo.root_dir) for dep in s.deps))}
 
@@ -258,7 +295,7 @@ def test_an_edit_of_one_methods_entry_of_params_re_does_that_methods_choice_of_c
         return key == entry or key.startswith(entry + ".")
 
     repo = Repo(str(ROOT))
-    reading = {s.addressing for s in repo.index.graph if s.addressing.startswith("choose_C@")
+    reading = {s.name for s in repo.index.graph if s.name.startswith("choose_C@")
                and any(covers("methods.noise_trained.noise_rate", p) for d in s.deps
                        if isinstance(d, ParamsDependency) for p in d.params)}
     assert reading == {"choose_C@noise_trained"}
@@ -340,8 +377,11 @@ def test_stage_commands_carry_paths_and_the_world_seed_only(stage):
 
 
 def test_every_stage_that_fits_or_runs_programs_keeps_them_in_the_one_cache_folder():
-    vars_ = {k: v for entry in yaml.safe_load((ROOT / "dvc.yaml").read_text())["vars"] for k, v in entry.items()}
-    assert vars_["cache"] == ".cache" and "/.cache/" in (ROOT / ".gitignore").read_text().split()
+    assert yaml.safe_load((ROOT / "pipelines" / "vars.yaml").read_text()) == {"cache": ".cache"}
+    assert "/.cache/" in (ROOT / ".gitignore").read_text().split()
+    for path in PIPELINE:  # every file reads the one setting
+        vars_ = yaml.safe_load(path.read_text())["vars"]
+        assert ("pipelines/vars.yaml" if path == PIPELINE[0] else "../vars.yaml") in vars_, path
     for name, stage in STAGES.items():
         passed = re.findall(r"--cache (\S+)", dvc_stage(name)["cmd"])
         assert passed == (["${cache}"] if stage.cached else []), name

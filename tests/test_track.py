@@ -1,6 +1,5 @@
 """Stages record into MLflow: runs, parameters, metrics, children and artifacts read back."""
 
-import hashlib
 import json
 import os
 import subprocess
@@ -13,7 +12,7 @@ from params_files import selection_at
 from taskseq.cli import main
 from taskseq.demonstrations.ingest import write_tables
 from taskseq.features.dataset import write_features
-from taskseq.track.mlflow_runs import EXPERIMENT
+from taskseq.track.mlflow_runs import EXPERIMENT, locks_md5
 
 
 @pytest.fixture
@@ -90,8 +89,8 @@ def test_child_runs_carry_what_tells_them_apart_and_their_programs(store, benchm
     status = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True, text=True)
     dirty = "unknown" if status.returncode else str(bool(status.stdout.strip())).lower()
     assert parent.data.tags["git.dirty"] == dirty
-    lock = Path("dvc.lock")  # the run's tags describe the folder it ran in (tests/test_provenance_behaviour.py)
-    assert parent.data.tags["dvc.lock.md5"] == (hashlib.md5(lock.read_bytes()).hexdigest() if lock.exists() else "none")
+    # the run's tags describe the folder it ran in (tests/test_provenance_behaviour.py)
+    assert parent.data.tags["dvc.lock.md5"] == locks_md5()
     exp = store.get_experiment_by_name(EXPERIMENT)
     assert exp.tags["mlflow.experimentKind"] == "custom_model_development"  # the UI opens on the runs table
     children = {r.info.run_name: r for r in runs(store) if r.data.tags.get("mlflow.parentRunId") == parent.info.run_id}

@@ -20,6 +20,13 @@ from pathlib import Path
 import yaml
 
 DVC_ROOT, DVC_STAGE = "DVC_ROOT", "DVC_STAGE"
+PARTS = "pipelines"  # the folder of the pipeline's parts, one dvc.yaml (and dvc.lock) each, beside the root's
+
+
+def pipeline_files(root: Path | str) -> list[Path]:
+    """The pipeline's dvc.yaml files: the root's (what `dvc repro` runs), then each part's, by name."""
+    root = Path(root)
+    return [root / "dvc.yaml", *sorted((root / PARTS).glob("*/dvc.yaml"))]
 
 
 def undeclared(path: Path | str) -> str | None:
@@ -55,9 +62,10 @@ def _deps(root: str, stage: str) -> tuple[Path, tuple[Path, ...]] | None:
         items = entry.get("foreach")
         item = items.get(key) if isinstance(items, dict) else key
         deps = [_with_item(d, key, item) for d in body.get("deps") or [] if isinstance(d, str)]
+        wdir = dvcfile.parent / body.get("wdir", ".")  # a part's stages run in the root: their paths are its
     except (OSError, yaml.YAMLError, KeyError, TypeError, AttributeError):
         return None
-    return dvcfile, tuple((dvcfile.parent / d).resolve() for d in deps)
+    return dvcfile, tuple((wdir / d).resolve() for d in deps)
 
 
 def _with_item(dep: str, key: str, item: object) -> str:

@@ -9,7 +9,7 @@ runs at a team's server instead.
 
 DVC's lock file records what produced the files; a run records one execution:
 its parameters, metrics, artifacts and tags (git commit and whether the tree
-had uncommitted changes, the `dvc.lock` it started from, DVC stage, input
+had uncommitted changes, the lock files it started from, DVC stage, input
 hash). A stage that fails leaves its run FAILED; one stopped by Ctrl-C or
 SIGTERM leaves it KILLED.
 
@@ -35,6 +35,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from ..runtime.dvc_deps import PARTS
 from ..runtime.stopping import held
 from .writer import EXPERIMENT, Connection
 
@@ -66,10 +67,21 @@ def git_commit() -> str:
 def provenance(stage: str, inputs: list[Path]) -> dict[str, str]:
     """Tags that say what a run started from: commit, uncommitted changes, lock file, stage, inputs."""
     status = _git("status", "--porcelain", "--untracked-files=no")
-    lock = Path("dvc.lock")
     return {"git.commit": git_commit(), "git.dirty": "unknown" if status is None else str(bool(status.strip())).lower(),
-            "dvc.lock.md5": hashlib.md5(lock.read_bytes()).hexdigest() if lock.exists() else "none",
+            "dvc.lock.md5": locks_md5(),
             "dvc.stage": os.environ.get("DVC_STAGE") or stage, "data.hash": hash_inputs(inputs)}
+
+
+def locks_md5(root: Path = Path(".")) -> str:
+    """md5 of the pipeline's lock files under `root`: dvc.lock's bytes, then each part's (pipelines/NAME/dvc.lock)
+    path and bytes, so with no parts it is dvc.lock's own md5; "none" without dvc.lock."""
+    lock = root / "dvc.lock"
+    if not lock.exists():
+        return "none"
+    h = hashlib.md5(lock.read_bytes())
+    for part in sorted((root / PARTS).glob("*/dvc.lock")):
+        h.update(b"\0" + part.relative_to(root).as_posix().encode() + b"\0" + part.read_bytes())
+    return h.hexdigest()
 
 
 def hash_inputs(paths: list[Path]) -> str:
