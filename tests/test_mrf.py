@@ -41,6 +41,23 @@ def test_vectorised_scores_equal_the_per_candidate_reference(some_steps, feature
 
 
 @pytest.mark.parametrize("features", ["full", "relations"])
+def test_weights_arranged_once_score_as_a_fresh_model_and_follow_a_change_in_place(some_steps, features):
+    """A model keeps the weights it arranged last (a planner scores step after step with one model's): its
+    scores are a fresh model's bits, for the same weights, for weights changed in place and for new ones."""
+    model = StepMRF(features)
+    w = np.random.default_rng(4).normal(size=model.size_joint_feature)
+    for x in some_steps[:6]:
+        assert np.array_equal(model.scores(x, w)[1], StepMRF(features).scores(x, w)[1])
+    x = some_steps[0]
+    w *= 2.0  # the same array, other values
+    assert np.array_equal(model.scores(x, w)[1], StepMRF(features).scores(x, w.copy())[1])
+    other = w[::-1].copy()
+    assert np.array_equal(model.scores(x, other)[1], StepMRF(features).scores(x, other)[1])
+    model.release()  # a fitted scorer handed back by a worker carries neither the batch nor the weights
+    assert model._arranged is None
+
+
+@pytest.mark.parametrize("features", ["full", "relations"])
 def test_batched_inference_and_joint_features_equal_the_per_step_ones(some_steps, features):
     model = StepMRF(features)
     w = np.random.default_rng(3).normal(size=model.size_joint_feature)
