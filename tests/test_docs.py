@@ -81,7 +81,8 @@ def test_every_module_has_its_api_reference():
 def test_the_readme_is_a_short_front_page():
     text = README.read_text()
     assert len(text.splitlines()) < 200
-    install = "pip install -c requirements.lock uv && uv pip install -c requirements.lock -e '.[dev]'"
+    install = ("pip install -c requirements.lock uv && "
+               "uv pip install --compile-bytecode -c requirements.lock -e '.[dev]'")
     for command in (f"{install} && dvc repro", f"{install} && python -m pytest -q"):
         assert command in text
     for target in re.findall(r"\]\(([^)#:]+)(?:#[^)]*)?\)", text):  # relative links: files of the repository

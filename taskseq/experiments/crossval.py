@@ -82,20 +82,25 @@ def _run_fold(make, fold, contexts, meta, scenarios, test_scenarios, max_steps, 
     # a scorer's weights key its outcomes (the store may hold a model trained otherwise), so it is fitted (read
     # from the store) first; the baselines' fits (scikit-learn's SVMs) are decided by what the key already holds,
     # and are done only when their outcomes are not read back
-    if isinstance(method, ScorerMethod):
+    scorer = isinstance(method, ScorerMethod)
+    if scorer:
         method = fitted()
+
+    def ready() -> Method:  # the method fitted, when it is about to run
+        return method if scorer else fitted()
+
     data = (contexts, meta, scenarios, test_scenarios, demos)
 
     def decoded(entry: dict) -> FoldResult:  # the programs kept for recordings run again: an entry holds none
         result = _decoded(entry)
         kept = sorted(keep_programs & test_scenarios) if result.sequences is not None else []
-        runner = fitted() if kept and not isinstance(method, ScorerMethod) else method
+        runner = ready() if kept else method
         return replace(result, programs={sid: runner.run(scenarios[sid], max_steps) for sid in kept})
 
     return outcome_cache.read_or_run(
         "crossval", make, method, data, {"fold": fold, "max_steps": max_steps},
-        lambda: _tested(method if isinstance(method, ScorerMethod) else fitted(), fold, contexts, meta, scenarios,
-                        test_scenarios, test_index, max_steps, demos, keep_programs), _encoded, decoded)
+        lambda: _tested(ready(), fold, contexts, meta, scenarios, test_scenarios, test_index, max_steps, demos,
+                        keep_programs), _encoded, decoded)
 
 
 def _tested(method, fold, contexts, meta, scenarios, test_scenarios, test_index, max_steps, demos,

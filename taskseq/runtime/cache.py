@@ -96,12 +96,18 @@ def disabled() -> AbstractContextManager[None]:
     return folder(None)
 
 
+def in_force() -> bool:
+    """Whether a cache is in force: `TASKSEQ_CACHE` set and not empty (whether it is a folder is `subfolder`'s
+    business)."""
+    return bool(os.environ.get(CACHE_ENV))
+
+
 def subfolder(kind: str) -> Path | None:
     """The folder of one kind of entry (`fits`, `outcomes`) under the cache `TASKSEQ_CACHE` names, or None when
     it is unset or empty; `ValueError` when it names a file."""
-    root = os.environ.get(CACHE_ENV, "")
-    if not root:
+    if not in_force():
         return None
+    root = os.environ[CACHE_ENV]
     _check(Path(root), f"{CACHE_ENV}={root}")
     return Path(root) / kind
 

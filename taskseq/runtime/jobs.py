@@ -30,7 +30,7 @@ import numpy as np
 from joblib import Parallel, delayed, parallel_config
 
 from . import stopping
-from .cache import CACHE_ENV, NotStored, stored_only
+from .cache import NotStored, in_force, stored_only
 
 SCHEDULER_ENV = "TASKSEQ_DASK_SCHEDULER"
 
@@ -118,7 +118,7 @@ def run_jobs(jobs: Iterable[Job], n_jobs: int = 1, verbose: int = 0,
         raise ValueError(f"run_jobs: {len(cost)} costs for {len(jobs)} jobs")
     order = list(range(len(jobs))) if cost is None else sorted(range(len(jobs)), key=lambda i: -cost[i])
     out: list[Any] = [None] * len(jobs)
-    if stored_first and os.environ.get(CACHE_ENV):
+    if stored_first and in_force():
         answered = _read_back(jobs, out)
         order = [i for i in order if i not in answered]
     results = _dispatch([delayed(_call)(*jobs[i]) for i in order], n_jobs, verbose) if order else []
