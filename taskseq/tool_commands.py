@@ -262,7 +262,8 @@ TOOLS: dict[str, Tool] = {
                   _bench),
     "scaling": Tool("draw procedural worlds of several sizes and time every per-world stage, training to the gap, "
                     "its memory and per-step inference", _scaling_options, _scaling),
-    "cache": Tool("what the cache of fits, programs' outcomes and steps (drawn rooms', DAgger's rollouts) holds "
+    "cache": Tool("what the cache of fits, programs' outcomes, steps (drawn rooms', DAgger's rollouts) and plans "
+                  "holds "
                   "(docs/pipeline.md), "
                   "and deleting the entries no run has used for a while", _cache_options, _cache),
     "veil": Tool("VEIL-500 (Tell Me Dave): import people's sequences from a release folder (docs/veil.md)",

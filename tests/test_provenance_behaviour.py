@@ -58,6 +58,8 @@ def test_the_lock_hash_follows_the_lock_file(repo):
     part = repo / "pipelines" / "table1" / "dvc.lock"  # a part's lock counts too
     part.parent.mkdir(parents=True)
     part.write_text("schema: '2.0'\nstages: {}\n")
+    assert provenance("ingest", [])["dvc.lock.md5"] == after  # a lock with no part's dvc.yaml beside it is no part
+    (part.parent / "dvc.yaml").write_text("stages: {}\n")
     with_part = provenance("ingest", [])["dvc.lock.md5"]
     part.write_text("schema: '2.0'\nstages: {b: {}}\n")
     assert len({after, with_part, provenance("ingest", [])["dvc.lock.md5"]}) == 3

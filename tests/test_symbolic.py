@@ -220,3 +220,58 @@ def test_a_kept_plan_is_the_one_a_fresh_solve_finds_and_a_copy(scenarios, monkey
     assert not solves and again == first and again.plan is not first.plan
     again.plan.clear()  # a caller's changes never reach what is kept
     assert solve(problem).plan == first.plan != []
+
+
+def _fresh(monkeypatch):
+    """No plan kept in this process: every solve goes to the cache or the solver."""
+    from taskseq.plan.symbolic import sat
+
+    monkeypatch.setattr(sat, "_SOLVED", type(sat._SOLVED)())
+    solves = []
+    real = sat._solve
+    monkeypatch.setattr(sat, "_solve", lambda *a: solves.append(a) or real(*a))
+    return solves
+
+
+def test_a_stored_plan_is_read_back_instead_of_solved_and_is_the_same(scenarios, monkeypatch, tmp_path):
+    from taskseq.runtime.cache import folder, stored_only
+
+    sc = next(iter(scenarios.values()))
+    problem = build_problem("p", sc.initial, sc.task, demonstrated_roles(sc.task, sc.demonstrations[0]))
+    none_within = replace(problem, goal={("in", problem.objects[0], problem.objects[0])})  # a goal no action adds
+    entries = tmp_path / "cache" / "plans"
+    with folder(tmp_path / "cache"):
+        solves = _fresh(monkeypatch)
+        first, nothing = solve(problem), solve(none_within, horizon=2)
+        assert len(solves) == 2 and first.plan and nothing.plan is None
+        assert len(list(entries.glob("??/*.json"))) == 2
+        solves = _fresh(monkeypatch)
+        again, still_nothing = solve(problem), solve(none_within, horizon=2)
+        assert not solves and again == first and still_nothing == nothing  # read back, the same ground actions
+        solves = _fresh(monkeypatch)
+        with stored_only():  # a plan is never work to send elsewhere: a miss is solved here, not NotStored
+            other = solve(replace(problem, init=problem.init | {("stirred", "x", "y")}))
+            assert solve(problem) == first
+        assert len(solves) == 1 and other.plan is not None and len(list(entries.glob("??/*.json"))) == 3
+    solves = _fresh(monkeypatch)
+    assert solve(problem) == first  # no cache in force: solved, nothing stored
+    assert len(solves) == 1 and len(list(entries.glob("??/*.json"))) == 3
+
+
+@pytest.mark.parametrize("damage", ["{not json", '{"format": "other", "plan": null, "n_actions": 0}',
+                                    '{"format": "taskseq.plans/1", "plan": [["fly", ["obj1"]]], "n_actions": 1}'])
+def test_an_unreadable_stored_plan_is_solved_again_and_replaced(scenarios, monkeypatch, tmp_path, damage):
+    from taskseq.runtime.cache import folder
+
+    sc = next(iter(scenarios.values()))
+    problem = build_problem("p", sc.initial, sc.task, demonstrated_roles(sc.task, sc.demonstrations[0]))
+    with folder(tmp_path / "cache"):
+        _fresh(monkeypatch)
+        first = solve(problem)
+        entry, = (tmp_path / "cache" / "plans").glob("??/*.json")
+        entry.write_text(damage)
+        solves = _fresh(monkeypatch)
+        with pytest.warns(UserWarning, match="solved again"):
+            again = solve(problem)
+        assert len(solves) == 1 and again == first
+        assert '"taskseq.plans/1"' in entry.read_text() and "fly" not in entry.read_text()

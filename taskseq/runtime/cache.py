@@ -1,10 +1,12 @@
 """Where results kept between runs live: one folder, named by `TASKSEQ_CACHE`, with a subfolder per kind.
 
-Three kinds of work are pure functions of what they read and the code that
-does them, and cost most of a re-run: fits (`taskseq.learn.fit_cache`,
-in `fits/`), the outcomes of a method's programs on one fold
-(`taskseq.experiments.outcome_cache`, in `outcomes/`) and the training steps
-of rooms drawn for a method (`taskseq.features.drawn_rooms`, in `steps/`).
+Four kinds of work are pure functions of what they read and the code that
+does them, and cost most of a re-run or are asked for again and again: fits
+(`taskseq.learn.fit_cache`, in `fits/`), the outcomes of a method's programs
+on one fold (`taskseq.experiments.outcome_cache`, in `outcomes/`), the
+training steps of rooms drawn for a method (`taskseq.features.drawn_rooms`,
+in `steps/`) and the SAT planner's shortest plans
+(`taskseq.plan.symbolic.stored_plans`, in `plans/`).
 Each keys an entry by a hash of its inputs and of the source files it runs
 (`runtime.sources`).
 
@@ -39,7 +41,7 @@ E = TypeVar("E", bound="Entries")
 CACHE_ENV = "TASKSEQ_CACHE"
 # the kinds of entry, each in a subfolder of the cache named as it, and the ending of their names (a step set is a
 # folder of the features tables `taskseq features` writes; the others are files)
-KINDS = {"fits": ".npz", "outcomes": ".json", "steps": ".steps"}
+KINDS = {"fits": ".npz", "outcomes": ".json", "steps": ".steps", "plans": ".json"}
 _KEY = re.compile(r"[0-9a-f]{64}")  # a key: a SHA-256 in hex
 LEFTOVER_AGE = 3600.0  # seconds after which a writer's temporary file is taken as left by an interrupted run
 
@@ -128,6 +130,8 @@ class Entries:
     two characters (a few hundred files a folder at most)."""
 
     kind = ""
+    # whether a miss within `stored_only` raises `NotStored` (work to send elsewhere) or is done here as usual
+    follows_stored_only = True
 
     def __init__(self, directory: Path | str) -> None:
         self.directory = Path(directory)
@@ -148,16 +152,17 @@ class Entries:
     def read(self, key: str, parse: Callable[[Path], T], then: str) -> T | None:
         """`parse` of the entry under `key`; None if there is none, or (with a warning that it is `then`: done
         again) if it cannot be read, whatever the reason: a half-copied folder, another format, a file edited.
-        Within `stored_only`, either case raises `NotStored` instead."""
+        Within `stored_only`, either case raises `NotStored` instead (for a kind that `follows_stored_only`)."""
         path = self.path(key)
+        send_elsewhere = _stored_only and self.follows_stored_only
         if not path.exists():
-            if _stored_only:
+            if send_elsewhere:
                 raise NotStored(key)
             return None
         try:
             parsed = parse(path)
         except (OSError, ValueError, KeyError, TypeError, AttributeError, zipfile.BadZipFile, EOFError) as err:
-            if _stored_only:  # the process that redoes the work warns, once
+            if send_elsewhere:  # the process that redoes the work warns, once
                 raise NotStored(key) from err
             warnings.warn(f"{path}: an unreadable entry of the cache is {then} ({err!r})", stacklevel=3)
             return None

@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from .objects import POURERS, VESSELS
-from .primitives import Action, execute, free_spot
+from .primitives import Action, execute, has_room
 from .state import WorldState
 from .tasks import Task
 
@@ -115,7 +115,7 @@ class _Recorder:
         self.do("release", load)
 
     def _has_room(self, obj: str, dest: str) -> bool:
-        return free_spot(self.state, obj, dest) is not None
+        return has_room(self.state, obj, dest)
 
     def nearest_table(self, obj: str) -> str:
         """The table with room for `obj` nearest the robot."""

@@ -8,6 +8,7 @@ a corrupt log shows exactly why the step could not run.
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -128,34 +129,54 @@ def free_spot(state: WorldState, obj: str, target: str) -> tuple[tuple[float, fl
         if not _fits_inside(state, obj, target):
             return None
         return (round(tx, 6), round(ty, 6), round(tz + 0.005, 6)), INSIDE
+    for xs, ys, z, free in _free_levels(state, obj, target):
+        if free.any():
+            # nearest the robot on the lowest level with room; argmin keeps lattice order on ties
+            dist = np.round((xs[:, None] - state.robot[0]) ** 2 + (ys[None, :] - state.robot[1]) ** 2, 9)
+            best = int(np.argmin(np.where(free, dist, np.inf)))
+            i, j = divmod(best, len(ys))
+            return (round(float(xs[i]), 6), round(float(ys[j]), 6), round(z, 6)), ON
+    return None
+
+
+def has_room(state: WorldState, obj: str, target: str) -> bool:
+    """Whether `obj` can come to rest on or in `target`: `free_spot(...) is not None`, without choosing the spot
+    (what the planner's problems ask of every object and surface)."""
+    if receives_inside(state, target):
+        return _fits_inside(state, obj, target)
+    return any(free.any() for *_, free in _free_levels(state, obj, target))
+
+
+def _free_levels(state: WorldState, obj: str, target: str) -> Iterator[tuple[np.ndarray, np.ndarray, float,
+                                                                             np.ndarray]]:
+    """Per level of the surface `target` that `obj` is short enough for, lowest first: the lattice's x and y
+    (`free_spot`), the level's height and which spots (x by y) leave `obj`'s footprint clear of every other load
+    there.
+
+    A spot's test against a load's box is one test on its x and one on its y,
+    so a load blocks the spots of an x range by a y range: those two ranges
+    are found per load and joined, not tested spot by spot (the floor's
+    lattice has some 40,000 spots), with the same arithmetic per coordinate.
+    """
+    tx, ty, tz = state.poses[target]
     spec, ospec = state.specs[target], state.specs[obj]
     hx, hy = (spec.w - ospec.w) / 2, (spec.l - ospec.l) / 2
     if hx < -EPS or hy < -EPS:
-        return None
+        return
     nx, ny = int(max(hx, 0.0) // GRID), int(max(hy, 0.0) // GRID)
-    ii, jj = np.meshgrid(np.arange(-nx, nx + 1), np.arange(-ny, ny + 1), indexing="ij")
-    xs, ys = (tx + ii * GRID).ravel(), (ty + jj * GRID).ravel()
-    dist = np.round((xs - state.robot[0]) ** 2 + (ys - state.robot[1]) ** 2, 9)
+    xs, ys = tx + np.arange(-nx, nx + 1) * GRID, ty + np.arange(-ny, ny + 1) * GRID
+    others = [c for c in state.children(target, ON) if c != obj]
+    boxes = np.array([state.box(c) for c in others]).reshape(-1, 6)
+    heights = np.array([state.poses[c][2] for c in others])
     levels = spec.surface_heights()
     for k, level in enumerate(levels):
         z = tz + level
         if k + 1 < len(levels) and ospec.h > levels[k + 1] - level - 0.02:
             continue  # too tall for this shelf level
-        free = np.ones(xs.shape, dtype=bool)
-        for c in state.children(target, ON):
-            if c != obj and abs(state.poses[c][2] - z) < 1e-3:
-                bx0, by0, _, bx1, by1, _ = state.box(c)
-                free &= ~(
-                    (xs - ospec.w / 2 < bx1 - EPS)
-                    & (bx0 < xs + ospec.w / 2 - EPS)
-                    & (ys - ospec.l / 2 < by1 - EPS)
-                    & (by0 < ys + ospec.l / 2 - EPS)
-                )
-        if free.any():
-            # nearest the robot on the lowest level with room; argmin keeps lattice order on ties
-            best = int(np.argmin(np.where(free, dist, np.inf)))
-            return (round(float(xs[best]), 6), round(float(ys[best]), 6), round(z, 6)), ON
-    return None
+        b = boxes[np.abs(heights - z) < 1e-3]
+        across = (xs - ospec.w / 2 < b[:, 3:4] - EPS) & (b[:, 0:1] < xs + ospec.w / 2 - EPS)
+        along = (ys - ospec.l / 2 < b[:, 4:5] - EPS) & (b[:, 1:2] < ys + ospec.l / 2 - EPS)
+        yield xs, ys, z, ~(across[:, :, None] & along[:, None, :]).any(axis=0)
 
 
 # --- effects ---------------------------------------------------------------

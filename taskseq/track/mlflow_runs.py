@@ -35,7 +35,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from ..runtime.dvc_deps import PARTS
+from ..runtime.dvc_deps import pipeline_files
 from ..runtime.stopping import held
 from .writer import EXPERIMENT, Connection
 
@@ -73,13 +73,14 @@ def provenance(stage: str, inputs: list[Path]) -> dict[str, str]:
 
 
 def locks_md5(root: Path = Path(".")) -> str:
-    """md5 of the pipeline's lock files under `root`: dvc.lock's bytes, then each part's (pipelines/NAME/dvc.lock)
-    path and bytes, so with no parts it is dvc.lock's own md5; "none" without dvc.lock."""
-    lock = root / "dvc.lock"
+    """md5 of the pipeline's lock files under `root`: dvc.lock's bytes, then the path and bytes of the lock beside
+    each part's dvc.yaml (`dvc_deps.pipeline_files`), so with no parts it is dvc.lock's own md5; "none" without
+    dvc.lock."""
+    lock, *parts = (f.with_name("dvc.lock") for f in pipeline_files(root))
     if not lock.exists():
         return "none"
     h = hashlib.md5(lock.read_bytes())
-    for part in sorted((root / PARTS).glob("*/dvc.lock")):
+    for part in (p for p in parts if p.exists()):
         h.update(b"\0" + part.relative_to(root).as_posix().encode() + b"\0" + part.read_bytes())
     return h.hexdigest()
 

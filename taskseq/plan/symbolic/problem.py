@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ...sim.primitives import Action, free_spot, receives_inside
+from ...sim.primitives import Action, has_room, receives_inside
 from ...sim.state import WorldState
 from ...sim.tasks import Task
 
@@ -124,7 +124,7 @@ def build_problem(name: str, state: WorldState, task: Task, goal_objects: dict[s
             continue
         for b in objs:
             surface = specs[b].has("large_surface") or specs[b].has("container")
-            if b != a and surface and free_spot(state, a, b) is not None:
+            if b != a and surface and has_room(state, a, b):
                 statics.add(("room-on", a, b))
             if b != a and specs[b].has("container") and max(specs[a].w, specs[a].l) >= specs[b].h:
                 statics.add(("long-enough", a, b))

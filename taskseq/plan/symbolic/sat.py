@@ -23,6 +23,7 @@ from pysat.card import CardEnc, EncType
 from pysat.solvers import Glucose4, Solver
 
 from .problem import Atom, GroundAction, Problem, ground_actions
+from .stored_plans import PlanCache, plan_key
 
 
 @dataclass
@@ -130,12 +131,22 @@ _SOLVED_MAX = 4096
 
 
 def solve(problem: Problem, horizon: int = 12, solver: str = "g4") -> PlanResult:
+    """The shortest plan of `problem` within `horizon` steps: kept in this process, and with a cache in force
+    read from or stored to it (`stored_plans`)."""
     key = (tuple(problem.objects), frozenset(problem.statics), frozenset(problem.init), frozenset(problem.goal),
            horizon, solver)
     if key in _SOLVED:
         _SOLVED.move_to_end(key)
         return _copy(_SOLVED[key])
-    result = _solve(problem, horizon, solver)
+    stored = PlanCache.active()
+    digest = plan_key(problem, horizon, solver) if stored is not None else ""
+    answer = stored.load(digest, problem) if stored is not None else None
+    if answer is not None:
+        result = PlanResult(answer[0], horizon, answer[1])
+    else:
+        result = _solve(problem, horizon, solver)
+        if stored is not None:
+            stored.save(digest, result.plan, result.n_actions)
     _SOLVED[key] = _copy(result)
     if len(_SOLVED) > _SOLVED_MAX:
         _SOLVED.popitem(last=False)
