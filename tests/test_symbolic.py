@@ -275,3 +275,35 @@ def test_an_unreadable_stored_plan_is_solved_again_and_replaced(scenarios, monke
             again = solve(problem)
         assert len(solves) == 1 and again == first
         assert '"taskseq.plans/1"' in entry.read_text() and "fly" not in entry.read_text()
+
+
+@pytest.mark.parametrize("change", ["statics", "object order", "horizon", "solver", "planner's code"])
+def test_whatever_decides_a_plan_is_in_its_key(scenarios, monkeypatch, change):
+    from taskseq.plan.symbolic import stored_plans
+    from taskseq.plan.symbolic.stored_plans import plan_key
+
+    sc = next(iter(scenarios.values()))
+    problem = build_problem("p", sc.initial, sc.task, demonstrated_roles(sc.task, sc.demonstrations[0]))
+    key = plan_key(problem, 12, "g4")
+    assert plan_key(replace(problem, name="another name"), 12, "g4") == key  # the name decides nothing
+    other = {"statics": lambda: plan_key(replace(problem, statics=problem.statics - {min(problem.statics)}), 12, "g4"),
+             "object order": lambda: plan_key(replace(problem, objects=problem.objects[::-1]), 12, "g4"),
+             "horizon": lambda: plan_key(problem, 11, "g4"),
+             "solver": lambda: plan_key(problem, 12, "m22")}
+    if change == "planner's code":
+        monkeypatch.setattr(stored_plans, "code_fingerprint", lambda module: "other code")
+        assert plan_key(problem, 12, "g4") != key
+    else:
+        assert other[change]() != key
+
+
+def test_a_stored_plan_is_never_served_to_a_shorter_horizon(scenarios, monkeypatch, tmp_path):
+    from taskseq.runtime.cache import folder
+
+    sc = next(iter(scenarios.values()))
+    problem = build_problem("p", sc.initial, sc.task, demonstrated_roles(sc.task, sc.demonstrations[0]))
+    with folder(tmp_path / "cache"):
+        _fresh(monkeypatch)
+        k = len(solve(problem).plan)
+        _fresh(monkeypatch)
+        assert solve(problem, horizon=k - 1).plan is None and len(solve(problem, horizon=k).plan) == k

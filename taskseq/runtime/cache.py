@@ -75,8 +75,9 @@ _stored_only = False  # this process only: set by `stored_only`, never inherited
 
 @contextmanager
 def stored_only() -> Iterator[None]:
-    """Within the block, a lookup of any kind of entry that finds none (or one that cannot be read) raises
-    `NotStored` instead of returning None, so the caller computes nothing and stores nothing.
+    """Within the block, a lookup that finds no entry (or one that cannot be read) raises `NotStored` instead of
+    returning None, so the caller computes nothing and stores nothing; a kind whose misses are cheaper done
+    than sent (`Entries.follows_stored_only` False: the planner's plans) is looked up as usual.
 
     Why: a grid of jobs re-run after a small change mostly reads back what it
     stored (`runtime.jobs.run_jobs(stored_first=True)`); reading an entry
