@@ -50,7 +50,9 @@ def load_environment(path: Path, record: int) -> tuple[list[dict[str, Any]], dic
         item = items[record - 1]
         check_schema(item)
         check_references(item)
-        return item.record["objects"], item.record["steps"][0]["state"]
+        state = item.record["steps"][0]["state"]
+        _check_support(path, item.line, state["objects"])
+        return item.record["objects"], state
     try:
         text = path.read_text()
     except OSError as err:
@@ -82,7 +84,11 @@ def _check_environment(path: Path, env: Any) -> None:
     errors = sorted(_environment_validator().iter_errors(env), key=lambda e: list(e.absolute_path))
     if errors:
         raise LogError(path, 1, field_name(errors[0].absolute_path), errors[0].message)
-    known = {o["id"] for o in env["objects"]}
+    ids = [o["id"] for o in env["objects"]]
+    for k, obj in enumerate(ids):
+        if obj in ids[:k]:
+            raise LogError(path, 1, f"objects[{k}].id", f"object {obj!r} is listed twice")
+    known = set(ids)
     state = env["state"]
     for field in sorted(known - set(state["objects"])):
         raise LogError(path, 1, f"state.objects.{field}", "object listed in 'objects' has no state")
@@ -94,6 +100,19 @@ def _check_environment(path: Path, env: Any) -> None:
     for key in ("held", "held_above"):
         if state[key] is not None and state[key] not in known:
             raise LogError(path, 1, f"state.{key}", f"unknown object {state[key]!r}")
+    _check_support(path, 1, state["objects"])
+
+
+def _check_support(path: Path | str, line: int, objects: dict[str, Any]) -> None:
+    """What rests on what must end at something resting on nothing: a loop would send every query of the world
+    round it for ever (the planner's memory grows until it fails)."""
+    for obj in objects:
+        seen, cur = {obj}, obj
+        while (cur := objects[cur]["support"]) is not None:
+            if cur in seen:
+                raise LogError(path, line, f"state.objects.{obj}.support",
+                               f"the objects it rests on form a loop through {cur}")
+            seen.add(cur)
 
 
 LIQUID_TASKS = ("pour", "pour_to", "stir")  # tasks whose first argument is a liquid
@@ -175,12 +194,34 @@ def plan_task(model_path: Path, env: Path, record: int, task_text: str, max_step
 
 
 def parse_task(task_text: str, state: WorldState) -> Task:
-    """The task a user typed, checked against the environment: its objects exist, a liquid task names a liquid."""
+    """The task a user typed, checked against the environment: its objects exist, a liquid task names a liquid,
+    an object to move or throw away is a movable thing (not a liquid, not a bin to throw away) going somewhere
+    else than itself or what rests on it, and the goal does not hold already. Every task of the benchmark's
+    worlds passes; each refused one would have sent a program to its step cap, or had nothing to do."""
     task = Task.parse(task_text)
     task.check_objects(state)
-    if task.name in LIQUID_TASKS and not state.specs[task.args[0]].has("liquid"):
-        raise ValueError(f"task {task}: {task.args[0]} ({state.specs[task.args[0]].name}) is not a liquid; "
+    specs = state.specs
+
+    def named(obj: str) -> str:
+        return f"{obj} ({specs[obj].name})" if specs[obj].name != obj else obj
+
+    first = task.args[0]
+    if task.name in LIQUID_TASKS and not specs[first].has("liquid"):
+        raise ValueError(f"task {task}: {named(first)} is not a liquid; "
                          f"{task.name} takes the liquid, e.g. the water, not its bottle")
+    if len(task.args) == 2 and task.args[1] == first:
+        raise ValueError(f"task {task}: names {named(first)} twice; the second argument is where it goes")
+    if task.name == "throw_away" and specs[first].category == "bin":
+        raise ValueError(f"task {task}: {named(first)} is a bin itself")
+    if task.name in ("pick_and_place", "throw_away"):
+        if specs[first].has("liquid"):
+            raise ValueError(f"task {task}: {named(first)} is a liquid; {task.name} takes the object that holds it")
+        if not specs[first].has("movable"):
+            raise ValueError(f"task {task}: {named(first)} cannot be moved")
+    if task.name == "pick_and_place" and task.args[1] in state.descendants(first):
+        raise ValueError(f"task {task}: {named(task.args[1])} rests on {named(first)}, so it cannot be put there")
+    if goal_reached(task, state, state):
+        raise ValueError(f"the goal of {task} already holds here; choose another task")
     return task
 
 

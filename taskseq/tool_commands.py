@@ -29,14 +29,14 @@ class Tool:
 
 
 def _replay_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("input", type=Path, help="folder of *.jsonl logs")
+    p.add_argument("input", type=Path, help="folder of *.jsonl logs, or one log file")
 
 
 def _replay(args: argparse.Namespace) -> int:
     from .demonstrations.validate import LogError, check_record, log_files, read_records
 
     n_ok, problems = 0, []  # records that replay exactly, problems found
-    for path in log_files(args.input):
+    for path in [args.input] if args.input.is_file() else log_files(args.input):
         try:
             for item in read_records(path):
                 try:
@@ -48,21 +48,24 @@ def _replay(args: argparse.Namespace) -> int:
             problems.append(str(err))
     for problem in problems:
         print(problem, file=sys.stderr)
-    print(f"{n_ok} demonstrations replay exactly; {len(problems)} with problems")
+    replay = "demonstration replays" if n_ok == 1 else "demonstrations replay"
+    print(f"{n_ok} {replay} exactly; {len(problems)} with problems")
     return 1 if problems else 0
 
 
 def _plan_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--model", type=Path, default=Path("models/mrf.npz"), help="model file (.npz)")
+    p.add_argument("--model", type=Path, default=Path("models/mrf.npz"),
+                   help="model file (.npz; default models/mrf.npz, the planner `dvc repro` ships)")
     p.add_argument("--env", type=Path, required=True,
                    help="environment: a JSON file with 'objects' and 'state', or a .jsonl log; or a VEIL-500 "
                         "environment file (.xml, with a model of `taskseq veil train`; the task is then an objective "
                         "the release names, docs/veil.md)")
-    p.add_argument("--record", type=int, default=1, help="with a .jsonl log: which record (line) to take, from 1")
+    p.add_argument("--record", type=positive, default=1,
+                   help="with a .jsonl log: which record (line) to take, from 1 (default 1: the first)")
     p.add_argument("--task", required=True, help='the task, e.g. "pour(obj27)" or "pick_and_place(obj40,obj04)"')
-    p.add_argument("--max-steps", type=int, default=Crossval.max_steps,
+    p.add_argument("--max-steps", type=positive, default=Crossval.max_steps,
                    help=f"stop after this many primitives (default {Crossval.max_steps})")
-    p.add_argument("--top-k", type=int, default=3, help="candidates shown per step (default 3)")
+    p.add_argument("--top-k", type=positive, default=3, help="candidates shown per step (default 3)")
     p.add_argument("--json", action="store_true", help="print the program as JSON")
 
 
@@ -84,7 +87,8 @@ def _plan(args: argparse.Namespace) -> int:
 
 
 def _bench_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--processed", type=Path, default=Path("data/worlds/0/processed"), help="folder of Parquet tables")
+    p.add_argument("--processed", type=Path, default=Path("data/worlds/0/processed"),
+                   help="folder of Parquet tables (default data/worlds/0/processed)")
     p.add_argument("--params", type=Path, default=None,
                    help="settings file whose `train` section sets the learner (default: params.yaml, else defaults)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
@@ -92,7 +96,7 @@ def _bench_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--selection", type=Path, default=None,
                    help="take the full model's C from this file written by `taskseq select` (default: no file: "
                         "C = 3, taskseq.selection.UNTUNED_C)")
-    p.add_argument("--repeats", type=int, default=50, help="timed repetitions per environment size")
+    p.add_argument("--repeats", type=positive, default=50, help="timed repetitions per environment size (default 50)")
     p.add_argument("--output", type=Path, required=True, help="results (JSON)")
 
 
@@ -167,12 +171,20 @@ def _scaling(args: argparse.Namespace) -> int:
 
 def _serve_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1: this machine only)")
-    p.add_argument("--port", type=int, default=8765, help="port (default 8765; 0 picks a free one)")
+    p.add_argument("--port", type=_port, default=8765, help="port (default 8765; 0 picks a free one)")
     p.add_argument("--data", type=Path, default=Path("data"),
                    help="data folder: records are appended to DATA/people/<environment>.jsonl, environment files "
                         "are offered from DATA/environments/ (default: data)")
-    p.add_argument("--model", type=Path, default=Path("models/mrf.npz"), help="planner of the assist page (.npz)")
-    p.add_argument("--top-k", type=int, default=3, help="proposals shown per step in assist (default 3)")
+    p.add_argument("--model", type=Path, default=Path("models/mrf.npz"),
+                   help="planner of the assist page (.npz; default models/mrf.npz)")
+    p.add_argument("--top-k", type=positive, default=3, help="proposals shown per step in assist (default 3)")
+
+
+def _port(value: str) -> int:
+    """A TCP port from the command line: 0 (any free one) to 65535."""
+    if not value.isdigit() or int(value) > 65535:
+        raise argparse.ArgumentTypeError(f"expected a port from 0 to 65535, got {value!r}")
+    return int(value)
 
 
 def _serve(args: argparse.Namespace) -> int:

@@ -7,6 +7,7 @@ import codecs
 import json
 import os
 import pathlib
+import shutil
 import zipfile
 
 import numpy as np
@@ -245,3 +246,32 @@ def test_a_replaced_output_keeps_its_permissions(tmp_path):
     with atomic.atomic_directory(folder) as tmp:
         (tmp / "m").write_text("x")
     assert path.stat().st_mode & 0o777 == 0o640 and folder.stat().st_mode & 0o777 == 0o750
+
+
+@pytest.mark.parametrize("where", ["same", "parent", "spelled otherwise"])
+def test_a_command_never_replaces_the_folder_it_reads(benchmark_logs, tmp_path, capsys, where):
+    """`ingest --output` equal to its `--input` (or a folder holding it) would replace the logs it read with their
+    tables: it is refused before anything is written, and the logs stay."""
+    from taskseq.cli import main
+
+    logs = tmp_path / "logs"
+    shutil.copytree(benchmark_logs, logs)
+    before = sorted(p.name for p in logs.iterdir())
+    output = {"same": logs, "parent": tmp_path, "spelled otherwise": logs / ".." / "logs"}[where]
+    assert main(["--no-mlflow", "ingest", "--input", str(logs), "--output", str(output)]) == 2
+    assert f"--output {output} would replace --input {logs}, which this command reads" in capsys.readouterr().err
+    assert sorted(p.name for p in logs.iterdir()) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["logs"]
+
+
+def test_features_and_fold_models_refuse_an_output_that_holds_their_input(tmp_path, capsys):
+    from taskseq.cli import main
+
+    tables = tmp_path / "world" / "processed"
+    tables.mkdir(parents=True)
+    assert main(["--no-mlflow", "features", "--input", str(tables), "--output", str(tmp_path / "world")]) == 2
+    assert "would replace --input" in capsys.readouterr().err
+    assert main(["--no-mlflow", "fold_models", "--features", str(tmp_path / "world" / "features"), "--processed",
+                 str(tables), "--output", str(tmp_path / "world")]) == 2
+    assert "would replace --features" in capsys.readouterr().err
+    assert tables.is_dir()

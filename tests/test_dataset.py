@@ -71,3 +71,16 @@ def test_other_seed_gives_another_draw_of_the_same_shape(tmp_path):
 def test_replay_command_passes_on_generated_logs(benchmark_logs, capsys):
     assert main(["replay", str(benchmark_logs)]) == 0
     assert "127 demonstrations replay exactly; 0 with problems" in capsys.readouterr().out
+
+
+def test_replay_takes_one_log_and_names_what_is_wrong_with_a_path(benchmark_logs, tmp_path, capsys):
+    first = sorted(benchmark_logs.glob("*.jsonl"))[0]
+    one = tmp_path / "one.jsonl"
+    one.write_text(first.read_text().splitlines()[0] + "\n")
+    assert main(["replay", str(one)]) == 0
+    assert "1 demonstration replays exactly; 0 with problems" in capsys.readouterr().out
+    assert main(["replay", str(tmp_path / "nowhere")]) == 2
+    assert f"{tmp_path / 'nowhere'}: no such folder" in capsys.readouterr().err
+    assert main(["--no-mlflow", "ingest", "--input", str(one), "--output", str(tmp_path / "tables")]) == 1
+    assert f"{one}: is a file; give the folder that holds it" in capsys.readouterr().err
+    assert not (tmp_path / "tables").exists()

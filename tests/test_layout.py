@@ -41,7 +41,10 @@ def layout(edit):
     (lambda d: d["objects"][3].update(id="../x"), "objects[3].id"),
     (lambda d: d["items"][0].update(colour="red"), "items[0]: unknown field 'colour'"),
     (lambda d: d["items"][0].update(at="sofa"), "placed on sofa, which is not placed before it"),
-    (lambda d: d["items"][8].update(level=7), "a level or object that does not exist"),
+    (lambda d: d["items"][8].update(level=7), "items[8].level: 7: tool_rack (tool_rack) has levels 0 to 2"),
+    # a negative level counted from the top, and an offset left the item hanging beside its support
+    (lambda d: d["items"][8].update(level=-1), "items[8].level: -1: tool_rack"),
+    (lambda d: d["items"][0].update(dx=50), "items[0].dx: 50 m puts thermos off workbench (workbench): at most"),
     (lambda d: d["furniture"].update(sofa=3.0), "'sofa' is placed but is neither listed"),
     (lambda d: d["items"][2].update(dx=-0.6), "beaker and thermos overlap on workbench"),
 ])

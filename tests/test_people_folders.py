@@ -255,3 +255,18 @@ def test_the_benchmarks_logs_and_a_mixed_folder_still_fail_at_their_first_proble
         said = capsys.readouterr().err
         assert "env02.jsonl:1: task.name: 'fly' is not one of" in said and "people's" not in said
         assert not (tmp_path / "t").exists()
+
+
+def test_a_log_the_server_writes_can_be_read_by_others_as_a_file_open_makes_it(tmp_path):
+    """The records were written owner-only (a temporary file from mkstemp renamed into place): another user of
+    the machine could not read people's demonstrations. A log takes the permissions `open` gives a new file, and
+    an existing log keeps its own."""
+    import os
+
+    from taskseq.runtime import atomic
+
+    path = demonstrate_in(tmp_path / "people", room_file())
+    assert path.stat().st_mode & 0o777 == 0o666 & ~atomic._UMASK
+    os.chmod(path, 0o640)
+    demonstrate_in(tmp_path / "people", room_file())
+    assert path.stat().st_mode & 0o777 == 0o640

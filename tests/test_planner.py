@@ -242,6 +242,11 @@ def test_plan_command_says_which_method_and_settings_it_runs(small_fit, benchmar
 
 @pytest.mark.parametrize("task, message", [
     ("pour(obj99)", "object obj99 is not in this environment"),
+    # tasks no program can do: each went on to the step cap
+    ("pick_and_place(obj40,obj40)", "names obj40 (magazine) twice"),
+    ("throw_away(obj10)", "obj10 (trash_can) is a bin itself"),
+    ("pick_and_place(obj02,obj40)", "obj02 (kitchen_table) cannot be moved"),
+    ("throw_away(obj27)", "obj27 (water) is a liquid; throw_away takes the object that holds it"),
     ("fly(obj27)", "unknown task 'fly'"),
     ("pour(obj27,obj14)", "takes 1 argument"),
     ("pour obj27", "cannot parse task"),
@@ -270,15 +275,59 @@ def _unknown_support(env):
     env["state"]["objects"][first]["support"] = "obj99"
 
 
+def _rests_on_itself(env):
+    first = next(iter(env["state"]["objects"]))
+    env["state"]["objects"][first]["support"] = first
+
+
+def _listed_twice(env):
+    env["objects"].append(dict(env["objects"][3]))
+
+
 @pytest.mark.parametrize("edit, message", [
     (_drop_size, "env.json:1: objects[0]: 'size' is a required property"),
     (_unknown_support, "support: unknown object 'obj99'"),
+    # planning in such a world went round the loop until memory ran out
+    (_rests_on_itself, "support: the objects it rests on form a loop through"),
+    (_listed_twice, "is listed twice"),
 ])
 def test_plan_command_names_the_field_of_a_bad_environment_file(model_file, benchmark_logs, tmp_path, capsys,
                                                                 edit, message):
     env = _env_file(benchmark_logs, tmp_path, edit)
     code = main(["plan", "--model", str(model_file), "--env", str(env), "--task", "pour(obj27)"])
     assert code == 2 and message in capsys.readouterr().err
+
+
+def test_plan_command_refuses_a_log_record_whose_objects_rest_in_a_loop(model_file, benchmark_logs, tmp_path, capsys):
+    lines = (benchmark_logs / "env01.jsonl").read_text().splitlines()
+    record = json.loads(lines[1])
+    objects = record["steps"][0]["state"]["objects"]
+    resting = next(o for o, entry in objects.items() if entry["support"] is not None)
+    below = objects[resting]["support"]
+    objects[below].update(support=resting, relation=objects[resting]["relation"])  # each now rests on the other
+    log = tmp_path / "env01.jsonl"
+    log.write_text("\n".join([lines[0], json.dumps(record)]) + "\n")
+    code = main(["plan", "--model", str(model_file), "--env", str(log), "--record", "2", "--task", "pour(obj27)"])
+    assert code == 2 and f"{log}:2: state.objects." in (err := capsys.readouterr().err) and "form a loop" in err
+
+
+def test_plan_command_refuses_a_task_whose_goal_already_holds(model_file, benchmark_logs, capsys):
+    record = json.loads((benchmark_logs / "env01.jsonl").read_text().splitlines()[0])
+    state = record["steps"][0]["state"]["objects"]
+    water = next(o["id"] for o in record["objects"] if o["attributes"]["liquid"] == 1)
+    bottle = state[water]["support"]  # the water is in its bottle: pouring it there is done before it starts
+    code = main(["plan", "--model", str(model_file), "--env", str(benchmark_logs / "env01.jsonl"),
+                 "--task", f"pour_to({water},{bottle})"])
+    assert code == 2 and f"the goal of pour_to({water},{bottle}) already holds here" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("option", [["--top-k", "0"], ["--top-k", "-2"], ["--max-steps", "-1"], ["--record", "0"]])
+def test_plan_command_refuses_a_count_below_one(model_file, benchmark_logs, capsys, option):
+    with pytest.raises(SystemExit) as stop:
+        main(["plan", "--model", str(model_file), "--env", str(benchmark_logs / "env01.jsonl"), "--task",
+              "pour(obj27)", *option])
+    assert stop.value.code == 2 and f"argument {option[0]}: expected a positive whole number" in (
+        capsys.readouterr().err)
 
 
 def test_plan_command_refuses_to_pour_a_container(model_file, benchmark_logs, capsys):

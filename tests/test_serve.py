@@ -286,6 +286,11 @@ def _loop(env):
     (environment_file(lambda e: e["objects"][2].update(category="sofa")), "objects[2].category"),
     (environment_file(lambda e: e["state"]["objects"].pop("obj27")), "state.objects.obj27"),
     (environment_file(_loop), "form a loop"),
+    (environment_file(lambda e: e["state"]["objects"]["obj02"].update(support="obj02")),
+     "state.objects.obj02.support: the objects it rests on form a loop through obj02"),
+    (environment_file(lambda e: e["state"]["objects"]["obj02"].update(support="ghost")),
+     "state.objects.obj02.support: unknown object 'ghost'"),  # the message whole, its closing quote too
+    (environment_file(lambda e: e["objects"].append(dict(e["objects"][0]))), "is listed twice"),
 ])
 def test_a_bad_environment_file_is_refused_naming_the_field(client, data, text, expected):
     resp = upload(client, text)
@@ -550,3 +555,27 @@ def test_choosing_another_environment_with_unsaved_steps_asks_first(client):
     assert "env02" in client.get("/task").get_data(as_text=True).split("</header>")[0]
     refused = client.post("/environment", data={"source": "pending", "discard": "yes"})  # used once
     assert refused.status_code == 400 and "no environment is waiting" in message(refused)
+
+
+@pytest.mark.parametrize("option, expected", [
+    (["--port", "70000"], "argument --port: expected a port from 0 to 65535, got '70000'"),
+    (["--port", "-5"], "argument --port: expected a port from 0 to 65535, got '-5'"),
+    (["--top-k", "0"], "argument --top-k: expected a positive whole number, got '0'"),
+])
+def test_serve_refuses_a_port_or_proposal_count_that_cannot_be(option, expected, capsys):
+    """A port past 65535 was taken modulo 65536 (70000 listened on 4464) and a negative one crashed; top-k 0 made
+    the assist page say the planner had no step that can run."""
+    with pytest.raises(SystemExit) as stop:
+        main(["serve", *option])
+    assert stop.value.code == 2 and expected in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("task, expected", [
+    (Task("throw_away", ("obj27",)), "obj27 (water) is a liquid; throw_away takes the object that holds it"),
+    (Task("pick_and_place", ("obj40", "obj40")), "names obj40 (magazine) twice"),
+    (Task("pour_to", ("obj27", "obj20")), "the goal of pour_to(obj27,obj20) already holds here"),
+])
+def test_a_task_no_demonstration_can_do_is_refused_with_the_reason(client, data, task, expected):
+    resp = start(client, task)
+    assert resp.status_code == 400 and expected in message(resp)
+    assert not data.exists()

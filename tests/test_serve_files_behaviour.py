@@ -284,7 +284,7 @@ def test_an_environment_files_id_stays_the_same_across_versions(env01):
 def test_an_environment_file_whose_supports_form_a_loop_is_refused(env01):
     env = json.loads(environment_text(env01.state))
     env["state"]["objects"]["obj02"]["support"] = "obj20"
-    with pytest.raises(ValueError, match=r"kitchen.json: state.objects.obj\d+.support: the objects it rests on form "
+    with pytest.raises(ValueError, match=r"kitchen.json:1: state.objects.obj\d+.support: the objects it rests on form "
                                          r"a loop through obj\d+$"):
         file_environment("kitchen.json", json.dumps(env))
 
@@ -295,7 +295,7 @@ def test_an_object_resting_on_a_loop_it_is_not_part_of_is_refused(env01):
     objects["obj01"].update(support="obj02", relation="on")  # obj01, the first object, rests on the loop
     objects["obj02"].update(support="obj08", relation="on")
     objects["obj08"].update(support="obj02", relation="on")
-    with pytest.raises(ValueError, match=r"^k.json: state.objects.obj01.support: the objects it rests on form a "
+    with pytest.raises(ValueError, match=r"^k.json:1: state.objects.obj01.support: the objects it rests on form a "
                                          r"loop through obj02$"):
         file_environment("k.json", json.dumps(env))
 

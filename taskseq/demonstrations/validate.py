@@ -74,7 +74,13 @@ def _nonfinite(value: Any, path: str) -> str | None:
 
 
 def log_files(directory: Path) -> list[Path]:
-    files = sorted(Path(directory).glob("*.jsonl"))
+    """The *.jsonl logs of a folder, by name; a missing folder, a file or a folder without logs is an error that
+    says which."""
+    directory = Path(directory)
+    if not directory.is_dir():
+        what = "is a file; give the folder that holds it" if directory.exists() else "no such folder"
+        raise FileNotFoundError(f"{directory}: {what}")
+    files = sorted(directory.glob("*.jsonl"))
     if not files:
         raise FileNotFoundError(f"{directory}: no *.jsonl log files")
     return files

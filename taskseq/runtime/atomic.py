@@ -28,13 +28,24 @@ _UMASK = os.umask(0o022)
 os.umask(_UMASK)
 
 
-def _as_opened(tmp: Path, target: Path, directory: bool) -> None:
+def as_opened(tmp: Path, target: Path, directory: bool) -> None:
     """Give `tmp` the permissions of the `target` it replaces, or those a new file or folder takes by default."""
     try:
         mode = target.stat().st_mode & 0o7777
     except FileNotFoundError:
         mode = (0o777 if directory else 0o666) & ~_UMASK
     os.chmod(tmp, mode)
+
+
+def refuse_replacing_inputs(output: Path | str, **inputs: Path | str | None) -> None:
+    """Stop a command whose output folder, replaced whole (`atomic_directory`), is one of the folders it reads or
+    holds one: the replacement would delete its own input (`taskseq ingest --input logs --output logs`). The
+    inputs are named by their options (`input=...` for `--input`)."""
+    out = Path(output).resolve()
+    for name, path in inputs.items():
+        if path is not None and (out == Path(path).resolve() or out in Path(path).resolve().parents):
+            raise ValueError(f"--output {output} would replace --{name.replace('_', '-')} {path}, which this "
+                             "command reads: give another output folder")
 
 
 @contextmanager
@@ -47,7 +58,7 @@ def atomic_directory(target: Path | str, output: bool = True) -> Iterator[Path]:
     try:
         yield tmp
         stopping.check()  # a stop whose exception was dropped where it landed replaces nothing
-        _as_opened(tmp, target, directory=True)
+        as_opened(tmp, target, directory=True)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
@@ -75,7 +86,7 @@ def atomic_file(path: Path | str, output: bool = True) -> Iterator[Path]:
     try:
         yield tmp
         stopping.check()
-        _as_opened(tmp, path, directory=False)
+        as_opened(tmp, path, directory=False)
         os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)

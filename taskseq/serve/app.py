@@ -25,7 +25,7 @@ from ..sim.catalog import ENVIRONMENTS, OBJECTS_BY_ID
 from ..sim.primitives import ALL_PRIMITIVES, ARITY, Action, PreconditionError
 from ..sim.safety import RULES
 from ..sim.state import WorldState
-from ..sim.tasks import TASK_ARITY, Task, goal_reached
+from ..sim.tasks import TASK_ARITY, Task
 from .environments import SAFE_NAME, file_environment, named_files, read_named, world_environment
 from .explain import explain
 from .rules import UnsafeStep, argument_choices, named, preconditions, step_text
@@ -224,7 +224,7 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
                 elif source == "world":
                     seed_text = form.get("seed", "").strip()
                     if not seed_text.isdigit():
-                        raise Refused(f"world seed must be a whole number, got {seed_text!r}")
+                        raise Refused(f"world seed must be a whole number from 0, got {seed_text!r}")
                     env = world_environment(int(seed_text), form.get("env_id", ""))
                 elif source == "named":
                     env = read_named(served.environments, form.get("name", ""))
@@ -242,7 +242,8 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
             except Refused as err:
                 return choose_page(s, err.status, str(err))
             except (ValueError, KeyError) as err:  # a file's error names the file and its field
-                return choose_page(s, 400, str(err).strip("'\""))
+                # a KeyError's str() is its message quoted: the message alone, so a quote inside it stays whole
+                return choose_page(s, 400, str(err.args[0]) if isinstance(err, KeyError) and err.args else str(err))
             if unsaved(s):
                 s.pending_env = env
                 return confirm_page(s, "/environment", {"source": "pending"}, f"the environment {env.label}")
@@ -277,8 +278,6 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
                     if a not in s.env.state.specs:
                         raise Refused(f"unknown object {a!r}: it is not in this environment")
                 task = parse_task(f"{form.get('task', '')}({','.join(args)})", s.env.state)
-                if goal_reached(task, s.env.state, s.env.state):
-                    raise Refused(f"the goal of {task} already holds here; choose another task")
             except (Refused, ValueError) as err:
                 return task_page(s, getattr(err, "status", 400), str(err), dict(form))
             if unsaved(s):
@@ -304,8 +303,8 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
         if s.activity is None:
             raise Refused("no task is under way in this browser; choose one first", 409)
         n = request.form.get("n", "")
-        if n != str(len(s.activity.actions)):
-            raise Refused(f"this page was out of date (the demonstration has {len(s.activity.actions)} steps now); "
+        if n != str(steps := len(s.activity.actions)):
+            raise Refused(f"this page was out of date (the demonstration has {steps} step{'s' * (steps != 1)} now); "
                           f"nothing was done", 409)
         return s.activity
 

@@ -56,7 +56,6 @@ def file_environment(name: str, text: str) -> Environment:
     objects, state_dict = parse_environment(name, text)
     specs = {o["id"]: spec_from_dict(o) for o in objects}
     state = state_from_dict(specs, state_dict)
-    _check_support(name, state)
     content = json.dumps({"objects": [spec_to_dict(s) for s in specs.values()], "state": state_to_dict(state)},
                          sort_keys=True)
     digest = hashlib.sha256(content.encode()).hexdigest()[:8]
@@ -75,15 +74,3 @@ def read_named(folder: Path, name: str) -> Environment:
     if name not in named_files(folder):
         raise ValueError(f"no environment file {name!r} in {folder.name}/; choose one of the list")
     return file_environment(name, (folder / name).read_text(encoding="utf-8"))
-
-
-def _check_support(name: str, state: WorldState) -> None:
-    """What rests on what must end at something resting on nothing: a loop would hang every query of it."""
-    for obj in state.specs:
-        seen, cur = {obj}, obj
-        while cur in state.support:
-            cur = state.support[cur][0]
-            if cur in seen:
-                raise ValueError(f"{name}: state.objects.{obj}.support: the objects it rests on form a loop "
-                                 f"through {cur}")
-            seen.add(cur)

@@ -18,7 +18,7 @@ from typing import Any
 import yaml
 
 from ..demonstrations.records import spec_to_dict, state_to_dict
-from ..sim.catalog import OBJECTS_BY_ID, EnvironmentSpec, Placement, build_environment
+from ..sim.catalog import OBJECTS_BY_ID, EnvironmentSpec, Placement, build_environment, on_furniture
 from ..sim.objects import ObjectSpec
 from .environments import SAFE_NAME
 
@@ -67,6 +67,9 @@ def environment_from_layout(layout: Any, where: str = "layout") -> dict[str, Any
     for oid in [*furniture, *(p.obj for p in items)]:
         if oid not in objects:
             raise ValueError(f"{where}: {oid!r} is placed but is neither listed in objects nor a catalog object")
+    for i, placed in enumerate(items):
+        if placed.on in objects:
+            _check_placement(f"{where}: items[{i}]", placed, objects[placed.obj], objects[placed.on])
     spec = EnvironmentSpec(where, tuple((str(k), float(x)) for k, x in furniture.items()), tuple(items),
                            float(layout.get("robot_x", 0.0)))
     try:
@@ -74,6 +77,19 @@ def environment_from_layout(layout: Any, where: str = "layout") -> dict[str, Any
     except (IndexError, KeyError) as err:
         raise ValueError(f"{where}: items: a level or object that does not exist ({err})") from None
     return {"objects": [spec_to_dict(state.specs[o]) for o in state.specs], "state": state_to_dict(state)}
+
+
+def _check_placement(at: str, placed: Placement, spec: ObjectSpec, base: ObjectSpec) -> None:
+    """A level the object under it has, and an offset that keeps the item over it (`item_pose` takes any)."""
+    levels = len(base.surface_heights())
+    if not 0 <= placed.level < levels:
+        raise ValueError(f"{at}.level: {placed.level}: {base.id} ({base.name}) has "
+                         + (f"levels 0 to {levels - 1}" if levels > 1 else "one level, 0"))
+    inside = not on_furniture(base) and base.has("container") and not base.has("large_surface")
+    room = (base.w - spec.w) / 2
+    if not inside and abs(placed.dx) > room + 1e-9:
+        raise ValueError(f"{at}.dx: {placed.dx:g} m puts {placed.obj} off {base.id} ({base.name}): at most "
+                         f"{max(room, 0.0):.3f} m either way")
 
 
 def write_environment(layout_path: Path, output: Path) -> int:

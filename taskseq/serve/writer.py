@@ -19,6 +19,7 @@ from typing import Any
 
 from ..demonstrations.records import demonstration_record, dumps, parse_record, state_from_dict
 from ..demonstrations.validate import LogError, LoggedRecord, check_record
+from ..runtime.atomic import as_opened
 from ..sim.primitives import Action, execute
 from ..sim.scenarios import Scenario
 from ..sim.tasks import Task
@@ -106,6 +107,7 @@ class RecordWriter:
                 fh.write(old + line)
                 fh.flush()
                 os.fsync(fh.fileno())
+            as_opened(Path(tmp), path, directory=False)  # the log's own permissions, not mkstemp's owner-only ones
             os.replace(tmp, path)
         except BaseException:
             Path(tmp).unlink(missing_ok=True)

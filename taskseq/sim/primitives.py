@@ -167,13 +167,12 @@ def _free_levels(state: WorldState, obj: str, target: str) -> Iterator[tuple[np.
     xs, ys = tx + np.arange(-nx, nx + 1) * GRID, ty + np.arange(-ny, ny + 1) * GRID
     others = [c for c in state.children(target, ON) if c != obj]
     boxes = np.array([state.box(c) for c in others]).reshape(-1, 6)
-    heights = np.array([state.poses[c][2] for c in others])
     levels = spec.surface_heights()
     for k, level in enumerate(levels):
         z = tz + level
         if k + 1 < len(levels) and ospec.h > levels[k + 1] - level - 0.02:
             continue  # too tall for this shelf level
-        b = boxes[np.abs(heights - z) < 1e-3]
+        b = boxes[np.abs(boxes[:, 2] - z) < 1e-3]  # the loads resting at this level (a box starts at its pose)
         across = (xs - ospec.w / 2 < b[:, 3:4] - EPS) & (b[:, 0:1] < xs + ospec.w / 2 - EPS)
         along = (ys - ospec.l / 2 < b[:, 4:5] - EPS) & (b[:, 1:2] < ys + ospec.l / 2 - EPS)
         yield xs, ys, z, ~(across[:, :, None] & along[:, None, :]).any(axis=0)

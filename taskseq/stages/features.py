@@ -5,6 +5,7 @@ from __future__ import annotations
 from ..demonstrations.ingest import read_tables, records_from_tables
 from ..features.context import candidate_index
 from ..features.dataset import build_steps, write_features
+from ..runtime.atomic import refuse_replacing_inputs
 from ..settings import Params
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .options import FeaturesOptions
@@ -16,6 +17,7 @@ def settings(params: Params, world_seed: int | None = None) -> None:
 
 def run(settings: None, options: FeaturesOptions, tracker: Tracker = NO_RUN) -> int:
     input_dir, output = options.input, options.output
+    refuse_replacing_inputs(output, input=input_dir)
     records = records_from_tables(read_tables(input_dir))
     contexts, meta = build_steps(records)
     write_features(contexts, meta, output)

@@ -15,7 +15,7 @@ from ..demonstrations.benchmark import load_benchmark
 from ..experiments.fold_models import train_fold_models, training_jobs
 from ..features.dataset import read_features
 from ..methods import Lineup
-from ..runtime.atomic import write_json_atomic
+from ..runtime.atomic import refuse_replacing_inputs, write_json_atomic
 from ..selection import read_selection
 from ..settings import Folds, Learner, Methods, Params, Procedural
 from ..track.mlflow_runs import NO_RUN, Tracker
@@ -37,6 +37,8 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
 
 def run(settings: Settings, options: FoldModelsOptions, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> dict[str, Any]:
     folds, output = settings.folds, options.output
+    refuse_replacing_inputs(output, features=options.features, processed=options.processed,
+                            selection=options.selection)
     lineup = Lineup(settings.methods, read_selection(options.selection), settings.learner,
                     procedural=settings.procedural)
     methods = lineup.mrf()  # a method without its C stops here, before minutes of work

@@ -7,7 +7,7 @@ from typing import Any
 
 from ..demonstrations.ingest import dataset_summary, load_logs, load_people_logs, people_folder, write_tables
 from ..demonstrations.validate import LogError
-from ..runtime.atomic import write_json_atomic
+from ..runtime.atomic import refuse_replacing_inputs, write_json_atomic
 from ..settings import Params
 from ..track.mlflow_runs import NO_RUN, Tracker, flatten
 from .options import IngestOptions
@@ -25,6 +25,7 @@ def run(settings: None, options: IngestOptions, tracker: Tracker = NO_RUN) -> di
     out, and the others are ingested; it raises only when no file is usable. The benchmark's logs fail at their
     first problem."""
     input_dir, output, metrics = options.input, options.output, options.metrics
+    refuse_replacing_inputs(output, input=input_dir)
     people = options.people
     if not people and people_folder(input_dir):
         people = True

@@ -12,7 +12,7 @@ An entry is one JSON file: the plan's steps as action names and objects (the
 ground actions are rebuilt from the problem) or none, with the horizon and
 the number of ground actions. The key hashes the problem's content (its name
 aside), the horizon, the solver, the source files of the SAT planner with all
-they import (`runtime.sources`) and python-sat's version. An entry that
+they import (`runtime.sources`) and the versions of Python and python-sat. An entry that
 cannot be read, or names an action the problem does not have, is solved
 again (with a warning) and replaced. A miss is solved here even while
 `runtime.cache.stored_only` is in force: a plan is never work to send elsewhere.
@@ -56,7 +56,7 @@ class PlanCache(Entries):
 
 def plan_key(problem: Problem, horizon: int, solver: str) -> str:
     """sha256 of what decides a plan: the problem's objects (in order), facts and goal, the horizon, the solver,
-    the planner's code and python-sat's version."""
+    the planner's code and the versions of Python and python-sat."""
     content = {"format": FORMAT, "code": code_fingerprint(PLANNER), **versions("python-sat"),
                "objects": list(problem.objects), "statics": sorted(problem.statics), "init": sorted(problem.init),
                "goal": sorted(problem.goal), "horizon": horizon, "solver": solver}
