@@ -196,8 +196,9 @@ def plan_task(model_path: Path, env: Path, record: int, task_text: str, max_step
 def parse_task(task_text: str, state: WorldState) -> Task:
     """The task a user typed, checked against the environment: its objects exist, a liquid task names a liquid,
     an object to move or throw away is a movable thing (not a liquid, not a bin to throw away) going somewhere
-    else than itself or what rests on it, and the goal does not hold already. Every task of the benchmark's
-    worlds passes; each refused one would have sent a program to its step cap, or had nothing to do."""
+    else than itself or what rests on it, and the goal does not hold already. Every task the benchmark's worlds
+    pose passes; the refused ones are tasks of no kind it poses, which the planner took to its step cap or could
+    do only by breaking a safety rule (grasping the water to throw it away), or which have nothing to do."""
     task = Task.parse(task_text)
     task.check_objects(state)
     specs = state.specs

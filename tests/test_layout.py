@@ -45,6 +45,7 @@ def layout(edit):
     # a negative level counted from the top, and an offset left the item hanging beside its support
     (lambda d: d["items"][8].update(level=-1), "items[8].level: -1: tool_rack"),
     (lambda d: d["items"][0].update(dx=50), "items[0].dx: 50 m puts thermos off workbench (workbench): at most"),
+    (lambda d: d["items"].append({"id": "obj41", "at": "rag"}), "obj41 (0.42 m wide) is wider than rag"),
     (lambda d: d["furniture"].update(sofa=3.0), "'sofa' is placed but is neither listed"),
     (lambda d: d["items"][2].update(dx=-0.6), "beaker and thermos overlap on workbench"),
 ])
@@ -59,3 +60,11 @@ def test_the_layout_command_reports_a_bad_file_and_writes_nothing(tmp_path, caps
     bad.write_text(json.dumps(layout(lambda d: d["objects"][3].pop("size"))))
     assert main(["layout", str(bad), "--output", str(tmp_path / "out.json")]) == 2
     assert "missing field 'size'" in capsys.readouterr().err and not (tmp_path / "out.json").exists()
+
+
+def test_an_item_inside_a_container_may_be_wider_than_it():
+    """A liquid stands inside its container, centred, whatever its drawn width (the catalog's tea, 8 cm, in a 7.5 cm
+    cup): the offset and width checks are for items standing on something."""
+    data = {"furniture": {"obj02": 0.0}, "items": [{"id": "obj14", "at": "obj02"}, {"id": "obj31", "at": "obj14"}]}
+    env = environment_from_layout(data)
+    assert env["state"]["objects"]["obj31"]["support"] == "obj14"

@@ -247,6 +247,8 @@ def test_plan_command_says_which_method_and_settings_it_runs(small_fit, benchmar
     ("throw_away(obj10)", "obj10 (trash_can) is a bin itself"),
     ("pick_and_place(obj02,obj40)", "obj02 (kitchen_table) cannot be moved"),
     ("throw_away(obj27)", "obj27 (water) is a liquid; throw_away takes the object that holds it"),
+    ("pick_and_place(obj27,obj02)", "obj27 (water) is a liquid; pick_and_place takes the object that holds it"),
+    ("pick_and_place(obj40,obj43)", "obj43 (crumpled_paper) rests on obj40 (magazine), so it cannot be put there"),
     ("fly(obj27)", "unknown task 'fly'"),
     ("pour(obj27,obj14)", "takes 1 argument"),
     ("pour obj27", "cannot parse task"),

@@ -533,7 +533,7 @@ def test_starting_another_task_with_unsaved_steps_asks_first_and_changes_nothing
     assert "move_close(water_bottle)" in text and "go on to throw_away(crumpled_paper)" in text
     assert 'href="/demonstrate"' in page
     page = client.get("/demonstrate").get_data(as_text=True)
-    assert page.count("<li>move_close(obj20)") + page.count("<li>grasp(obj20)") == 2  # both steps kept
+    assert page.count("<li>move_close(water_bottle)") + page.count("<li>grasp(water_bottle)") == 2  # both kept
     assert 'data-unsaved="2"' in page
     bad = client.post("/task", data={**other, "arg1": "obj99"})  # a bad task is refused before anything is asked
     assert bad.status_code == 400 and "unknown object 'obj99'" in message(bad)
@@ -579,3 +579,24 @@ def test_a_task_no_demonstration_can_do_is_refused_with_the_reason(client, data,
     resp = start(client, task)
     assert resp.status_code == 400 and expected in message(resp)
     assert not data.exists()
+
+
+def test_the_pages_name_the_task_the_steps_and_a_refusal_by_the_objects_names(client):
+    """Ids (`pour(obj27)`, `move_close(obj20)`) are what the records hold; a person reads names, so the task, the
+    steps so far, a refused done and the saved page say `pour(water)`, `move_close(water_bottle)`, with the ids
+    only as a hint."""
+    start(client)
+    actions = demonstrated()
+    for k, action in enumerate(actions[:2]):
+        client.post("/step", data=step_form(k, action))
+    page = client.get("/demonstrate").get_data(as_text=True)
+    assert "<b>Task: <code>pour(water)</code></b>" in page and "<title>demonstrate pour(water)" in page
+    assert f"<li>{actions[0].primitive}(water_bottle) " in page and f'<span class="hint">{actions[0]}</span>' in page
+    refused = client.post("/step", data=step_form(2, Action("done")))
+    assert "done is refused: the goal of pour(water) does not hold yet" in message(refused)
+    for k, action in enumerate(actions[2:], start=2):
+        client.post("/step", data=step_form(k, action))
+    client.post("/step", data=step_form(len(actions), Action("done")))
+    saved = client.get("/finished").get_data(as_text=True)
+    assert "Saved: <code>pour(water)</code>" in saved and f"<li>{actions[0].primitive}(water_bottle)</li>" in saved
+    assert "obj20" not in saved.split('id="demo-id"')[0]

@@ -180,7 +180,9 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
         candidates, none_runs = served.candidates(activity) if activity.mode == ASSIST else ([], None)
         return page("run.html", s, status, error=error, candidates=candidates, none_runs=none_runs,
                     primitives=ALL_PRIMITIVES, arity=ARITY, goal=activity.goal_reached, preconditions=preconditions(),
-                    safety=RULES, choices=argument_choices(activity.state))
+                    safety=RULES, choices=argument_choices(activity.state),
+                    task_text=task_text(activity.state, activity.task),
+                    steps=[step_text(activity.states[k], a) for k, a in enumerate(activity.actions)])
 
     def confirm_page(s: Session, action: str, fields: dict[str, str], leaving_for: str):
         """Asks before the steps of the task under way are dropped: posting `fields` again with `discard` drops
@@ -357,7 +359,8 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
         if not activity.actions:
             raise Refused("done is refused: no step has been taken yet", 409)
         if not activity.goal_reached:
-            raise Refused(f"done is refused: the goal of {activity.task} does not hold yet", 409)
+            raise Refused(f"done is refused: the goal of {task_text(activity.state, activity.task)} does not hold "
+                          "yet", 409)
         corrected = None
         if activity.mode == ASSIST:
             corrected = activity.corrected + ([len(activity.actions)] if overridden else [])
@@ -367,7 +370,8 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
         except (WriterClosed, OSError) as err:
             raise Refused(f"the demonstration could not be recorded: {err}; it is kept, try done again", 503) from None
         s.finished = {"demo_id": record["demo_id"], "file": str(path.relative_to(served.data)),
-                      "steps": [str(a) for a in activity.actions], "task": str(activity.task),
+                      "steps": [step_text(activity.states[k], a) for k, a in enumerate(activity.actions)],
+                      "task": task_text(activity.state, activity.task),
                       "corrected": corrected, "participant": activity.participant}
         s.activity = None
         return redirect("/finished", 303)

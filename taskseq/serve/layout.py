@@ -87,9 +87,12 @@ def _check_placement(at: str, placed: Placement, spec: ObjectSpec, base: ObjectS
                          + (f"levels 0 to {levels - 1}" if levels > 1 else "one level, 0"))
     inside = not on_furniture(base) and base.has("container") and not base.has("large_surface")
     room = (base.w - spec.w) / 2
+    if not inside and room < -1e-9:
+        raise ValueError(f"{at}: {placed.obj} ({spec.w:g} m wide) is wider than {base.id} ({base.name}, "
+                         f"{base.w:g} m) and cannot stand on it")
     if not inside and abs(placed.dx) > room + 1e-9:
         raise ValueError(f"{at}.dx: {placed.dx:g} m puts {placed.obj} off {base.id} ({base.name}): at most "
-                         f"{max(room, 0.0):.3f} m either way")
+                         f"{room:.3f} m either way")
 
 
 def write_environment(layout_path: Path, output: Path) -> int:
