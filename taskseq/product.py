@@ -84,11 +84,11 @@ def _check_environment(path: Path, env: Any) -> None:
     errors = sorted(_environment_validator().iter_errors(env), key=lambda e: list(e.absolute_path))
     if errors:
         raise LogError(path, 1, field_name(errors[0].absolute_path), errors[0].message)
-    ids = [o["id"] for o in env["objects"]]
-    for k, obj in enumerate(ids):
-        if obj in ids[:k]:
-            raise LogError(path, 1, f"objects[{k}].id", f"object {obj!r} is listed twice")
-    known = set(ids)
+    known: set[str] = set()
+    for k, o in enumerate(env["objects"]):
+        if o["id"] in known:
+            raise LogError(path, 1, f"objects[{k}].id", f"object {o['id']!r} is listed twice")
+        known.add(o["id"])
     state = env["state"]
     for field in sorted(known - set(state["objects"])):
         raise LogError(path, 1, f"state.objects.{field}", "object listed in 'objects' has no state")

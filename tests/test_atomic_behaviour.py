@@ -264,7 +264,7 @@ def test_a_command_never_replaces_the_folder_it_reads(benchmark_logs, tmp_path, 
     assert sorted(p.name for p in tmp_path.iterdir()) == ["logs"]
 
 
-def test_features_and_fold_models_refuse_an_output_that_holds_their_input(tmp_path, capsys):
+def test_features_fold_models_and_pddl_refuse_an_output_that_holds_their_input(tmp_path, capsys):
     from taskseq.cli import main
 
     tables = tmp_path / "world" / "processed"
@@ -274,4 +274,6 @@ def test_features_and_fold_models_refuse_an_output_that_holds_their_input(tmp_pa
     assert main(["--no-mlflow", "fold_models", "--features", str(tmp_path / "world" / "features"), "--processed",
                  str(tables), "--output", str(tmp_path / "world")]) == 2
     assert "would replace --features" in capsys.readouterr().err
+    assert main(["--no-mlflow", "pddl", "--processed", str(tables), "--output", str(tmp_path / "world")]) == 2
+    assert "would replace --processed" in capsys.readouterr().err
     assert tables.is_dir()

@@ -63,6 +63,16 @@ def task_text(state: WorldState, task: Task) -> str:
     return f"{task.name}({', '.join(state.specs[a].name for a in task.args)})"
 
 
+def steps_text(activity: Activity) -> list[str]:
+    """The steps taken so far as the page names them (`step_text`)."""
+    return [step_text(activity.states[k], a) for k, a in enumerate(activity.actions)]
+
+
+def ids_hint(state: WorldState, item: Task | Action) -> str | None:
+    """A task or step as the records write it (`pour(obj27)`), shown beside its names only where they differ."""
+    return str(item) if any(state.specs[o].name != o for o in item.args) else None
+
+
 class Refused(Exception):
     """A request the page answers with a message and no change: bad input (400) or a refused step (409)."""
 
@@ -182,7 +192,9 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
                     primitives=ALL_PRIMITIVES, arity=ARITY, goal=activity.goal_reached, preconditions=preconditions(),
                     safety=RULES, choices=argument_choices(activity.state),
                     task_text=task_text(activity.state, activity.task),
-                    steps=[step_text(activity.states[k], a) for k, a in enumerate(activity.actions)])
+                    task_ids=ids_hint(activity.state, activity.task),
+                    steps=list(zip(steps_text(activity), [ids_hint(activity.state, a) for a in activity.actions],
+                                   strict=True)))
 
     def confirm_page(s: Session, action: str, fields: dict[str, str], leaving_for: str):
         """Asks before the steps of the task under way are dropped: posting `fields` again with `discard` drops
@@ -190,8 +202,7 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
         activity = s.activity
         assert activity is not None
         return page("confirm.html", s, 409, action=action, fields=fields, leaving_for=leaving_for,
-                    task_text=task_text(activity.state, activity.task),
-                    steps=[step_text(activity.states[k], a) for k, a in enumerate(activity.actions)])
+                    task_text=task_text(activity.state, activity.task), steps=steps_text(activity))
 
     def unsaved(s: Session) -> bool:
         return s.activity is not None and bool(s.activity.actions) and request.form.get("discard") != "yes"
@@ -370,7 +381,7 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
         except (WriterClosed, OSError) as err:
             raise Refused(f"the demonstration could not be recorded: {err}; it is kept, try done again", 503) from None
         s.finished = {"demo_id": record["demo_id"], "file": str(path.relative_to(served.data)),
-                      "steps": [step_text(activity.states[k], a) for k, a in enumerate(activity.actions)],
+                      "steps": steps_text(activity),
                       "task": task_text(activity.state, activity.task),
                       "corrected": corrected, "participant": activity.participant}
         s.activity = None

@@ -6,6 +6,7 @@ from pathlib import Path
 
 from ..demonstrations.benchmark import load_benchmark
 from ..plan.symbolic.files import write_pddl
+from ..runtime.atomic import refuse_replacing_inputs
 from ..settings import Params, Pddl
 from ..track.mlflow_runs import NO_RUN, Tracker
 from .options import PddlOptions
@@ -17,6 +18,7 @@ def settings(params: Params, world_seed: int | None = None) -> Pddl:
 
 def run(settings: Pddl, options: PddlOptions, tracker: Tracker = NO_RUN) -> dict[str, int]:
     processed, output = options.processed, options.output
+    refuse_replacing_inputs(output, processed=processed)
     counts = write_pddl(load_benchmark(processed).scenarios, output, horizon=settings.horizon)
     tracker.metrics(counts)
     tracker.artifact(Path(output) / "domain.pddl")
