@@ -394,7 +394,7 @@ def test_assist_ranks_with_the_policy_the_model_file_records_and_proposes_only_s
         client = create_app(data, path).test_client()
         start(client, mode="assist")
         page = client.get("/assist").get_data(as_text=True)
-        proposals[policy] = re.findall(r"<td><code>([^<]*)</code>", page)
+        proposals[policy] = re.findall(r'<td data-step="([^"]*)">', page)
         assert len(proposals[policy]) == page.count('name="choice"') == 3
         initial = world_environment(0, "env01").state
         for text in proposals[policy]:  # it runs, breaks no rule, and done is not due at the start
@@ -405,9 +405,29 @@ def test_assist_ranks_with_the_policy_the_model_file_records_and_proposes_only_s
 
 def proposal_rows(page: str) -> list[tuple[str, float, str]]:
     """(step, score, why it is here) of each row of the assist table, as a person reads them."""
-    rows = re.findall(r'<td><code>([^<]*)</code>.*?</td>\s*<td>(-?[0-9.]+)</td><td class="why">([^<]*)</td>', page,
+    rows = re.findall(r'<td data-step="([^"]*)">.*?</td>\s*<td>(-?[0-9.]+)</td><td class="why">([^<]*)</td>', page,
                       re.S)
     return [(step, float(score), html.unescape(why)) for step, score, why in rows]
+
+
+def test_assist_shows_each_proposal_in_names_with_its_ids_as_a_hint(data, tmp_path):
+    """The step a person reads is in the objects' names (`move_close(water_bottle)`); the ids records write follow
+    as a hint, and only where they differ from the names."""
+    path = tmp_path / "lookahead.npz"
+    weights = np.random.default_rng(0).normal(size=StepMRF("full").size_joint_feature)
+    StepScorer.from_weights("full", weights).save(path, policy="lookahead")
+    client = create_app(data, path).test_client()
+    start(client, Task("pour", ("obj27",)), mode="assist")
+    page = client.get("/assist").get_data(as_text=True)
+    cells = re.findall(r'<td data-step="([^"]*)"><code>([^<]*)</code>( <span class="hint">([^<]*)</span>)?</td>',
+                       page)
+    assert len(cells) == 3
+    state = world_environment(0, "env01").state
+    for ids, shown, hint, hinted in cells:
+        action = Action.parse(ids)
+        assert shown == f"{action.primitive}({', '.join(state.specs[a].name for a in action.args)})"
+        assert hinted == (ids if shown != ids else "") and bool(hint) == (shown != ids)
+    assert any(hinted for *_, hinted in cells), "env01's objects have names of their own"
 
 
 def test_assist_says_why_each_proposal_is_where_it_is(data, tmp_path):

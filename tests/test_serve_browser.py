@@ -158,7 +158,8 @@ def test_a_person_corrects_the_planner_in_assist_mode(server, browser, tmp_path)
     choose(page, url, task, "assist")
     overridden = []
     for k, action in enumerate([*demonstrated(task), Action("done")]):
-        proposals = page.locator("#proposals tr td:nth-child(2) code").all_inner_texts()
+        cells = page.locator("#proposals td[data-step]")
+        proposals = [cells.nth(i).get_attribute("data-step") for i in range(cells.count())]
         assert len(proposals) == 3
         if str(action) in proposals:  # accept the best, or take another proposal
             if proposals.index(str(action)) != 0:
@@ -172,6 +173,8 @@ def test_a_person_corrects_the_planner_in_assist_mode(server, browser, tmp_path)
     assert "people/w0-env01.jsonl" in page.inner_text("#saved")
     record = json.loads((data / "people" / "w0-env01.jsonl").read_text())
     assert record["corrected"] == overridden
+    if overridden:  # the page counts steps from 1, as the list of steps shows them
+        assert ", ".join(str(k + 1) for k in overridden) in page.inner_text("#saved")
     assert main(["replay", str(data / "people")]) == 0
 
 

@@ -85,7 +85,9 @@ class Refused(Exception):
 class Candidate:
     action: Action
     score: float
-    why: str = ""  # why it stands where it stands (`explain.explain`)
+    why: str  # why it stands where it stands (`explain.explain`)
+    text: str  # the step in the objects' names (`rules.step_text`), as the page shows it
+    ids: str | None  # the step as records write it, where that differs from `text` (`ids_hint`)
 
 
 class Served:
@@ -139,8 +141,9 @@ class Served:
                 reasons = explain(self._planner, self._policy_name, activity.task, activity.states[0], ctx,
                                   activity.state, ranked,
                                   closes_loop(activity.states, history) if ranked != proposed else None)
-                found = ([Candidate(ctx.action(y), float(score), why)
-                          for (y, score), why in zip(ranked, reasons, strict=True)], None)
+                actions = [ctx.action(y) for y, _ in ranked]
+                found = ([Candidate(a, float(score), why, step_text(activity.state, a), ids_hint(activity.state, a))
+                          for a, (_, score), why in zip(actions, ranked, reasons, strict=True)], None)
         activity.offers[tuple(activity.actions)] = found
         return found
 
