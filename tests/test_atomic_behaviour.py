@@ -277,3 +277,19 @@ def test_features_fold_models_and_pddl_refuse_an_output_that_holds_their_input(t
     assert main(["--no-mlflow", "pddl", "--processed", str(tables), "--output", str(tmp_path / "world")]) == 2
     assert "would replace --processed" in capsys.readouterr().err
     assert tables.is_dir()
+
+
+@pytest.mark.parametrize("command", ["import", "evaluate"])
+def test_veil_commands_refuse_an_output_that_holds_the_release(tmp_path, capsys, command):
+    """`taskseq veil import|evaluate --output` at or above the release folder would delete the release (which is
+    never committed, so nothing could bring it back): refused before anything is read or written."""
+    from taskseq.cli import main
+
+    release = tmp_path / "shared" / "veil500"
+    release.mkdir(parents=True)
+    (release / "Objects.xml").write_text("<objects/>")
+    assert main(["--no-mlflow", "veil", command, "--release", str(release), "--output",
+                 str(tmp_path / "shared")]) == 2
+    assert f"would replace --release {release}, which this command reads" in capsys.readouterr().err
+    assert (release / "Objects.xml").read_text() == "<objects/>"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["shared"]

@@ -112,6 +112,9 @@ def demonstrated(task: Task) -> list[Action]:
 def test_a_person_demonstrates_a_task_in_the_browser_and_the_record_ingests(server, browser, tmp_path, capsys):
     url, data = server
     page = browser.new_page(viewport={"width": 1200, "height": 900})
+    failed: list[str] = []  # every file the pages ask for (script, icon) is there; a refused step is a page (409)
+    page.on("response", lambda r: failed.append(f"{r.status} {r.url}")
+            if r.status >= 400 and r.request.resource_type != "document" else None)
     task = Task("pour", ("obj27",))
     choose(page, url, task, "demonstrate", participant="p01")
     assert page.locator("#scene").is_visible() and "water_bottle" in page.inner_text("#tree")
@@ -128,6 +131,7 @@ def test_a_person_demonstrates_a_task_in_the_browser_and_the_record_ingests(serv
     click_step(page, Action("done"))
     assert "people/w0-env01.jsonl" in page.inner_text("#saved")
     page.screenshot(path=str(tmp_path / "saved.png"), full_page=True)
+    assert failed == [] and page.evaluate("document.querySelector('link[rel=icon]').href").endswith("/icon.svg")
     record = json.loads((data / "people" / "w0-env01.jsonl").read_text())
     assert record["participant"] == "p01" and len(record["steps"]) == len(actions)
     assert main(["--no-mlflow", "ingest", "--input", str(data / "people"), "--output", str(tmp_path / "t")]) == 0

@@ -123,6 +123,34 @@ def test_under_dvc_the_store_is_the_repositorys_even_from_a_temporary_copy(monke
     assert tracking_uri() == f"sqlite:///{tmp_path / 'repo' / 'mlflow.db'}"
 
 
+def test_from_a_subfolder_of_a_dvc_project_the_store_is_the_projects_and_outside_one_there_is_none(monkeypatch,
+                                                                                                   tmp_path):
+    from taskseq.track.mlflow_runs import tracking_uri
+
+    monkeypatch.delenv("MLFLOW_TRACKING_URI")
+    monkeypatch.delenv("DVC_ROOT", raising=False)
+    (tmp_path / "repo" / ".dvc").mkdir(parents=True)
+    (tmp_path / "repo" / "data" / "worlds").mkdir(parents=True)
+    monkeypatch.chdir(tmp_path / "repo" / "data" / "worlds")
+    assert tracking_uri() == f"sqlite:///{tmp_path / 'repo' / 'mlflow.db'}"
+    monkeypatch.chdir(tmp_path)
+    assert tracking_uri() is None
+    monkeypatch.setenv("MLFLOW_TRACKING_URI", "sqlite:///elsewhere.db")
+    assert tracking_uri() == "sqlite:///elsewhere.db"
+
+
+def test_a_stage_run_by_hand_outside_a_dvc_project_writes_only_its_outputs_and_says_it_is_not_recorded(
+        monkeypatch, tmp_path, capfd):
+    monkeypatch.delenv("MLFLOW_TRACKING_URI")
+    monkeypatch.delenv("DVC_ROOT", raising=False)
+    here = tmp_path / "by-hand"
+    here.mkdir()
+    monkeypatch.chdir(here)
+    assert main(["generate", "--world-seed", "0", "--output", "raw"]) == 0
+    assert sorted(p.name for p in here.iterdir()) == ["raw"]  # no mlflow.db, no mlartifacts
+    assert "not recorded in MLflow" in capfd.readouterr().err
+
+
 def test_a_store_that_refuses_the_run_fails_the_stage_with_one_line(monkeypatch, benchmark_logs, tmp_path, capfd):
     blocked = tmp_path / "not-a-folder"
     blocked.write_text("a file where the store's folder should be")

@@ -4,8 +4,10 @@ The embedded default is a SQLite store, `mlflow.db` at the repository root,
 with artifacts in `mlartifacts/` beside it. The root is DVC's `DVC_ROOT` when
 DVC runs the stage (queued experiments run in temporary copies of the
 repository, and DVC points `DVC_ROOT` back at the original, so their runs land
-in the same store), else the working folder. `MLFLOW_TRACKING_URI` points the
-runs at a team's server instead.
+in the same store), else the nearest folder at or above the working folder
+that holds a `.dvc` folder. Outside such a project a stage run by hand records
+nothing and says so, since a command run by hand writes only where it is told.
+`MLFLOW_TRACKING_URI` points the runs at a team's server instead.
 
 DVC's lock file records what produced the files; a run records one execution:
 its parameters, metrics, artifacts and tags (git commit and whether the tree
@@ -42,13 +44,21 @@ from .writer import EXPERIMENT, Connection
 __all__ = ["EXPERIMENT", "NO_RUN", "StageRun", "Tracker", "TrackingFailed", "stage_run", "tracked", "tracking_uri"]
 
 
-def repository_root() -> Path:
-    """Where the store lives: DVC's repository root while DVC runs a stage, else the working folder."""
-    return Path(os.environ.get("DVC_ROOT") or ".").resolve()
+def repository_root() -> Path | None:
+    """Where the store lives: DVC's repository root while DVC runs a stage, else the DVC project the working
+    folder is in (its nearest folder holding `.dvc`, as DVC finds its own root), else None."""
+    if os.environ.get("DVC_ROOT"):
+        return Path(os.environ["DVC_ROOT"]).resolve()
+    here = Path.cwd().resolve()
+    return next((folder for folder in (here, *here.parents) if (folder / ".dvc").is_dir()), None)
 
 
-def tracking_uri() -> str:
-    return os.environ.get("MLFLOW_TRACKING_URI") or f"sqlite:///{repository_root() / 'mlflow.db'}"
+def tracking_uri() -> str | None:
+    """The store runs go to: `MLFLOW_TRACKING_URI`, else `mlflow.db` at the repository root, else None."""
+    if os.environ.get("MLFLOW_TRACKING_URI"):
+        return os.environ["MLFLOW_TRACKING_URI"]
+    root = repository_root()
+    return None if root is None else f"sqlite:///{root / 'mlflow.db'}"
 
 
 def _git(*args: str) -> str | None:
@@ -254,7 +264,11 @@ def stage_run(stage: str, params: dict[str, Any], inputs: list[Path] | None = No
     try:
         # opened whole; a signal held here leaves the run open, which the writer then closes as KILLED
         with held():
-            channel = _Channel(tracking_uri())
+            uri = tracking_uri()
+            if uri is None:
+                raise TrackingFailed("no store to record into: not inside a DVC project and MLFLOW_TRACKING_URI "
+                                     "is not set")
+            channel = _Channel(uri)
             run = StageRun(channel, channel.new_ref(), labels)
             tags = provenance(stage, inputs or [])
             run._start(stage, {**tags, "mlflow.source.git.commit": tags["git.commit"]}, parent=None)
@@ -296,8 +310,15 @@ def tracked(stage: str, params: dict[str, Any], inputs: list[Path], labels: dict
     """Run `body` inside the stage's MLflow run: its exit code, the run FAILED when that is not 0.
 
     When the store cannot record the run, the outputs are written all the
-    same, and the stage says so and exits with 1.
+    same, and the stage says so and exits with 1. Outside a DVC project, with
+    no `MLFLOW_TRACKING_URI`, there is no store: `body` runs unrecorded, and the
+    stage says so before it starts.
     """
+    if tracking_uri() is None:
+        print(f"taskseq {stage}: not inside a DVC project (no .dvc folder here or above) and MLFLOW_TRACKING_URI "
+              "is not set, so this run is not recorded in MLflow; run it from the project, or set "
+              "MLFLOW_TRACKING_URI, to record it", file=sys.stderr)
+        return body(NO_RUN)
     try:
         with stage_run(stage, params, inputs, labels) as run:
             code = body(run)

@@ -27,15 +27,18 @@ def _import_options(p: argparse.ArgumentParser) -> None:
                         "Environments/kitchen/kitchenN.xml, Environments/livingRoom/livingRoomN.xml); only read")
     p.add_argument("--output", type=Path, required=True,
                    help="folder to write sequences.parquet, steps.parquet, objects.parquet and import.json into "
-                        "(replaced whole, and only when the whole release is valid)")
+                        "(replaced whole, and only when the whole release is valid; never the release folder or "
+                        "one holding it)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
 def _import(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
+    from ..runtime.atomic import refuse_replacing_inputs
     from .ingest import format_summary, import_release
 
+    refuse_replacing_inputs(args.output, release=args.release)
     start = time.perf_counter()
 
     def bar(items):
@@ -55,7 +58,8 @@ def _evaluate_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--release", type=Path, required=True,
                    help="the release folder (as for import), or any folder of its format; only read")
     p.add_argument("--output", type=Path, required=True,
-                   help="folder to write report.json and tables.md into (replaced whole when the run ends)")
+                   help="folder to write report.json and tables.md into (replaced whole when the run ends; never the "
+                        "release folder or one holding it)")
     p.add_argument("--model", type=Path, default=None,
                    help="a trained model (`taskseq veil train`): evaluate it on every sequence of the folder, with "
                         "the goals it was trained toward, instead of cross-validating every method")
@@ -72,8 +76,10 @@ def _evaluate(args: argparse.Namespace) -> int:
 
     from tqdm import tqdm
 
+    from ..runtime.atomic import refuse_replacing_inputs
     from .experiment import evaluate_model, read_settings, run_experiment, tables, write_reports
 
+    refuse_replacing_inputs(args.output, release=args.release)
     settings = read_settings(args.params)
     start = time.perf_counter()
 
