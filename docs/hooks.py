@@ -14,7 +14,7 @@
   noise and feedback tables (`reports/noise.csv`, `feedback.csv`), the failure analysis's
   tables (`reports/failures.md`, `failures.csv`), the
   development world's checks of the scripts (`multiclass_tol.json`, `revisits.json`, `goal_stop.json`,
-  `drawn_rooms_choice.json`, `teach_weight.json`), and the package's layout from its modules'
+  `drawn_rooms_choice.json`, `teach_weight.json`, `teach_room_prior.json`), and the package's layout from its modules'
   docstrings.
 
 Nothing is copied by hand, so a build after `dvc repro` (or `taskseq bench`, `taskseq
@@ -537,6 +537,32 @@ def teach_weight() -> str:
                     "rrr" + "r" * (len(seeds) + 1), rows))
 
 
+TEACH_ROOM_PRIOR_COMMAND = (
+    "python scripts/teach_room_prior.py --betas 0 0.25 0.5 1 2 --dev-seeds 100 101 102 103 104 "
+    "--output reports/teach_room_prior.json")
+
+
+def teach_room_prior() -> str:
+    """The room prior's misses and successes, as `scripts/teach_room_prior.py` measured them on development draws."""
+    prior = _json("teach_room_prior.json")
+    if prior is None:
+        return _missing("teach_room_prior.json", TEACH_ROOM_PRIOR_COMMAND)
+    base = {r["refit_k"]: r for r in prior["rows"] if r["beta"] == 0}
+    rows = []
+    for r in prior["rows"]:
+        refit = ("nothing (k = 0)" if r["refit_k"] == 0
+                 else f"the first {r['refit_k']} tasks, each step {prior['weight']} times")
+        change = r["misses"] - base[r["refit_k"]]["misses"]
+        rows.append([refit, "none" if r["beta"] == 0 else f"{r['beta']:g}", r["misses"],
+                     "" if r["beta"] == 0 else f"{change:+d}", r["successes"], r["programs"]])
+    return (f"`{TEACH_ROOM_PRIOR_COMMAND}`: the drawn development worlds "
+            f"{', '.join(map(str, prior['dev_seeds']))} pooled, rooms {', '.join(prior['environments'])} held out, "
+            f"the first {prior['taught']} tasks of each taught, the shipped planner (`{prior['method']}`, "
+            f"C = {prior['C']:g}); misses of sequence arg and successes over the other tasks of those rooms, the "
+            "change in misses against the same planner without the prior.\n\n"
+            + _rows(["refitted with", "prior (beta)", "misses", "change", "successes", "programs"], "llrrrr", rows))
+
+
 MULTICLASS_TOL_COMMAND = "python scripts/multiclass_tol.py --world data/dev --output reports/multiclass_tol.json"
 
 
@@ -731,6 +757,7 @@ GENERATED = {
     "feedback-table": feedback_table,
     "teach-results": teach_results,
     "teach-weight": teach_weight,
+    "teach-room-prior": teach_room_prior,
     "bench-training": bench_training,
     "bench-latency": bench_latency,
     "scaling-fit": scaling_fit,

@@ -232,6 +232,44 @@ def test_the_weight_script_counts_misses_at_the_smallest_and_the_largest_k():
     assert misses(programs, 2, (0, 1, 3)) == (1, 0)
 
 
+def test_the_room_prior_adds_beta_to_exactly_the_candidates_that_use_an_object_as_a_taught_step_did():
+    """`scripts/teach_room_prior.py`: a candidate gains beta per (primitive, position, object) a taught step had,
+    nothing else moves, and with beta 0 the ranking is the scorer's own, ties included."""
+    from taskseq.features.context import step_context
+    from taskseq.learn.estimator import StepScorer
+    from taskseq.learn.mrf import StepMRF
+
+    script = runpy.run_path(str(ROOT / "scripts" / "teach_room_prior.py"))
+    env = world_environment(0, "env01")
+    x = step_context(env.state, Task("pour", ("obj27",)), [])
+    scorer = StepScorer.from_weights("full", np.random.default_rng(0).normal(size=StepMRF("full").size_joint_feature))
+    uses = {("grasp", 0, "obj20"), ("place_above", 1, "obj14"), ("grasp", 0, "not-in-this-room")}
+    (cp, ca1, ca2), plain = scorer.model_.scores(x, scorer.w_)
+    _, primed = script["RoomPrior"](scorer, uses, 0.5).scores(x)
+    grasp, place = (["move_close", "grasp", "release", "place_above", "hold_above", "follow_traj_circle",
+                     "follow_traj_pour", "done"].index(p) for p in ("grasp", "place_above"))
+    ids = np.array(x.object_ids)
+    favoured = (((cp == grasp) & (ca1 >= 0) & (ids[ca1] == "obj20"))
+                | ((cp == place) & (ca2 >= 0) & (ids[ca2] == "obj14")))
+    assert favoured.sum() > 1
+    assert np.array_equal(primed, plain + np.where(favoured, 0.5, 0.0))
+    assert list(script["RoomPrior"](scorer, uses, 0.0).ranked(x)) == list(scorer.ranked(x))
+    room = SimpleNamespace(shown=((Task("pour", ("obj27",)), (Action("grasp", ("obj20",)),
+                                                              Action("hold_above", ("obj20", "obj14")))),
+                                  (Task("stir", ("obj32",)), (Action("grasp", ("obj33",)),))))
+    assert script["taught_uses"](room, 1) == {("grasp", 0, "obj20"), ("hold_above", 0, "obj20"),
+                                              ("hold_above", 1, "obj14")}
+
+
+def test_the_room_prior_script_refuses_a_reported_world_and_a_negative_beta(capsys):
+    main = runpy.run_path(str(ROOT / "scripts" / "teach_room_prior.py"))["main"]
+    for argv, said in ((["--dev-seeds", "100", "7"], "--dev-seeds: 7 is a reported world seed"),
+                       (["--betas", "0", "-1"], "every beta must be at least 0")):
+        with pytest.raises(SystemExit) as exit_:
+            main(argv)
+        assert exit_.value.code == 2 and said in capsys.readouterr().err
+
+
 def test_records_are_written_by_the_servers_writer_and_read_back_as_ingest_reads_them():
     env = world_environment(0, "env01")
     tasks = [Task("pour", ("obj27",)), Task("throw_away", ("obj43",))]
