@@ -278,11 +278,14 @@ def test_leaving_a_task_with_unsaved_steps_asks_first(server, browser, tmp_path)
     page = browser.new_page(viewport={"width": 1200, "height": 900})
     page.on("dialog", lambda d: (dialogs.append(d.type), d.accept()))
     choose(page, url, Task("pour", ("obj27",)), "demonstrate")
+    room = page.inner_html("#scene")  # the room as the task starts
     click_step(page, Action("move_close", ("obj20",)))
+    assert page.inner_html("#scene") != room  # the robot drove to the bottle
     page.click("#status")
     page.click("header a[href='/task']")  # accepted: the task page, which says what is under way
     page.wait_for_url("**/task")
-    assert dialogs[-1] == "beforeunload" and "pour(obj27), 1 step" in page.inner_text("#under-way")
+    assert dialogs[-1] == "beforeunload" and "pour(water), 1 step" in page.inner_text("#under-way")
+    assert page.inner_html("#scene") == room  # where a new task would start, not where the one under way is
     page.select_option("#task-form select[name=task]", "throw_away")
     page.select_option("#task-form select[name=arg1]", "obj43")
     submit(page, "#task-form button[value=demonstrate]")

@@ -167,14 +167,17 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
         resp.headers["X-Content-Type-Options"] = "nosniff"
         return resp
 
-    def page(template: str, s: Session, status: int = 200, **kw: Any) -> tuple[str, int]:
+    def page(template: str, s: Session, status: int = 200, as_it_starts: bool = False,
+             **kw: Any) -> tuple[str, int]:
+        """`template` rendered with the environment's scene: the world of the task under way, or the room as every
+        task starts in it where `as_it_starts` (the task page: a new task starts there, whatever one is under way)."""
         kw.setdefault("error", None)
         env = s.env
         # the steps a person would lose by leaving this page (the run page's only: elsewhere they are not in view)
         unsaved = len(s.activity.actions) if s.activity is not None and template == "run.html" else 0
         common: dict[str, Any] = {"env": env, "activity": s.activity, "unsaved": unsaved}
         if env is not None:
-            state = s.activity.state if s.activity is not None else env.state
+            state = s.activity.state if s.activity is not None and not as_it_starts else env.state
             common.update(view=top_view(state), tree=support_tree(state), state=state,
                           objects=sorted(state.specs.values(), key=lambda o: (o.name, o.id)))
         return render_template(template, **common, **kw), status
@@ -184,8 +187,9 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
                     files=named_files(served.environments), folder=served.environments)
 
     def task_page(s: Session, status: int = 200, error: str | None = None, form: dict | None = None):
-        return page("task.html", s, status, error=error, tasks=TASK_ARITY, liquid_tasks=LIQUID_TASKS,
-                    modes=MODES, form=form or {}, model=served.model)
+        under_way = task_text(s.activity.state, s.activity.task) if s.activity is not None else None
+        return page("task.html", s, status, as_it_starts=True, error=error, tasks=TASK_ARITY,
+                    liquid_tasks=LIQUID_TASKS, modes=MODES, form=form or {}, model=served.model, under_way=under_way)
 
     def run_page(s: Session, status: int = 200, error: str | None = None):
         activity = s.activity
