@@ -32,6 +32,9 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "scripts"))  # the teach protocol's options and checks, as teach_weight.py has them
+
+from teach_weight import add_dev_options, dev_setting  # noqa: E402
 
 from taskseq.demonstrations.benchmark import Benchmark  # noqa: E402
 from taskseq.demonstrations.records import scenario_records  # noqa: E402
@@ -39,10 +42,8 @@ from taskseq.experiments.crossval import judge  # noqa: E402
 from taskseq.experiments.teaching import Taught  # noqa: E402
 from taskseq.features.context import StepContext  # noqa: E402
 from taskseq.learn.estimator import StepScorer  # noqa: E402
-from taskseq.methods import Lineup  # noqa: E402
 from taskseq.runtime.atomic import write_json_atomic  # noqa: E402
-from taskseq.selection import read_selection  # noqa: E402
-from taskseq.settings import Generate, Params  # noqa: E402
+from taskseq.settings import Generate  # noqa: E402
 from taskseq.sim.primitives import ALL_PRIMITIVES  # noqa: E402
 from taskseq.sim.scenarios import world_scenarios  # noqa: E402
 from taskseq.stages.teach import taught_method, teach_jobs  # noqa: E402
@@ -84,35 +85,18 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--betas", type=float, nargs="+", default=[0.0, 0.25, 0.5, 1.0, 2.0],
                         help="score added per taught use, to try (default: 0 0.25 0.5 1 2; 0 is no prior)")
-    parser.add_argument("--selection", type=Path, default=ROOT / "reports" / "selection.json",
-                        help="the shipped planner and its C (default: reports/selection.json)")
-    parser.add_argument("--params", type=Path, default=ROOT / "params.yaml")
-    parser.add_argument("--output", type=Path, help="also write the table as JSON here")
-    parser.add_argument("--dev-seeds", type=int, nargs="+",
-                        help="seeds of the drawn development worlds (default: world.dev_seed); never a reported one")
+    add_dev_options(parser)
     args = parser.parse_args(argv)
     if any(b < 0 for b in args.betas):
         parser.error("--betas: a prior favours the taught objects, so every beta must be at least 0")
-    params = Params.load(args.params)
-    teach, world = params.teach, params.world
-    seeds = args.dev_seeds or [world.dev_seed]
-    reported = sorted(set(seeds) & set(world.seeds))
-    if reported:
-        parser.error(f"--dev-seeds: {', '.join(map(str, reported))} is a reported world seed (world.seeds); "
-                     "settings are chosen on development draws only")
+    dev = dev_setting(parser, args)
+    params, make, teach = dev.params, dev.make, dev.params.teach
     most = max(teach.k)
-    if most < 1:
-        parser.error("teach.k has no k above 0: nothing is taught, so there is no prior to measure")
-    selection = read_selection(args.selection)
-    shipped = selection.method
-    if shipped is None:
-        parser.error(f"{args.selection}: names no method ranked first; run `taskseq select` again")
-    make = Lineup(params.methods, selection, params.train.learner, procedural=params.procedural).mrf([shipped])[shipped]
-    print(f"the shipped planner ({shipped}, C = {selection.of(shipped):g}) on the drawn development worlds "
-          f"{' '.join(map(str, seeds))}: rooms {' '.join(teach.environments)} held out, the first {most} tasks of "
-          f"each taught", file=sys.stderr)
+    print(f"the shipped planner ({dev.shipped}, C = {dev.C:g}) on the drawn development worlds "
+          f"{' '.join(map(str, dev.seeds))}: rooms {' '.join(teach.environments)} held out, the first {most} tasks "
+          f"of each taught", file=sys.stderr)
     counts: dict[tuple[int, float], list[int]] = {}  # (k of the refit, beta) -> [programs, as demonstrated, success]
-    for seed in seeds:
+    for seed in dev.seeds:
         scenarios, _ = world_scenarios(Generate(seed, "procedural", params.procedural))
         bench = Benchmark.from_records(scenario_records(scenarios))
         _, (_, _, base, rooms, known, weight, _, max_steps) = teach_jobs(seed, bench, teach, make,
@@ -140,7 +124,7 @@ def main(argv: list[str] | None = None) -> int:
                  else f"the first {r['refit_k']} tasks (teach.weight {teach.weight})")
         print(f"| {refit} | {r['beta']:g} | {r['misses']} | {r['successes']} | {r['programs']} |")
     if args.output:
-        write_json_atomic(args.output, {"dev_seeds": seeds, "method": shipped, "C": selection.of(shipped),
+        write_json_atomic(args.output, {"dev_seeds": dev.seeds, "method": dev.shipped, "C": dev.C,
                                         "environments": list(teach.environments), "taught": most,
                                         "weight": teach.weight, "rows": rows})
     return 0

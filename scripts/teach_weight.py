@@ -23,8 +23,9 @@ from __future__ import annotations
 import argparse
 import statistics
 import sys
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -44,19 +45,30 @@ def rank(rows: list[dict[str, float]]) -> list[dict[str, float]]:
     return sorted(rows, key=lambda r: (-round(r["sequence_arg"], 9), -round(r["success"], 9), r["weight"]))
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--weights", type=int, nargs="+", default=[1, 3, 10, 30, 100, 300],
-                        help="times a taught step counts, to try (default: 1 3 10 30 100 300)")
+@dataclass(frozen=True)
+class DevSetting:
+    """What a measurement of the teach protocol on development draws runs with, checked."""
+
+    params: Params
+    seeds: list[int]  # the drawn development worlds, never a reported one
+    shipped: str  # the method `select` ranked first
+    C: float  # its C
+    make: Any  # its factory of unfitted methods
+
+
+def add_dev_options(parser: argparse.ArgumentParser) -> None:
+    """The options every teach-protocol measurement takes: the selection, params, output and development draws."""
     parser.add_argument("--selection", type=Path, default=ROOT / "reports" / "selection.json",
                         help="the shipped planner and its C (default: reports/selection.json)")
     parser.add_argument("--params", type=Path, default=ROOT / "params.yaml")
-    parser.add_argument("--output", type=Path, help="also write the ranked table as JSON here")
+    parser.add_argument("--output", type=Path, help="also write the table as JSON here")
     parser.add_argument("--dev-seeds", type=int, nargs="+",
                         help="seeds of the drawn development worlds (default: world.dev_seed); never a reported one")
-    args = parser.parse_args(argv)
-    if any(w < 1 for w in args.weights):
-        parser.error("--weights: every weight must be at least 1")
+
+
+def dev_setting(parser: argparse.ArgumentParser, args: argparse.Namespace) -> DevSetting:
+    """The checked setting of `add_dev_options`' options: a reported world seed, a `teach.k` without a k above 0
+    or a selection that names no shipped planner stops the script with one line."""
     params = Params.load(args.params)
     teach, world = params.teach, params.world
     seeds = args.dev_seeds or [world.dev_seed]
@@ -65,17 +77,31 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--dev-seeds: {', '.join(map(str, reported))} is a reported world seed (world.seeds); "
                      "settings are chosen on development draws only")
     if max(teach.k) < 1:
-        parser.error("teach.k has no k above 0: nothing is taught, so no weight can matter")
+        parser.error("teach.k has no k above 0: nothing is taught, so there is nothing to measure")
     selection = read_selection(args.selection)
     shipped = selection.method
     if shipped is None:
         parser.error(f"{args.selection}: names no method ranked first; run `taskseq select` again")
     make = Lineup(params.methods, selection, params.train.learner, procedural=params.procedural).mrf([shipped])[shipped]
+    return DevSetting(params, seeds, shipped, selection.of(shipped), make)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--weights", type=int, nargs="+", default=[1, 3, 10, 30, 100, 300],
+                        help="times a taught step counts, to try (default: 1 3 10 30 100 300)")
+    add_dev_options(parser)
+    args = parser.parse_args(argv)
+    if any(w < 1 for w in args.weights):
+        parser.error("--weights: every weight must be at least 1")
+    dev = dev_setting(parser, args)
+    params, seeds, shipped, make = dev.params, dev.seeds, dev.shipped, dev.make
+    teach = params.teach
     benches = {}
     for seed in seeds:
         scenarios, _ = world_scenarios(Generate(seed, "procedural", params.procedural))
         benches[seed] = Benchmark.from_records(scenario_records(scenarios))
-    print(f"the shipped planner ({shipped}, C = {selection.of(shipped):g}) on the drawn development worlds "
+    print(f"the shipped planner ({shipped}, C = {dev.C:g}) on the drawn development worlds "
           f"{' '.join(map(str, seeds))}: rooms {' '.join(teach.environments)} held out, "
           f"k = {' '.join(map(str, teach.k))}", file=sys.stderr)
     rows, untaught = [], []
@@ -98,7 +124,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"| {r['weight']}{mark} | {r['sequence_arg']:.1f} | {r['success']:.1f} | {before} -> {after} |")
     print(f"| nothing taught (k = 0) | {zero['sequence_arg']:.1f} | {zero['success']:.1f} | |")
     if args.output:
-        write_json_atomic(args.output, {"dev_seeds": seeds, "method": shipped, "C": selection.of(shipped),
+        write_json_atomic(args.output, {"dev_seeds": seeds, "method": shipped, "C": dev.C,
                                         "environments": list(teach.environments), "k": list(teach.k),
                                         "chosen": ranked[0]["weight"], "ranked": ranked, "untaught": zero})
     return 0
