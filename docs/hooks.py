@@ -538,7 +538,7 @@ def teach_weight() -> str:
 
 
 TEACH_ROOM_PRIOR_COMMAND = (
-    "python scripts/teach_room_prior.py --betas 0 0.25 0.5 1 2 --dev-seeds 100 101 102 103 104 "
+    "python scripts/teach_room_prior.py --betas 0.25 0.5 1 2 --dev-seeds 100 101 102 103 104 "
     "--output reports/teach_room_prior.json")
 
 

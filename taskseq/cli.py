@@ -29,7 +29,9 @@ def build_parser() -> argparse.ArgumentParser:
                     "Pipeline stages read their settings from params.yaml; `dvc repro` runs them all.",
     )
     parser.add_argument("--no-mlflow", action="store_true",
-                        help="do not record pipeline stages in MLflow (default: record in ./mlflow.db)")
+                        help="do not record pipeline stages in MLflow (default: record in mlflow.db at the root of the "
+                             "DVC project run from, or at MLFLOW_TRACKING_URI; outside a project, with neither, "
+                             "nothing is recorded)")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in STAGES:
         add_parser(sub, name)
@@ -95,7 +97,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         stopping.acknowledge()
 
         how = "SIGTERM" if isinstance(err, stopping.Stopped) else "Ctrl-C"
-        run = "; its MLflow run is marked KILLED" if args.command in STAGES and not args.no_mlflow else ""
+        from .track.mlflow_runs import tracking_uri
+
+        recorded = args.command in STAGES and not args.no_mlflow and tracking_uri() is not None
+        run = "; its MLflow run is marked KILLED" if recorded else ""
         written = "nothing was written" if not WRITTEN else (
             f"{len(WRITTEN)} of its files were already replaced (each whole): run it again")
         print(f"taskseq {args.command}: stopped by {how}; {written}{run}", file=sys.stderr)

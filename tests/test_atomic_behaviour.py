@@ -282,14 +282,30 @@ def test_features_fold_models_and_pddl_refuse_an_output_that_holds_their_input(t
 @pytest.mark.parametrize("command", ["import", "evaluate"])
 def test_veil_commands_refuse_an_output_that_holds_the_release(tmp_path, capsys, command):
     """`taskseq veil import|evaluate --output` at or above the release folder would delete the release (which is
-    never committed, so nothing could bring it back): refused before anything is read or written."""
+    never committed, so nothing could bring it back): refused before anything is read or written, the release whole."""
     from taskseq.cli import main
 
     release = tmp_path / "shared" / "veil500"
-    release.mkdir(parents=True)
-    (release / "Objects.xml").write_text("<objects/>")
+    shutil.copytree(pathlib.Path(__file__).parent / "fixtures" / "veil" / "release", release)
+    before = sorted(str(p.relative_to(release)) for p in release.rglob("*"))
     assert main(["--no-mlflow", "veil", command, "--release", str(release), "--output",
                  str(tmp_path / "shared")]) == 2
     assert f"would replace --release {release}, which this command reads" in capsys.readouterr().err
-    assert (release / "Objects.xml").read_text() == "<objects/>"
+    assert sorted(str(p.relative_to(release)) for p in release.rglob("*")) == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["shared"]
+
+
+def test_veil_evaluate_refuses_an_output_that_holds_its_model_or_its_recordings(tmp_path, capsys):
+    from taskseq.cli import main
+
+    release = pathlib.Path(__file__).parent / "fixtures" / "veil" / "release"
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "veil.npz").write_bytes(b"a model")
+    assert main(["--no-mlflow", "veil", "evaluate", "--release", str(release), "--output", str(out),
+                 "--model", str(out / "veil.npz")]) == 2
+    assert f"would replace --model {out / 'veil.npz'}" in capsys.readouterr().err
+    assert main(["--no-mlflow", "veil", "evaluate", "--release", str(release), "--output", str(out),
+                 "--recordings-dir", str(out / "recordings")]) == 2
+    assert f"--recordings-dir {out / 'recordings'} lies in --output {out}" in capsys.readouterr().err
+    assert sorted(p.name for p in out.iterdir()) == ["veil.npz"] and (out / "veil.npz").read_bytes() == b"a model"

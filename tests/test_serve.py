@@ -20,7 +20,7 @@ from werkzeug.serving import make_server
 from taskseq.cli import main
 from taskseq.learn.estimator import StepScorer
 from taskseq.learn.mrf import StepMRF
-from taskseq.serve.app import create_app
+from taskseq.serve.app import corrections_text, create_app
 from taskseq.serve.environments import world_environment
 from taskseq.serve.load import Client, LoadResult, run_load, scripted_tasks
 from taskseq.serve.rules import preconditions
@@ -368,6 +368,16 @@ def test_assist_records_the_steps_where_the_person_overrode_the_planner(client, 
     record = json.loads((data / "people" / "w0-env01.jsonl").read_text())
     # the tied planner always proposes move_close of the first object first, which the person never takes
     assert record["corrected"] == list(range(len(actions) + 1))
+    saved = client.get("/finished").get_data(as_text=True)  # the steps as the page lists them, from 1, then done
+    steps = ", ".join(str(k) for k in range(1, len(actions) + 1))
+    assert f"You corrected the planner at steps {steps} and at done." in saved
+
+
+def test_the_saved_page_counts_corrections_as_its_list_of_steps_does():
+    assert corrections_text([0, 2], 4) == "at steps 1, 3"
+    assert corrections_text([1], 4) == "at step 2"
+    assert corrections_text([4], 4) == "at done"
+    assert corrections_text([3, 4], 4) == "at step 4 and at done"
 
 
 def test_assist_accepting_a_proposal_is_no_correction(client, data):

@@ -177,8 +177,6 @@ def test_a_person_corrects_the_planner_in_assist_mode(server, browser, tmp_path)
     assert "people/w0-env01.jsonl" in page.inner_text("#saved")
     record = json.loads((data / "people" / "w0-env01.jsonl").read_text())
     assert record["corrected"] == overridden
-    if overridden:  # the page counts steps from 1, as the list of steps shows them
-        assert ", ".join(str(k + 1) for k in overridden) in page.inner_text("#saved")
     assert main(["replay", str(data / "people")]) == 0
 
 

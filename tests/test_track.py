@@ -139,6 +139,17 @@ def test_from_a_subfolder_of_a_dvc_project_the_store_is_the_projects_and_outside
     assert tracking_uri() == "sqlite:///elsewhere.db"
 
 
+def test_a_run_from_a_subfolder_is_tagged_with_the_projects_lock_files(monkeypatch, tmp_path):
+    from taskseq.track.mlflow_runs import locks_md5, provenance
+
+    monkeypatch.delenv("DVC_ROOT", raising=False)
+    (tmp_path / "repo" / ".dvc").mkdir(parents=True)
+    (tmp_path / "repo" / "dvc.lock").write_text("schema: '2.0'\nstages: {}\n")
+    (tmp_path / "repo" / "data").mkdir()
+    monkeypatch.chdir(tmp_path / "repo" / "data")
+    assert provenance("generate", [])["dvc.lock.md5"] == locks_md5(tmp_path / "repo") != "none"
+
+
 def test_a_stage_run_by_hand_outside_a_dvc_project_writes_only_its_outputs_and_says_it_is_not_recorded(
         monkeypatch, tmp_path, capfd):
     monkeypatch.delenv("MLFLOW_TRACKING_URI")
@@ -148,7 +159,7 @@ def test_a_stage_run_by_hand_outside_a_dvc_project_writes_only_its_outputs_and_s
     monkeypatch.chdir(here)
     assert main(["generate", "--world-seed", "0", "--output", "raw"]) == 0
     assert sorted(p.name for p in here.iterdir()) == ["raw"]  # no mlflow.db, no mlartifacts
-    assert "not recorded in MLflow" in capfd.readouterr().err
+    assert "this run is not recorded in MLflow" in capfd.readouterr().err
 
 
 def test_a_store_that_refuses_the_run_fails_the_stage_with_one_line(monkeypatch, benchmark_logs, tmp_path, capfd):

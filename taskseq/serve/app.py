@@ -68,6 +68,15 @@ def steps_text(activity: Activity) -> list[str]:
     return [step_text(activity.states[k], a) for k, a in enumerate(activity.actions)]
 
 
+def corrections_text(corrected: list[int], n_steps: int) -> str:
+    """Where a person chose other than the planner's best, as the saved page says it: the steps counted from 1 as
+    the page lists them, and `done` (index `n_steps` in the record) by name: `at steps 1, 3 and at done`."""
+    steps = [str(k + 1) for k in corrected if k < n_steps]
+    parts = [f"at step{'s' if len(steps) > 1 else ''} {', '.join(steps)}"] if steps else []
+    parts += ["at done"] if n_steps in corrected else []
+    return " and ".join(parts)
+
+
 def ids_hint(state: WorldState, item: Task | Action) -> str | None:
     """A task or step as the records write it (`pour(obj27)`), shown beside its names only where they differ."""
     return str(item) if any(state.specs[o].name != o for o in item.args) else None
@@ -390,7 +399,8 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
         s.finished = {"demo_id": record["demo_id"], "file": str(path.relative_to(served.data)),
                       "steps": steps_text(activity),
                       "task": task_text(activity.state, activity.task),
-                      "corrected": corrected, "participant": activity.participant}
+                      "corrected": None if corrected is None else corrections_text(corrected, len(activity.actions)),
+                      "participant": activity.participant}
         s.activity = None
         return redirect("/finished", 303)
 

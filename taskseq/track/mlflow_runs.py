@@ -44,13 +44,18 @@ from .writer import EXPERIMENT, Connection
 __all__ = ["EXPERIMENT", "NO_RUN", "StageRun", "Tracker", "TrackingFailed", "stage_run", "tracked", "tracking_uri"]
 
 
-def repository_root() -> Path | None:
-    """Where the store lives: DVC's repository root while DVC runs a stage, else the DVC project the working
-    folder is in (its nearest folder holding `.dvc`, as DVC finds its own root), else None."""
-    if os.environ.get("DVC_ROOT"):
-        return Path(os.environ["DVC_ROOT"]).resolve()
+def project_folder() -> Path | None:
+    """The DVC project the working folder is in: its nearest folder, at or above it, that holds `.dvc`."""
     here = Path.cwd().resolve()
     return next((folder for folder in (here, *here.parents) if (folder / ".dvc").is_dir()), None)
+
+
+def repository_root() -> Path | None:
+    """Where the store lives: DVC's repository root while DVC runs a stage (the original repository, for a queued
+    experiment run in a copy), else the project the working folder is in (`project_folder`), else None."""
+    if os.environ.get("DVC_ROOT"):
+        return Path(os.environ["DVC_ROOT"]).resolve()
+    return project_folder()
 
 
 def tracking_uri() -> str | None:
@@ -78,7 +83,8 @@ def provenance(stage: str, inputs: list[Path]) -> dict[str, str]:
     """Tags that say what a run started from: commit, uncommitted changes, lock file, stage, inputs."""
     status = _git("status", "--porcelain", "--untracked-files=no")
     return {"git.commit": git_commit(), "git.dirty": "unknown" if status is None else str(bool(status.strip())).lower(),
-            "dvc.lock.md5": locks_md5(),
+            # the locks of the project the stage runs in (a queued experiment's copy has its own)
+            "dvc.lock.md5": locks_md5(project_folder() or Path(".")),
             "dvc.stage": os.environ.get("DVC_STAGE") or stage, "data.hash": hash_inputs(inputs)}
 
 
@@ -315,9 +321,8 @@ def tracked(stage: str, params: dict[str, Any], inputs: list[Path], labels: dict
     stage says so before it starts.
     """
     if tracking_uri() is None:
-        print(f"taskseq {stage}: not inside a DVC project (no .dvc folder here or above) and MLFLOW_TRACKING_URI "
-              "is not set, so this run is not recorded in MLflow; run it from the project, or set "
-              "MLFLOW_TRACKING_URI, to record it", file=sys.stderr)
+        print("note: this run is not recorded in MLflow: no DVC project here or above (no .dvc folder) and "
+              "MLFLOW_TRACKING_URI is not set", file=sys.stderr)
         return body(NO_RUN)
     try:
         with stage_run(stage, params, inputs, labels) as run:

@@ -79,7 +79,11 @@ def _evaluate(args: argparse.Namespace) -> int:
     from ..runtime.atomic import refuse_replacing_inputs
     from .experiment import evaluate_model, read_settings, run_experiment, tables, write_reports
 
-    refuse_replacing_inputs(args.output, release=args.release)
+    refuse_replacing_inputs(args.output, release=args.release, model=args.model, params=args.params)
+    if args.recordings_dir is not None and args.output.resolve() in (args.recordings_dir.resolve(),
+                                                                     *args.recordings_dir.resolve().parents):
+        raise ValueError(f"--recordings-dir {args.recordings_dir} lies in --output {args.output}, which is replaced "
+                         "whole when the run ends, recordings included: give a folder outside it")
     settings = read_settings(args.params)
     start = time.perf_counter()
 
