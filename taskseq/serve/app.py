@@ -82,6 +82,11 @@ def ids_hint(state: WorldState, item: Task | Action) -> str | None:
     return str(item) if any(state.specs[o].name != o for o in item.args) else None
 
 
+def shown(state: WorldState, action: Action) -> tuple[str, str | None]:
+    """A step as the page lists it: in the objects' names, and its ids where they differ (`ids_hint`)."""
+    return step_text(state, action), ids_hint(state, action)
+
+
 class Refused(Exception):
     """A request the page answers with a message and no change: bad input (400) or a refused step (409)."""
 
@@ -95,8 +100,6 @@ class Candidate:
     action: Action
     score: float
     why: str  # why it stands where it stands (`explain.explain`)
-    text: str  # the step in the objects' names (`rules.step_text`), as the page shows it
-    ids: str | None  # the step as records write it, where that differs from `text` (`ids_hint`)
 
 
 class Served:
@@ -150,9 +153,8 @@ class Served:
                 reasons = explain(self._planner, self._policy_name, activity.task, activity.states[0], ctx,
                                   activity.state, ranked,
                                   closes_loop(activity.states, history) if ranked != proposed else None)
-                actions = [ctx.action(y) for y, _ in ranked]
-                found = ([Candidate(a, float(score), why, step_text(activity.state, a), ids_hint(activity.state, a))
-                          for a, (_, score), why in zip(actions, ranked, reasons, strict=True)], None)
+                found = ([Candidate(ctx.action(y), float(score), why)
+                          for (y, score), why in zip(ranked, reasons, strict=True)], None)
         activity.offers[tuple(activity.actions)] = found
         return found
 
@@ -204,13 +206,13 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
         activity = s.activity
         assert activity is not None
         candidates, none_runs = served.candidates(activity) if activity.mode == ASSIST else ([], None)
-        return page("run.html", s, status, error=error, candidates=candidates, none_runs=none_runs,
+        return page("run.html", s, status, error=error, none_runs=none_runs,
+                    proposals=[(c, *shown(activity.state, c.action)) for c in candidates],
                     primitives=ALL_PRIMITIVES, arity=ARITY, goal=activity.goal_reached, preconditions=preconditions(),
                     safety=RULES, choices=argument_choices(activity.state),
                     task_text=task_text(activity.state, activity.task),
                     task_ids=ids_hint(activity.state, activity.task),
-                    steps=list(zip(steps_text(activity), [ids_hint(activity.state, a) for a in activity.actions],
-                                   strict=True)))
+                    steps=[shown(activity.states[k], a) for k, a in enumerate(activity.actions)])
 
     def confirm_page(s: Session, action: str, fields: dict[str, str], leaving_for: str):
         """Asks before the steps of the task under way are dropped: posting `fields` again with `discard` drops
