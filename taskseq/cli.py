@@ -2,10 +2,10 @@
 
 A stage's options come from its `Options` class (`taskseq.stages`), its settings from
 `params.yaml` (`taskseq.settings`), and its MLflow run from `taskseq.track`;
-this module only puts them together. Exit codes: 0 done; 1 a stage that
-wrote nothing because its inputs were missing or bad, or a plan that did not
-reach its goal; 2 bad input to a command (with one line naming it); 130 and
-143 stopped by Ctrl-C or SIGTERM.
+this module only puts them together. Exit codes: 0 done; 1 a stage whose
+input files were missing or bad, or a plan that did not reach its goal; 2 bad
+input to a command, a value or a tool's file (with one line naming it); 130
+and 143 stopped by Ctrl-C or SIGTERM. A stage that stops says what it wrote.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import os
 import sys
 from collections.abc import Sequence
 
-from .runtime import memory, stopping
+from .runtime import atomic, memory, stopping
 from .stages import STAGES
 from .stages.command import add_parser, execute, prepare
 from .stages.options import inputs
@@ -68,10 +68,12 @@ def _guarded(args: argparse.Namespace, body) -> int:
         print(f"error: {err}", file=sys.stderr)
         if args.command not in STAGES:
             return 2
-        print("nothing was written", file=sys.stderr)
+        print(_written(), file=sys.stderr)
         return 1
     except ValueError as err:
         print(f"error: {err}", file=sys.stderr)
+        if args.command in STAGES:
+            print(_written(), file=sys.stderr)
         return 2
     except KeyError as err:  # a field missing from a hand-written environment file (`plan`)
         if args.command in STAGES:
@@ -80,9 +82,16 @@ def _guarded(args: argparse.Namespace, body) -> int:
         return 2
 
 
+def _written() -> str:
+    """What a stopped stage leaves: its outputs are replaced whole, each when it is complete (`runtime.atomic`)."""
+    return "nothing was written" if not atomic.WRITTEN else (
+        f"{len(atomic.WRITTEN)} of its files were already replaced (each whole): run it again")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one command; Ctrl-C or SIGTERM ends it with one line, its run KILLED and no output replaced."""
     args = build_parser().parse_args(argv)
+    atomic.WRITTEN.clear()  # what this command replaces (a process may run several: tests, notebooks)
     stopping.install()
     memory.keep_freed_memory()  # a large fit otherwise spends more time faulting pages in than computing
     # workers stopped mid-job leave semaphores the resource tracker (a child process) warns about at exit
@@ -92,8 +101,6 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _guarded(args, lambda: _stage(args))
         return _guarded(args, lambda: TOOLS[args.command].run(args))
     except KeyboardInterrupt as err:
-        from .runtime.atomic import WRITTEN
-
         stopping.acknowledge()
 
         how = "SIGTERM" if isinstance(err, stopping.Stopped) else "Ctrl-C"
@@ -101,9 +108,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         recorded = args.command in STAGES and not args.no_mlflow and tracking_uri() is not None
         run = "; its MLflow run is marked KILLED" if recorded else ""
-        written = "nothing was written" if not WRITTEN else (
-            f"{len(WRITTEN)} of its files were already replaced (each whole): run it again")
-        print(f"taskseq {args.command}: stopped by {how}; {written}{run}", file=sys.stderr)
+        print(f"taskseq {args.command}: stopped by {how}; {_written()}{run}", file=sys.stderr)
         return 143 if isinstance(err, stopping.Stopped) else 130
 
 

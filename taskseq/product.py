@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import json
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -35,6 +35,7 @@ from .plan.planner import (
     learned_policy,
     run_loop,
 )
+from .sim.objects import ObjectSpec
 from .sim.primitives import Action, try_execute
 from .sim.safety import violations
 from .sim.state import WorldState
@@ -178,9 +179,20 @@ def runnable_first(policy: Policy, planner: StepScorer, task: Task, initial: Wor
     return checked
 
 
+def in_names(item: Action | Task, specs: Mapping[str, ObjectSpec]) -> str:
+    """A step or task as a person reads it, `pour(milk)`: the objects' names where the records write their ids."""
+    head = item.primitive if isinstance(item, Action) else item.name
+    return f"{head}({', '.join(specs[a].name for a in item.args)})"
+
+
+def ids_hint(item: Action | Task, specs: Mapping[str, ObjectSpec]) -> str | None:
+    """The step or task as the records write it (`pour(obj27)`), to show beside its names only where they differ."""
+    return str(item) if any(specs[o].name != o for o in item.args) else None
+
+
 def plan_task(model_path: Path, env: Path, record: int, task_text: str, max_steps: int,
-              top_k: int) -> tuple[Program, dict[str, str], str]:
-    """The program the model plans for the task in that environment, the objects' names, and what the model is
+              top_k: int) -> tuple[Program, dict[str, ObjectSpec], str]:
+    """The program the model plans for the task in that environment, its objects, and what the model is
     (its method, settings and policy, `persist.describe`); the program is planned with the policy the file
     records (greedy when it records none)."""
     planner = StepScorer.load(model_path)
@@ -190,7 +202,7 @@ def plan_task(model_path: Path, env: Path, record: int, task_text: str, max_step
     state = state_from_dict(specs, state_dict)
     task = parse_task(task_text, state)
     program = run_loop(policy_for(task, state), state, task, max_steps)
-    return program, {o: s.name for o, s in specs.items()}, describe(planner.meta_)
+    return program, specs, describe(planner.meta_)
 
 
 def parse_task(task_text: str, state: WorldState) -> Task:
@@ -199,7 +211,7 @@ def parse_task(task_text: str, state: WorldState) -> Task:
     else than itself or what rests on it, and the goal does not hold already. Every task the benchmark's worlds
     pose passes; the refused ones are tasks of no kind it poses, which the planner took to its step cap or could
     do only by breaking a safety rule (grasping the water to throw it away), or which have nothing to do."""
-    task = Task.parse(task_text)
+    task = _by_ids(Task.parse(task_text), state)
     task.check_objects(state)
     specs = state.specs
 
@@ -226,25 +238,49 @@ def parse_task(task_text: str, state: WorldState) -> Task:
     return task
 
 
-def program_json(program: Program) -> str:
+def _by_ids(task: Task, state: WorldState) -> Task:
+    """The task with each argument that is no object's id but the name of one object here (`stir(coffee)`) replaced
+    by that object's id; a name several objects share is refused with their ids."""
+    called: dict[str, list[str]] = {}
+    for o, spec in state.specs.items():
+        called.setdefault(spec.name, []).append(o)
+    args = []
+    for a in task.args:
+        if a not in state.specs and len(called.get(a, ())) > 1:
+            raise ValueError(f"task {task}: {len(called[a])} objects here are called {a} ({', '.join(called[a])}); "
+                             "name one by its id")
+        args.append(a if a in state.specs or a not in called else called[a][0])
+    return Task(task.name, tuple(args))
+
+
+def program_json(program: Program, specs: Mapping[str, ObjectSpec]) -> str:
+    """The program for a machine: steps and tasks as the records write them, and `names` giving the name of every
+    object they mention (names may repeat in a room; ids do not)."""
+    items = [program.task, *(s.action for s in program.steps), *(a for s in program.steps for a, _ in s.alternatives)]
     return json.dumps({
         "task": str(program.task), "status": program.status, "goal_reached": program.goal_reached,
         "steps": [{"action": str(s.action), "score": s.score, "unsafe": s.unsafe,
                    "alternatives": [[str(a), sc] for a, sc in s.alternatives]} for s in program.steps],
         "error": program.error,
+        "names": {o: specs[o].name for o in sorted({o for item in items for o in item.args})},
     }, indent=2)
 
 
-def print_program(program: Program, names: dict[str, str], out=None) -> None:
+def print_program(program: Program, specs: Mapping[str, ObjectSpec], out=None) -> None:
+    """The program as a person reads it: each step in the objects' names (their ids, which the records write, after
+    it where they differ), its score, the next best steps and any safety rule it broke."""
     out = out or sys.stdout
 
-    def label(action) -> str:
-        return f"{action}  [{', '.join(names[a] for a in action.args)}]" if action.args else str(action)
+    def label(item: Action | Task) -> str:
+        ids = f"  [{', '.join(item.args)}]" if ids_hint(item, specs) else ""
+        return in_names(item, specs) + ids
 
-    print(f"program for {program.task}:", file=out)
-    for k, s in enumerate(program.steps, start=1):
-        alts = "; ".join(f"{a} {sc:.2f}" for a, sc in s.alternatives)
+    print(f"program for {label(program.task)}:", file=out)
+    labels = [label(s.action) for s in program.steps]
+    width = max(map(len, labels), default=0)
+    for k, (s, text) in enumerate(zip(program.steps, labels, strict=True), start=1):
+        alts = "; ".join(f"{in_names(a, specs)} {sc:.2f}" for a, sc in s.alternatives)
         warn = f"  UNSAFE: {', '.join(s.unsafe)}" if s.unsafe else ""
-        print(f"{k:3d}. {label(s.action):55s} score {s.score:8.2f}   next best: {alts}{warn}", file=out)
+        print(f"{k:3d}. {text:{width}s}  score {s.score:6.2f}   next best: {alts}{warn}", file=out)
     print(f"status: {program.status}; goal {'reached' if program.goal_reached else 'not reached'}"
           + (f"; {program.error}" if program.error else ""), file=out)

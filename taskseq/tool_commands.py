@@ -62,7 +62,9 @@ def _plan_options(p: argparse.ArgumentParser) -> None:
                         "the release names, docs/veil.md)")
     p.add_argument("--record", type=positive, default=1,
                    help="with a .jsonl log: which record (line) to take, from 1 (default 1: the first)")
-    p.add_argument("--task", required=True, help='the task, e.g. "pour(obj27)" or "pick_and_place(obj40,obj04)"')
+    p.add_argument("--task", required=True,
+                   help='the task, each object by its id or by a name only it has there, e.g. "pour(obj27)", '
+                        '"pour(milk)" or "pick_and_place(obj40,obj04)"')
     p.add_argument("--max-steps", type=positive, default=Crossval.max_steps,
                    help=f"stop after this many primitives (default {Crossval.max_steps})")
     p.add_argument("--top-k", type=positive, default=3, help="candidates shown per step (default 3)")
@@ -76,13 +78,13 @@ def _plan(args: argparse.Namespace) -> int:
         return plan_in_environment(args.model, args.env, args.task, max_steps=args.max_steps)
     from .product import plan_task, print_program, program_json
 
-    program, names, model = plan_task(args.model, args.env, args.record, args.task, args.max_steps, args.top_k)
+    program, specs, model = plan_task(args.model, args.env, args.record, args.task, args.max_steps, args.top_k)
     # which planner runs: on stdout before the program, on stderr when stdout carries JSON
     print(f"planner {args.model}: {model}", file=sys.stderr if args.json else sys.stdout)
     if args.json:
-        print(program_json(program))
+        print(program_json(program, specs))
     else:
-        print_program(program, names)
+        print_program(program, specs)
     return 0 if program.success else 1
 
 

@@ -259,7 +259,9 @@ def test_a_command_never_replaces_the_folder_it_reads(benchmark_logs, tmp_path, 
     before = sorted(p.name for p in logs.iterdir())
     output = {"same": logs, "parent": tmp_path, "spelled otherwise": logs / ".." / "logs"}[where]
     assert main(["--no-mlflow", "ingest", "--input", str(logs), "--output", str(output)]) == 2
-    assert f"--output {output} would replace --input {logs}, which this command reads" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert f"--output {output} would replace --input {logs}, which this command reads" in err
+    assert err.splitlines()[-1] == "nothing was written"
     assert sorted(p.name for p in logs.iterdir()) == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["logs"]
 

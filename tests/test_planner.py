@@ -13,6 +13,7 @@ from taskseq.learn.estimator import StepScorer
 from taskseq.learn.mrf import StepMRF
 from taskseq.learn.persist import FORMAT, FORMAT_1, FORMAT_1_BLOCKS, FORMAT_2, load_model
 from taskseq.plan.planner import DONE, plan
+from taskseq.sim.primitives import Action
 
 
 @pytest.fixture(scope="module")
@@ -215,7 +216,49 @@ def test_plan_command_accepts_an_environment_file(model_file, benchmark_logs, tm
     env.write_text(json.dumps({"objects": record["objects"], "state": record["steps"][0]["state"]}))
     liquid = next(o["id"] for o in record["objects"] if o["attributes"]["liquid"] == 1)
     main(["plan", "--model", str(model_file), "--env", str(env), "--task", f"pour({liquid})"])
-    assert f"program for pour({liquid})" in capsys.readouterr().out
+    name = next(o["name"] for o in record["objects"] if o["id"] == liquid)
+    assert f"program for pour({name})  [{liquid}]:" in capsys.readouterr().out
+
+
+def test_plan_command_lists_steps_and_next_best_in_names_with_the_ids_records_write(model_file, benchmark_logs,
+                                                                                     capsys):
+    main(["plan", "--model", str(model_file), "--env", str(benchmark_logs / "env01.jsonl"), "--task", "pour(obj27)",
+          "--json"])
+    program = json.loads(capsys.readouterr().out)
+    names = program["names"]
+    assert names["obj27"] == "water"
+    mentioned = {o for s in program["steps"] for a in [s["action"], *(x for x, _ in s["alternatives"])]
+                 for o in Action.parse(a).args}
+    assert mentioned and set(names) == mentioned | {"obj27"}  # every object the program names, and no other
+    main(["plan", "--model", str(model_file), "--env", str(benchmark_logs / "env01.jsonl"), "--task", "pour(obj27)"])
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[1] == "program for pour(water)  [obj27]:"
+    for line, step in zip(lines[2:], program["steps"], strict=False):
+        action = Action.parse(step["action"])
+        in_names = f"{action.primitive}({', '.join(names[o] for o in action.args)})"
+        ids = f"  [{', '.join(action.args)}]" if action.args else ""
+        assert line.split("score")[0].strip() == f"{line.split('.')[0].strip()}. {in_names}{ids}"
+        shown = [f"{a.primitive}({', '.join(names[o] for o in a.args)}) {sc:.2f}"
+                 for a, sc in ((Action.parse(x), sc) for x, sc in step["alternatives"])]
+        assert line.split("next best: ")[1].split("  UNSAFE")[0] == "; ".join(shown)
+
+
+def test_a_task_may_name_its_objects_by_a_name_only_they_have(model_file, benchmark_logs, tmp_path, capsys):
+    env = ["--env", str(benchmark_logs / "env01.jsonl")]
+    main(["plan", "--model", str(model_file), *env, "--task", "pour(obj27)", "--json"])
+    by_id = json.loads(capsys.readouterr().out)
+    main(["plan", "--model", str(model_file), *env, "--task", "pour(water)", "--json"])
+    assert json.loads(capsys.readouterr().out) == by_id
+    record = json.loads((benchmark_logs / "env01.jsonl").read_text().splitlines()[0])
+    objects = [{**o, "name": "cup"} if o["name"] == "mug" else o for o in record["objects"]]  # a second cup
+    cups = [o["id"] for o in objects if o["name"] == "cup"]
+    assert len(cups) == 2
+    room = tmp_path / "room.json"
+    room.write_text(json.dumps({"objects": objects, "state": record["steps"][0]["state"]}))
+    code = main(["plan", "--model", str(model_file), "--env", str(room), "--task", "throw_away(cup)"])
+    assert code == 2
+    assert f"2 objects here are called cup ({', '.join(cups)}); name one by its id" in capsys.readouterr().err
+    assert main(["plan", "--model", str(model_file), "--env", str(room), "--task", f"throw_away({cups[1]})"]) in (0, 1)
 
 
 def test_plan_command_says_which_method_and_settings_it_runs(small_fit, benchmark_logs, tmp_path, capsys):

@@ -67,4 +67,6 @@ def test_feedback_command_refuses_a_bad_step_count(capsys):
     from taskseq.cli import main
 
     assert main(["--no-mlflow", "feedback", "--set", "feedback.n=1 two", "--output", "unused"]) == 2
-    assert "feedback.n must list whole numbers of steps or 'all', got 'two'" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "feedback.n must list whole numbers of steps or 'all', got 'two'" in err
+    assert err.splitlines()[-1] == "nothing was written"  # a stage refusing a value says what it wrote, as any stop

@@ -37,13 +37,18 @@ def as_opened(tmp: Path, target: Path, directory: bool) -> None:
     os.chmod(tmp, mode)
 
 
+def holds(folder: Path | str, path: Path | str) -> bool:
+    """Whether `path` is `folder` or lies inside it (both resolved: links and `..` followed)."""
+    folder, path = Path(folder).resolve(), Path(path).resolve()
+    return folder == path or folder in path.parents
+
+
 def refuse_replacing_inputs(output: Path | str, **inputs: Path | str | None) -> None:
     """Stop a command whose output folder, replaced whole (`atomic_directory`), is one of the folders it reads or
     holds one: the replacement would delete its own input (`taskseq ingest --input logs --output logs`). The
     inputs are named by their options (`input=...` for `--input`)."""
-    out = Path(output).resolve()
     for name, path in inputs.items():
-        if path is not None and (out == Path(path).resolve() or out in Path(path).resolve().parents):
+        if path is not None and holds(output, path):
             raise ValueError(f"--output {output} would replace --{name.replace('_', '-')} {path}, which this "
                              "command reads: give another output folder")
 

@@ -20,7 +20,7 @@ from ..features.context import step_context
 from ..learn.estimator import StepScorer
 from ..learn.persist import policy_of
 from ..plan.planner import Abstain, Policy, closes_loop, out_of_loops
-from ..product import LIQUID_TASKS, parse_task, recorded_policy
+from ..product import LIQUID_TASKS, ids_hint, in_names, parse_task, recorded_policy
 from ..sim.catalog import ENVIRONMENTS, OBJECTS_BY_ID
 from ..sim.primitives import ALL_PRIMITIVES, ARITY, Action, PreconditionError
 from ..sim.safety import RULES
@@ -28,7 +28,7 @@ from ..sim.state import WorldState
 from ..sim.tasks import TASK_ARITY, Task
 from .environments import SAFE_NAME, file_environment, named_files, read_named, world_environment
 from .explain import explain
-from .rules import UnsafeStep, argument_choices, named, preconditions, step_text
+from .rules import UnsafeStep, argument_choices, named, preconditions
 from .scene import support_tree, top_view
 from .sessions import ASSIST, DEMONSTRATE, MODES, Activity, Session, SessionStore
 from .writer import RecordWriter, WriterClosed, person_record
@@ -58,14 +58,9 @@ LEAVE_SCRIPT = """\
 """
 
 
-def task_text(state: WorldState, task: Task) -> str:
-    """The task as the page names it: `pour(milk)`, with the objects' names."""
-    return f"{task.name}({', '.join(state.specs[a].name for a in task.args)})"
-
-
 def steps_text(activity: Activity) -> list[str]:
-    """The steps taken so far as the page names them (`step_text`)."""
-    return [step_text(activity.states[k], a) for k, a in enumerate(activity.actions)]
+    """The steps taken so far as the page names them (`product.in_names`)."""
+    return [in_names(a, activity.states[k].specs) for k, a in enumerate(activity.actions)]
 
 
 def corrections_text(corrected: list[int], n_steps: int) -> str:
@@ -77,14 +72,9 @@ def corrections_text(corrected: list[int], n_steps: int) -> str:
     return " and ".join(parts)
 
 
-def ids_hint(state: WorldState, item: Task | Action) -> str | None:
-    """A task or step as the records write it (`pour(obj27)`), shown beside its names only where they differ."""
-    return str(item) if any(state.specs[o].name != o for o in item.args) else None
-
-
 def shown(state: WorldState, action: Action) -> tuple[str, str | None]:
     """A step as the page lists it: in the objects' names, and its ids where they differ (`ids_hint`)."""
-    return step_text(state, action), ids_hint(state, action)
+    return in_names(action, state.specs), ids_hint(action, state.specs)
 
 
 class Refused(Exception):
@@ -198,7 +188,7 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
                     files=named_files(served.environments), folder=served.environments)
 
     def task_page(s: Session, status: int = 200, error: str | None = None, form: dict | None = None):
-        under_way = task_text(s.activity.state, s.activity.task) if s.activity is not None else None
+        under_way = in_names(s.activity.task, s.activity.state.specs) if s.activity is not None else None
         return page("task.html", s, status, as_it_starts=True, error=error, tasks=TASK_ARITY,
                     liquid_tasks=LIQUID_TASKS, modes=MODES, form=form or {}, model=served.model, under_way=under_way)
 
@@ -210,8 +200,8 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
                     proposals=[(c, *shown(activity.state, c.action)) for c in candidates],
                     primitives=ALL_PRIMITIVES, arity=ARITY, goal=activity.goal_reached, preconditions=preconditions(),
                     safety=RULES, choices=argument_choices(activity.state),
-                    task_text=task_text(activity.state, activity.task),
-                    task_ids=ids_hint(activity.state, activity.task),
+                    task_text=in_names(activity.task, activity.state.specs),
+                    task_ids=ids_hint(activity.task, activity.state.specs),
                     steps=[shown(activity.states[k], a) for k, a in enumerate(activity.actions)])
 
     def confirm_page(s: Session, action: str, fields: dict[str, str], leaving_for: str):
@@ -220,7 +210,7 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
         activity = s.activity
         assert activity is not None
         return page("confirm.html", s, 409, action=action, fields=fields, leaving_for=leaving_for,
-                    task_text=task_text(activity.state, activity.task), steps=steps_text(activity))
+                    task_text=in_names(activity.task, activity.state.specs), steps=steps_text(activity))
 
     def unsaved(s: Session) -> bool:
         return s.activity is not None and bool(s.activity.actions) and request.form.get("discard") != "yes"
@@ -313,7 +303,7 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
                 return task_page(s, getattr(err, "status", 400), str(err), dict(form))
             if unsaved(s):
                 fields = {k: form.get(k, "") for k in ("task", "arg1", "arg2", "participant", "mode")}
-                return confirm_page(s, "/task", fields, task_text(s.env.state, task))
+                return confirm_page(s, "/task", fields, in_names(task, s.env.state.specs))
             s.activity = Activity(s.env, task, mode, participant or None)
             return redirect(f"/{mode}", 303)
 
@@ -372,10 +362,10 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
                 activity.step(action, overridden)
             except PreconditionError as err:
                 state = s.activity.state
-                return run_page(s, 409, f"{step_text(state, err.action)} is refused: {named(state, err.reason)} "
+                return run_page(s, 409, f"{in_names(err.action, state.specs)} is refused: {named(state, err.reason)} "
                                         f"(check: {err.check}); nothing was done")
             except UnsafeStep as err:
-                return run_page(s, 409, f"{step_text(s.activity.state, err.action)} is refused: {err.reason}; "
+                return run_page(s, 409, f"{in_names(err.action, s.activity.state.specs)} is refused: {err.reason}; "
                                         "nothing was done")
             except Refused as err:
                 return (run_page(s, err.status, str(err)) if s.activity is not None
@@ -388,7 +378,7 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
         if not activity.actions:
             raise Refused("done is refused: no step has been taken yet", 409)
         if not activity.goal_reached:
-            raise Refused(f"done is refused: the goal of {task_text(activity.state, activity.task)} does not hold "
+            raise Refused(f"done is refused: the goal of {in_names(activity.task, activity.state.specs)} does not hold "
                           "yet", 409)
         corrected = None
         if activity.mode == ASSIST:
@@ -400,7 +390,7 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
             raise Refused(f"the demonstration could not be recorded: {err}; it is kept, try done again", 503) from None
         s.finished = {"demo_id": record["demo_id"], "file": str(path.relative_to(served.data)),
                       "steps": steps_text(activity),
-                      "task": task_text(activity.state, activity.task),
+                      "task": in_names(activity.task, activity.state.specs),
                       "corrected": None if corrected is None else corrections_text(corrected, len(activity.actions)),
                       "participant": activity.participant}
         s.activity = None

@@ -21,11 +21,12 @@ from dataclasses import dataclass
 from ..features.context import StepContext, step_context
 from ..learn.estimator import StepScorer
 from ..plan.planner import DONE, LOOKAHEAD_DEPTH, LeadsBack, Ranked, _Runnable
+from ..product import in_names
 from ..sim.primitives import Action, PreconditionError, execute
 from ..sim.safety import violations
 from ..sim.state import WorldState
 from ..sim.tasks import Task, goal_reached
-from .rules import named, step_text, unsafe_reason
+from .rules import named, unsafe_reason
 
 Y = tuple[int, int, int]
 SHOWN_REASONS = 3  # steps that cannot run named per row; the rest are counted
@@ -87,27 +88,23 @@ def _why_not_runnable(task: Task, initial: WorldState, state: WorldState, action
     if action.primitive == DONE:
         if goal_reached(task, initial, state):
             return None
-        return f"done: the goal of {_task_text(state, task)} does not hold yet"
+        return f"done: the goal of {in_names(task, state.specs)} does not hold yet"
     try:
         execute(state, action)
     except PreconditionError as err:
-        return f"{step_text(state, action)}: {_named(state, err.reason)} (check: {err.check})"
+        return f"{in_names(action, state.specs)}: {_named(state, err.reason)} (check: {err.check})"
     reason = unsafe_reason(state, action)
-    return None if reason is None else f"{step_text(state, action)}: {reason}"
+    return None if reason is None else f"{in_names(action, state.specs)}: {reason}"
 
 
 def _step(state: WorldState, action: Action) -> str:
-    return "done" if action.primitive == DONE else step_text(state, action)
+    return "done" if action.primitive == DONE else in_names(action, state.specs)
 
 
 def _named(state: WorldState, text: str) -> str:
     """`rules.named`, without the name said twice where the simulator gives an id and its name
     (`dining_table (dining_table) cannot be moved`)."""
     return re.sub(r"(\b[\w.-]+) \(\1\)", r"\1", named(state, text))
-
-
-def _task_text(state: WorldState, task: Task) -> str:
-    return f"{task.name}({', '.join(state.specs[a].name for a in task.args)})"
 
 
 def explain(planner: StepScorer, policy: str, task: Task, initial: WorldState, ctx: StepContext, state: WorldState,

@@ -65,11 +65,6 @@ def named(state: WorldState, text: str) -> str:
     return pattern.sub(lambda m: state.specs[m.group(1)].name, text)
 
 
-def step_text(state: WorldState, action: Action) -> str:
-    """The step as the page names it: `grasp(oolong)`, with the objects' names."""
-    return f"{action.primitive}({', '.join(state.specs[a].name for a in action.args)})"
-
-
 def _why(state: WorldState, action: Action, rule: str) -> str:
     """What in this world makes `action` break `rule`, in names."""
     name = state.specs

@@ -19,12 +19,13 @@ from typing import Any
 
 from ..demonstrations.records import demonstration_record, dumps, parse_record, state_from_dict
 from ..demonstrations.validate import LogError, LoggedRecord, check_record
+from ..product import in_names
 from ..runtime.atomic import as_opened
 from ..sim.primitives import Action, execute
 from ..sim.scenarios import Scenario
 from ..sim.tasks import Task
 from .environments import SAFE_NAME, Environment
-from .rules import step_text, unsafe_reason
+from .rules import unsafe_reason
 
 LOCK_NAME = ".lock"
 
@@ -57,7 +58,7 @@ def check_safe(item: LoggedRecord) -> None:
     for k, action in enumerate(actions):
         reason = unsafe_reason(state, action)
         if reason is not None:
-            raise LogError(item.path, item.line, f"steps[{k}]", f"{step_text(state, action)}: {reason}")
+            raise LogError(item.path, item.line, f"steps[{k}]", f"{in_names(action, state.specs)}: {reason}")
         state = execute(state, action)
 
 

@@ -76,12 +76,11 @@ def _evaluate(args: argparse.Namespace) -> int:
 
     from tqdm import tqdm
 
-    from ..runtime.atomic import refuse_replacing_inputs
+    from ..runtime.atomic import holds, refuse_replacing_inputs
     from .experiment import evaluate_model, read_settings, run_experiment, tables, write_reports
 
     refuse_replacing_inputs(args.output, release=args.release, model=args.model, params=args.params)
-    if args.recordings_dir is not None and args.output.resolve() in (args.recordings_dir.resolve(),
-                                                                     *args.recordings_dir.resolve().parents):
+    if args.recordings_dir is not None and holds(args.output, args.recordings_dir):
         raise ValueError(f"--recordings-dir {args.recordings_dir} lies in --output {args.output}, which is replaced "
                          "whole when the run ends, recordings included: give a folder outside it")
     settings = read_settings(args.params)
