@@ -210,31 +210,34 @@ def parse_task(task_text: str, state: WorldState) -> Task:
     an object to move or throw away is a movable thing (not a liquid, not a bin to throw away) going somewhere
     else than itself or what rests on it, and the goal does not hold already. Every task the benchmark's worlds
     pose passes; the refused ones are tasks of no kind it poses, which the planner took to its step cap or could
-    do only by breaking a safety rule (grasping the water to throw it away), or which have nothing to do."""
+    do only by breaking a safety rule (grasping the water to throw it away), or which have nothing to do. A refusal
+    names the task and its objects by their names, each object's id after it where the two differ."""
     task = _by_ids(Task.parse(task_text), state)
     task.check_objects(state)
     specs = state.specs
 
-    def named(obj: str) -> str:
-        return f"{obj} ({specs[obj].name})" if specs[obj].name != obj else obj
+    def named(obj: str) -> str:  # a person's word first, the records' after it where they differ
+        return f"{specs[obj].name} ({obj})" if specs[obj].name != obj else obj
+
+    said = in_names(task, specs)
 
     first = task.args[0]
     if task.name in LIQUID_TASKS and not specs[first].has("liquid"):
-        raise ValueError(f"task {task}: {named(first)} is not a liquid; "
+        raise ValueError(f"task {said}: {named(first)} is not a liquid; "
                          f"{task.name} takes the liquid, e.g. the water, not its bottle")
     if len(task.args) == 2 and task.args[1] == first:
-        raise ValueError(f"task {task}: names {named(first)} twice; the second argument is where it goes")
+        raise ValueError(f"task {said}: names {named(first)} twice; the second argument is where it goes")
     if task.name == "throw_away" and specs[first].category == "bin":
-        raise ValueError(f"task {task}: {named(first)} is a bin itself")
+        raise ValueError(f"task {said}: {named(first)} is a bin itself")
     if task.name in ("pick_and_place", "throw_away"):
         if specs[first].has("liquid"):
-            raise ValueError(f"task {task}: {named(first)} is a liquid; {task.name} takes the object that holds it")
+            raise ValueError(f"task {said}: {named(first)} is a liquid; {task.name} takes the object that holds it")
         if not specs[first].has("movable"):
-            raise ValueError(f"task {task}: {named(first)} cannot be moved")
+            raise ValueError(f"task {said}: {named(first)} cannot be moved")
     if task.name == "pick_and_place" and task.args[1] in state.descendants(first):
-        raise ValueError(f"task {task}: {named(task.args[1])} rests on {named(first)}, so it cannot be put there")
+        raise ValueError(f"task {said}: {named(task.args[1])} rests on {named(first)}, so it cannot be put there")
     if goal_reached(task, state, state):
-        raise ValueError(f"the goal of {task} already holds here; choose another task")
+        raise ValueError(f"the goal of {said} already holds here; choose another task")
     return task
 
 

@@ -237,7 +237,7 @@ def test_the_checks_the_page_lists_are_the_checks_the_simulator_makes():
 
 
 @pytest.mark.parametrize("form, expected", [
-    ({"task": "pour", "arg1": "obj20"}, "obj20 (water_bottle) is not a liquid"),
+    ({"task": "pour", "arg1": "obj20"}, "task pour(water_bottle): water_bottle (obj20) is not a liquid"),
     ({"task": "pour", "arg1": "obj99"}, "unknown object 'obj99'"),
     ({"task": "pour", "arg1": "obj27", "arg2": "obj14"}, "task pour takes 1 argument(s), got 2"),
     ({"task": "pick_and_place", "arg1": "obj40"}, "task pick_and_place takes 2 argument(s), got 1"),
@@ -601,9 +601,9 @@ def test_serve_refuses_a_port_or_proposal_count_that_cannot_be(option, expected,
 
 
 @pytest.mark.parametrize("task, expected", [
-    (Task("throw_away", ("obj27",)), "obj27 (water) is a liquid; throw_away takes the object that holds it"),
-    (Task("pick_and_place", ("obj40", "obj40")), "names obj40 (magazine) twice"),
-    (Task("pour_to", ("obj27", "obj20")), "the goal of pour_to(obj27,obj20) already holds here"),
+    (Task("throw_away", ("obj27",)), "water (obj27) is a liquid; throw_away takes the object that holds it"),
+    (Task("pick_and_place", ("obj40", "obj40")), "names magazine (obj40) twice"),
+    (Task("pour_to", ("obj27", "obj20")), "the goal of pour_to(water, water_bottle) already holds here"),
 ])
 def test_a_task_no_demonstration_can_do_is_refused_with_the_reason(client, data, task, expected):
     resp = start(client, task)
