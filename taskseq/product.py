@@ -190,6 +190,11 @@ def ids_hint(item: Action | Task, specs: Mapping[str, ObjectSpec]) -> str | None
     return str(item) if any(specs[o].name != o for o in item.args) else None
 
 
+def with_ids(item: Action | Task, specs: Mapping[str, ObjectSpec]) -> str:
+    """`in_names`, then the objects' ids in brackets where they differ from the names: `pour(milk)  [obj27]`."""
+    return in_names(item, specs) + (f"  [{', '.join(item.args)}]" if ids_hint(item, specs) else "")
+
+
 def plan_task(model_path: Path, env: Path, record: int, task_text: str, max_steps: int,
               top_k: int) -> tuple[Program, dict[str, ObjectSpec], str]:
     """The program the model plans for the task in that environment, its objects, and what the model is
@@ -237,7 +242,7 @@ def parse_task(task_text: str, state: WorldState) -> Task:
     if task.name == "pick_and_place" and task.args[1] in state.descendants(first):
         raise ValueError(f"task {said}: {named(task.args[1])} rests on {named(first)}, so it cannot be put there")
     if goal_reached(task, state, state):
-        raise ValueError(f"the goal of {said} already holds here; choose another task")
+        raise ValueError(f"the goal of {with_ids(task, specs)} already holds here; choose another task")
     return task
 
 
@@ -274,12 +279,8 @@ def print_program(program: Program, specs: Mapping[str, ObjectSpec], out=None) -
     it where they differ), its score, the next best steps and any safety rule it broke."""
     out = out or sys.stdout
 
-    def label(item: Action | Task) -> str:
-        ids = f"  [{', '.join(item.args)}]" if ids_hint(item, specs) else ""
-        return in_names(item, specs) + ids
-
-    print(f"program for {label(program.task)}:", file=out)
-    labels = [label(s.action) for s in program.steps]
+    print(f"program for {with_ids(program.task, specs)}:", file=out)
+    labels = [with_ids(s.action, specs) for s in program.steps]
     width = max(map(len, labels), default=0)
     for k, (s, text) in enumerate(zip(program.steps, labels, strict=True), start=1):
         alts = "; ".join(f"{in_names(a, specs)} {sc:.2f}" for a, sc in s.alternatives)

@@ -365,7 +365,8 @@ def test_plan_command_refuses_a_task_whose_goal_already_holds(model_file, benchm
                  "--task", f"pour_to({water},{bottle})"])
     name = {o["id"]: o["name"] for o in record["objects"]}
     assert code == 2
-    assert f"the goal of pour_to({name[water]}, {name[bottle]}) already holds here" in capsys.readouterr().err
+    said = f"the goal of pour_to({name[water]}, {name[bottle]})  [{water}, {bottle}] already holds here"
+    assert said in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("option", [["--top-k", "0"], ["--top-k", "-2"], ["--max-steps", "-1"], ["--record", "0"]])

@@ -70,3 +70,15 @@ def test_feedback_command_refuses_a_bad_step_count(capsys):
     err = capsys.readouterr().err
     assert "feedback.n must list whole numbers of steps or 'all', got 'two'" in err
     assert err.splitlines()[-1] == "nothing was written"  # a stage refusing a value says what it wrote, as any stop
+
+
+def test_a_stage_says_what_it_wrote_itself_when_one_process_runs_several(tmp_path, capsys):
+    """`taskseq.cli.main` run twice in a process (tests, a notebook): the second stage's stop counts only its own
+    writes, not the first's."""
+    from taskseq.cli import main
+
+    assert main(["--no-mlflow", "generate", "--world-seed", "0", "--output", str(tmp_path / "raw")]) == 0
+    assert any((tmp_path / "raw").glob("*.jsonl"))
+    capsys.readouterr()
+    assert main(["--no-mlflow", "feedback", "--set", "feedback.n=1 two", "--output", str(tmp_path / "unused")]) == 2
+    assert capsys.readouterr().err.splitlines()[-1] == "nothing was written"

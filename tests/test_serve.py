@@ -603,7 +603,8 @@ def test_serve_refuses_a_port_or_proposal_count_that_cannot_be(option, expected,
 @pytest.mark.parametrize("task, expected", [
     (Task("throw_away", ("obj27",)), "water (obj27) is a liquid; throw_away takes the object that holds it"),
     (Task("pick_and_place", ("obj40", "obj40")), "names magazine (obj40) twice"),
-    (Task("pour_to", ("obj27", "obj20")), "the goal of pour_to(water, water_bottle) already holds here"),
+    (Task("pour_to", ("obj27", "obj20")),
+     "the goal of pour_to(water, water_bottle)  [obj27, obj20] already holds here"),
 ])
 def test_a_task_no_demonstration_can_do_is_refused_with_the_reason(client, data, task, expected):
     resp = start(client, task)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import importlib.util
 import json
 import os
 import shutil
@@ -26,6 +27,10 @@ from taskseq.stages import generate as generate_stage
 
 FOLDS = ["--set", "crossval.folds=2", "--set", "crossval.group_by=scenario", "--set", "crossval.seed=0"]
 LEARN = ["--set", "train.tol=0.01", "--set", "train.max_iter=300", "--set", "train.n_slacks=0"]
+_spec = importlib.util.spec_from_file_location("stage_deps", Path(__file__).resolve().parents[1] / "scripts" /
+                                               "stage_deps.py")
+stage_deps = importlib.util.module_from_spec(_spec)  # one module, so one import server, for the file's tests
+_spec.loader.exec_module(stage_deps)
 
 
 
@@ -383,14 +388,10 @@ sys.exit(main(sys.argv[1:]))
     ("recipes", [])])
 def test_a_stage_loads_the_modules_of_the_methods_it_runs_and_no_other(stage, options, tiny, tmp_path):
     """What DVC re-runs after a change to a method's module rests on this: the stage really loads no other."""
-    import importlib.util
     import subprocess
     import sys
 
     root = Path(__file__).resolve().parents[1]
-    spec = importlib.util.spec_from_file_location("stage_deps", root / "scripts" / "stage_deps.py")
-    stage_deps = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(stage_deps)
     argv = [sys.executable, "-c", LOADED_AT_EXIT, "--no-mlflow", stage, *data(tiny), *FOLDS, *LEARN, *options,
             "--selection", str(tiny / "selection.json"), "--model-store", str(tiny / "store"),
             "--output", str(tmp_path), *(["--n-jobs", "1"] if stage != "recipes" else [])]

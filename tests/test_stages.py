@@ -76,6 +76,30 @@ def test_dvc_deps_are_exactly_the_project_code_a_stage_loads(stage):
     assert f"taskseq/stages/{stage}.py" in deps
 
 
+FRESH = ("import importlib, json, sys\nfor n in sys.argv[1:]: importlib.import_module(n)\n"
+         "print(json.dumps(sorted(m.__file__ for n, m in sys.modules.items() if n.split('.')[0] == 'taskseq')))")
+
+
+@pytest.mark.parametrize("entries", [
+    ["taskseq.cli", "taskseq.stages.teach"], ["taskseq.cli", "taskseq.stages.generate"],
+    ["taskseq.cli", "taskseq.stages.choose_C", "taskseq.methods.drawn_rooms"]])
+def test_the_import_server_answers_as_a_fresh_interpreter(entries):
+    """`loaded_files` asks a server whose children find the third-party modules loaded: what a child reports is
+    what a fresh interpreter loads, whatever the requests before it loaded."""
+    fresh = subprocess.run([sys.executable, "-c", FRESH, *entries], capture_output=True, text=True, check=True,
+                           cwd=ROOT)
+    assert stage_deps.loaded_files(entries) == [str(Path(f).relative_to(ROOT)) for f in json.loads(fresh.stdout)]
+
+
+def test_the_import_server_names_a_module_that_fails_and_keeps_its_answers_in_step_past_one_that_prints():
+    with pytest.raises(RuntimeError, match="importing taskseq.no_such_module with .* failed: ModuleNotFoundError"):
+        stage_deps.loaded_files(["taskseq.no_such_module"])
+    # `this` prints the Zen of Python when imported, in the child and then in the server
+    jobs = stage_deps.loaded_files(["taskseq.runtime.jobs"])
+    assert stage_deps.loaded_files(["this", "taskseq.runtime.jobs"]) == jobs
+    assert "taskseq/stages/teach.py" in stage_deps.loaded_files(["taskseq.cli", "taskseq.stages.teach"])
+
+
 def test_the_deps_writer_replaces_a_stages_code_deps_and_keeps_everything_else():
     text = ("stages:\n  a:\n    cmd: x\n    deps:\n      - data/in  # read\n      - taskseq/old.py\n"
             "      - taskseq/sim\n    outs:\n      - out\n  b:\n    foreach: [1]\n    do:\n      deps:\n"
