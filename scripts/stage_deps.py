@@ -4,9 +4,9 @@ veil/dvc.yaml (exactly the project files it loads), and the methods' labels.
 A stage's `deps` list the data it reads (written by hand, with the command
 that reads it) and the project code it runs. The code part is generated here:
 the command line and the stage's entry modules are imported as in a fresh
-interpreter (`IMPORT_SERVER`), and every project module it then holds is a dependency, named by its
-subpackage (`taskseq/learn`) or, for the package's own modules, the stage
-modules, the methods' and VEIL's modules, by its file
+interpreter (`IMPORT_SERVER`), and every project module it then holds is a
+dependency, named by its subpackage (`taskseq/learn`) or, for the package's
+own modules, the stage modules, the methods' and VEIL's modules, by its file
 (`taskseq/stages/select.py`). So a change to code a stage never loads does not
 re-run it, and one it does load always does.
 

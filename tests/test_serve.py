@@ -332,6 +332,16 @@ def test_names_from_an_environment_file_are_shown_as_text_and_no_file_leaves_the
     assert main(["replay", str(data / "people")]) == 0
 
 
+def test_the_task_form_lists_each_object_by_name_and_its_id_only_where_they_differ(client):
+    def rename(env):
+        next(o for o in env["objects"] if o["id"] == "obj20")["name"] = "obj20"  # a file whose ids are its names
+
+    assert upload(client, environment_file(rename), name="same.json").status_code == 303
+    text = client.get("/task").get_data(as_text=True)
+    assert 'data-name="obj20">obj20</option>' in text and "obj20 (obj20)" not in text
+    assert 'data-name="water">water (obj27)</option>' in text
+
+
 def test_named_environment_files_come_from_the_data_folder(client, data):
     (data / "environments").mkdir(parents=True)
     (data / "environments" / "flat.json").write_text(environment_file())
