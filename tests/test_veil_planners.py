@@ -203,6 +203,21 @@ def test_the_lookahead_width_is_the_one_whose_inner_runs_reach_most_of_the_goal(
     assert seen == [2, 5, 8]  # in order; the tie of 5 and 8 goes to the smaller
 
 
+def test_a_model_for_use_is_the_one_the_choices_and_fit_give_in_one_process(release_dir: Path) -> None:  # noqa: F811
+    """`train_model` runs the final fit and each width's inner runs as separate jobs: the same width and the same
+    weights, to the bit, as `choose_width` and the fit one after the other in this process."""
+    settings = Settings(folds=2, C_grid=(1.0, 10.0), max_steps=8, lookahead_widths=(3, 1))
+    trained = experiment.train_model(release_dir, settings, n_jobs=2)
+    release = read_release(release_dir)
+    replays = replay_release(release)
+    name, C, fits = experiment.choose_model(release, replays, settings)
+    objectives = sorted({r.point.objective for r in replays})
+    assert trained.method.name == name and trained.method.C == C
+    assert trained.lookahead_width == experiment.choose_width(name, C, release, objectives, replays, settings, fits)
+    alone = experiment.make_method(name, release, objectives, settings, C).fit(replays)
+    assert np.array_equal(trained.method.w_, alone.w_)
+
+
 def test_the_lookahead_keeps_the_models_choice_per_state_and_last_two_steps(data) -> None:
     """The kept choices are keyed by the last two steps: a history differing two steps back is another key."""
     release, train, test = data

@@ -217,10 +217,15 @@ def choose_width(base: str, C: float, release: Release, objectives: Sequence[str
         return widths[0]
     fit_on, check_on = inner_split(train, settings, f"the lookahead's width among {widths}")
     model = (fits or Fits(release, objectives, settings))(base, C, fit_on)
-    executor, goals = Executor(release), derive_goals(fit_on)
-    scores = [_mean(closed_loop(GoalLookahead("inner", model, executor, width=w).with_goals(fit_on), executor,
-                                check_on, goals, "feasible", settings.max_steps), "goal_share") for w in widths]
-    return widths[_best(scores)]
+    executor, goals = Executor(release), derive_goals(fit_on)  # one executor: the widths meet the same states
+    return widths[_best([_goal_share(model, w, executor, fit_on, check_on, goals, settings) for w in widths])]
+
+
+def _goal_share(model: VeilMethod, width: int, executor: Executor, fit_on: Sequence[Replay],
+                check_on: Sequence[Replay], goals: dict, settings: Settings) -> float:
+    """The share of the goal the goal lookahead at `width` around `model` reaches in feasible runs on `check_on`."""
+    lookahead = GoalLookahead("inner", model, executor, width=width).with_goals(fit_on)
+    return _mean(closed_loop(lookahead, executor, check_on, goals, "feasible", settings.max_steps), "goal_share")
 
 
 def _mean(runs: Sequence[Run], attr: str) -> float:
@@ -513,24 +518,59 @@ def choose_model(release: Release, replays: Sequence[Replay], settings: Settings
     distinct = list({(MRF_ROWS[m]["features"], MRF_ROWS[m]["categories"]): m for m in reversed(rows)}.values())
     candidates = [(name, C) for name in rows if name in distinct for C in settings.C_grid]
     data = Shared((release, list(replays)))
-    done = run_jobs([(inner_fit, (name, C, data, inner, settings)) for name, C in candidates], n_jobs)
+    # a larger C takes more iterations: those go first, so that no long fit starts last while a worker idles
+    done = run_jobs([(inner_fit, (name, C, data, inner, settings)) for name, C in candidates], n_jobs,
+                    cost=[C for _, C in candidates])
     best = max(range(len(candidates)), key=lambda i: (done[i][0], -i))  # ties: the earlier row, then the smaller C
     name, C = candidates[best]
     fits.add(name, C, split(replays, inner)[0], done[best][1])
     return name, C, fits
 
 
+def full_fit(name: str, C: float, data: tuple[Release, list[Replay]], settings: Settings) -> np.ndarray:
+    """The weights of MRF row `name` at C fitted on every sequence of `data`."""
+    release, replays = data
+    objectives = sorted({r.point.objective for r in replays})
+    return make_method(name, release, objectives, settings, C).fit(replays).w_
+
+
+def inner_goal_share(name: str, C: float, data: tuple[Release, list[Replay]], weights: np.ndarray, width: int,
+                     settings: Settings) -> float:
+    """`choose_width`'s score of one width, as a job of its own: the goal lookahead at `width` around row `name`'s
+    inner fit at C (`weights`), on the inner split of `data` that `choose_width` makes."""
+    release, replays = data
+    objectives = sorted({r.point.objective for r in replays})
+    fit_on, check_on = inner_split(replays, settings, "the lookahead's width")
+    fits = Fits(release, objectives, settings)
+    fits.add(name, C, fit_on, weights)
+    return _goal_share(fits(name, C, fit_on), width, Executor(release), fit_on, check_on, derive_goals(fit_on),
+                       settings)
+
+
 def train_model(release_root: Path | str, settings: Settings, n_jobs: int = 1) -> TrainedModel:
     """The chosen MRF row fitted on every sequence of a release, with the goals of its objectives, its environments
-    and the goal lookahead's width, chosen around that row's inner fit on the same inner split (`choose_width`)."""
+    and the goal lookahead's width, chosen around that row's inner fit on the same inner split (`choose_width`).
+    The final fit and each width's runs are separate jobs, `n_jobs` at a time: none reads another's result, and
+    each gives what `choose_width` and the fit give in one process."""
     release = read_release(release_root)
     replays = replay_release(release)
     name, C, fits = choose_model(release, replays, settings, n_jobs)
     objectives = sorted({r.point.objective for r in replays})
     method = make_method(name, release, objectives, settings, C)
     assert isinstance(method, DomainScorer)
-    width = choose_width(name, C, release, objectives, replays, settings, fits)
-    return TrainedModel(method.fit(replays), derive_goals(replays), sorted({r.point.env_id for r in replays}), width)
+    widths = sorted(settings.lookahead_widths)
+    if len(widths) == 1:
+        method.w_ = full_fit(name, C, (release, list(replays)), settings)
+        width = widths[0]
+    else:
+        fit_on = inner_split(replays, settings, f"the lookahead's width among {widths}")[0]
+        inner = fits(name, C, fit_on)
+        assert isinstance(inner, DomainScorer)
+        data = Shared((release, list(replays)))
+        done = run_jobs([(full_fit, (name, C, data, settings))]
+                        + [(inner_goal_share, (name, C, data, inner.w_, w, settings)) for w in widths], n_jobs)
+        method.w_, width = done[0], widths[_best(done[1:])]
+    return TrainedModel(method, derive_goals(replays), sorted({r.point.env_id for r in replays}), width)
 
 
 def evaluate_model(model: TrainedModel, release_root: Path | str, settings: Settings,
