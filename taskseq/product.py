@@ -38,7 +38,7 @@ from .plan.planner import (
 from .sim.objects import ObjectSpec
 from .sim.primitives import Action, try_execute
 from .sim.safety import violations
-from .sim.state import WorldState
+from .sim.state import INSIDE, WorldState
 from .sim.tasks import Task, goal_reached
 
 
@@ -180,9 +180,36 @@ def runnable_first(policy: Policy, planner: StepScorer, task: Task, initial: Wor
 
 
 def in_names(item: Action | Task, specs: Mapping[str, ObjectSpec]) -> str:
-    """A step or task as a person reads it, `pour(milk)`: the objects' names where the records write their ids."""
+    """A step or task as a person reads it, `pour(milk)`: the objects' names where the records write their ids;
+    a step of no object is its primitive's name alone (`done`)."""
     head = item.primitive if isinstance(item, Action) else item.name
-    return f"{head}({', '.join(specs[a].name for a in item.args)})"
+    return f"{head}({', '.join(specs[a].name for a in item.args)})" if item.args else head
+
+
+def where(state: WorldState, obj: str) -> str:
+    """Where an object is, in words: `in mug`, `on kitchen_table`, `held`."""
+    if obj == state.held:
+        return "held"
+    parent = state.support.get(obj)
+    if parent is None:
+        return "on its own"
+    return f"{'in' if parent[1] == INSIDE else 'on'} {state.specs[parent[0]].name}"
+
+
+def told_apart(state: WorldState) -> dict[str, str]:
+    """Every object's name as a list of objects shows it: where several objects here share a name, each says where
+    it is (`cocoa in mug`, `cocoa in milk_carton`, `cup held`), and where that still leaves two alike, its id too
+    (`cup on kitchen_table [obj14]`, bracketed as `taskseq plan` prints ids). A person tells objects apart by what
+    the picture shows, not by ids."""
+    specs = state.specs
+    sharing: dict[str, int] = {}
+    for spec in specs.values():
+        sharing[spec.name] = sharing.get(spec.name, 0) + 1
+    shown = {o: spec.name if sharing[spec.name] < 2 else f"{spec.name} {where(state, o)}" for o, spec in specs.items()}
+    alike: dict[str, int] = {}
+    for text in shown.values():
+        alike[text] = alike.get(text, 0) + 1
+    return {o: f"{text} [{o}]" if alike[text] > 1 else text for o, text in shown.items()}
 
 
 def ids_hint(item: Action | Task, specs: Mapping[str, ObjectSpec]) -> str | None:
@@ -228,8 +255,12 @@ def parse_task(task_text: str, state: WorldState) -> Task:
 
     first = task.args[0]
     if task.name in LIQUID_TASKS and not specs[first].has("liquid"):
-        raise ValueError(f"task {said}: {named(first)} is not a liquid; "
-                         f"{task.name} takes the liquid, e.g. the water, not its bottle")
+        inside = [specs[o].name for o in state.liquids_in(first)]
+        raise ValueError(f"task {said}: {named(first)} is not a liquid; {task.name} names "
+                         + (f"the liquid in it: {' or '.join(inside)}" if inside else "a liquid"))
+    if task.name == "pour_to" and not specs[task.args[1]].has("container"):
+        raise ValueError(f"task {said}: {named(task.args[1])} is not a container; pour_to pours into a cup, a bowl "
+                         "or another container")
     if len(task.args) == 2 and task.args[1] == first:
         raise ValueError(f"task {said}: names {named(first)} twice; the second argument is where it goes")
     if task.name == "throw_away" and specs[first].category == "bin":
@@ -255,7 +286,8 @@ def _by_ids(task: Task, state: WorldState) -> Task:
     args = []
     for a in task.args:
         if a not in state.specs and len(called.get(a, ())) > 1:
-            raise ValueError(f"task {task}: {len(called[a])} objects here are called {a} ({', '.join(called[a])}); "
+            each = ", ".join(f"{o} {where(state, o)}" for o in called[a])
+            raise ValueError(f"task {task}: {len(called[a])} objects here are called {a} ({each}); "
                              "name one by its id")
         args.append(a if a in state.specs or a not in called else called[a][0])
     return Task(task.name, tuple(args))

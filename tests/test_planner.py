@@ -257,7 +257,11 @@ def test_a_task_may_name_its_objects_by_a_name_only_they_have(model_file, benchm
     room.write_text(json.dumps({"objects": objects, "state": record["steps"][0]["state"]}))
     code = main(["plan", "--model", str(model_file), "--env", str(room), "--task", "throw_away(cup)"])
     assert code == 2
-    assert f"2 objects here are called cup ({', '.join(cups)}); name one by its id" in capsys.readouterr().err
+    # each with where it is, as the picture shows it: the two cups stand on different furniture here
+    on = {o: record["steps"][0]["state"]["objects"][o]["support"] for o in cups}
+    names = {o["id"]: o["name"] for o in objects}
+    each = ", ".join(f"{c} on {names[on[c]]}" for c in cups)
+    assert f"2 objects here are called cup ({each}); name one by its id" in capsys.readouterr().err
     assert main(["plan", "--model", str(model_file), "--env", str(room), "--task", f"throw_away({cups[1]})"]) in (0, 1)
 
 
@@ -294,6 +298,10 @@ def test_plan_command_says_which_method_and_settings_it_runs(small_fit, benchmar
     ("pick_and_place(obj40,obj43)", "crumpled_paper (obj43) rests on magazine (obj40), so it cannot be put there"),
     ("fly(obj27)", "unknown task 'fly'"),
     ("pour(obj27,obj14)", "takes 1 argument"),
+    ("pour_to(obj27,obj02)", "task pour_to(water, kitchen_table): kitchen_table (obj02) is not a container; pour_to "
+                             "pours into a cup, a bowl or another container"),
+    ("pour(obj20)", "task pour(water_bottle): water_bottle (obj20) is not a liquid; pour names the liquid in it: "
+                    "water"),
     ("pour obj27", "cannot parse task"),
 ])
 def test_plan_command_fails_clearly(model_file, benchmark_logs, capsys, task, message):

@@ -114,8 +114,8 @@ def test_undo_takes_back_the_last_step(client):
     ({"primitive": "grasp", "a1": "obj99"}, "unknown object 'obj99'"),
     ({"primitive": "grasp", "a1": "<b>obj20</b>"}, "unknown object '<b>obj20</b>'"),
     ({"primitive": "teleport", "a1": "obj20"}, "unknown primitive 'teleport'"),
-    ({"primitive": "place_above", "a1": "obj20"}, "place_above takes 2 argument(s), got 1"),
-    ({"primitive": "grasp", "a1": "obj20", "a2": "obj14"}, "grasp takes 1 argument(s), got 2"),
+    ({"primitive": "place_above", "a1": "obj20"}, "place_above takes two objects, got one object"),
+    ({"primitive": "grasp", "a1": "obj20", "a2": "obj14"}, "grasp takes one object, got two objects"),
     ({"primitive": "hold_above", "a1": "obj20", "a2": "obj20"}, "needs two different objects"),
     ({"primitive": "grasp", "a1": "obj20", "n": "3"}, "this page was out of date"),
     ({"primitive": "grasp", "a1": "obj20", "n": "x"}, "this page was out of date"),
@@ -239,8 +239,9 @@ def test_the_checks_the_page_lists_are_the_checks_the_simulator_makes():
 @pytest.mark.parametrize("form, expected", [
     ({"task": "pour", "arg1": "obj20"}, "task pour(water_bottle): water_bottle (obj20) is not a liquid"),
     ({"task": "pour", "arg1": "obj99"}, "unknown object 'obj99'"),
-    ({"task": "pour", "arg1": "obj27", "arg2": "obj14"}, "task pour takes 1 argument(s), got 2"),
-    ({"task": "pick_and_place", "arg1": "obj40"}, "task pick_and_place takes 2 argument(s), got 1"),
+    ({"task": "pour", "arg1": "obj27", "arg2": "obj14"},
+     "pour takes one object, got two objects (water, cup); set the second object to (none)"),
+    ({"task": "pick_and_place", "arg1": "obj40"}, "pick_and_place takes two objects, got one object (magazine)"),
     ({"task": "fly", "arg1": "obj27"}, "unknown task 'fly'"),
     ({"task": "pick_and_place", "arg1": "obj43", "arg2": "obj40"}, "already holds"),
     ({"task": "pour", "arg1": "obj27", "mode": "watch"}, "unknown mode 'watch'"),
@@ -641,3 +642,43 @@ def test_the_pages_name_the_task_the_steps_and_a_refusal_by_the_objects_names(cl
     saved = client.get("/finished").get_data(as_text=True)
     assert "Saved: <code>pour(water)</code>" in saved and f"<li>{actions[0].primitive}(water_bottle)</li>" in saved
     assert "obj20" not in saved.split('id="demo-id"')[0]
+
+
+def test_objects_that_share_a_name_are_told_apart_by_where_they_are_in_every_list(client):
+    """Three cups (the mug and the teacup renamed): the task form and the step forms say where each is, as the
+    picture shows it, and the id too where two stand on the same furniture; a simulator's refusal says a name once,
+    never `kitchen_table (kitchen_table)`."""
+    state = world_environment(0, "env01").state
+    mug = next(o for o, s in state.specs.items() if s.name == "mug")
+
+    def three_cups(env):
+        for o in env["objects"]:
+            if o["id"] in (mug, "obj17"):
+                o["name"] = "cup"
+
+    assert upload(client, environment_file(three_cups), name="cups.json").status_code == 303
+    assert [state.specs[state.support[o][0]].name for o in ("obj14", mug, "obj17")] == [
+        "kitchen_table", "kitchen_table", "kitchen_shelf"]
+    shown = {"obj14": "cup on kitchen_table [obj14]", mug: f"cup on kitchen_table [{mug}]",
+             "obj17": "cup on kitchen_shelf"}
+    text = client.get("/task").get_data(as_text=True)
+    for o, label in shown.items():  # the id after the label where the label does not say it
+        said = label if o in label else f"{label} ({o})"
+        assert f'<option value="{o}" data-name="{label}">{said}</option>' in text
+    assert 'data-name="water">water (obj27)</option>' in text  # a name no other object has: the name alone
+    client.post("/task", data={"task": "pour", "arg1": "obj27", "arg2": "", "mode": "demonstrate"})
+    client.post("/step", data=step_form(0, Action("move_close", ("obj20",))))
+    page = client.get("/demonstrate").get_data(as_text=True)
+    for o, label in shown.items():
+        assert f'<option value="{o}">{label}</option>' in page
+    client.post("/step", data=step_form(1, Action("move_close", ("obj02",))))
+    refused = message(client.post("/step", data=step_form(2, Action("grasp", ("obj02",)))))
+    assert "kitchen_table cannot be moved" in refused and "kitchen_table (kitchen_table)" not in refused
+
+
+def test_a_task_that_pours_into_what_is_no_container_is_refused_by_name(client, data):
+    resp = start(client, Task("pour_to", ("obj27", "obj02")))
+    assert resp.status_code == 400
+    assert "kitchen_table (obj02) is not a container; pour_to pours into a cup, a bowl or another container" in (
+        message(resp))
+    assert not data.exists()

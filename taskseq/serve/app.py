@@ -20,7 +20,7 @@ from ..features.context import step_context
 from ..learn.estimator import StepScorer
 from ..learn.persist import policy_of
 from ..plan.planner import Abstain, Policy, closes_loop, out_of_loops
-from ..product import LIQUID_TASKS, ids_hint, in_names, parse_task, recorded_policy
+from ..product import LIQUID_TASKS, ids_hint, in_names, parse_task, recorded_policy, told_apart
 from ..sim.catalog import ENVIRONMENTS, OBJECTS_BY_ID
 from ..sim.primitives import ALL_PRIMITIVES, ARITY, Action, PreconditionError
 from ..sim.safety import RULES
@@ -56,6 +56,10 @@ LEAVE_SCRIPT = """\
   });
 })();
 """
+
+
+def objects_in_words(n: int) -> str:
+    return {0: "no object", 1: "one object", 2: "two objects"}.get(n, f"{n} objects")
 
 
 def steps_text(activity: Activity) -> list[str]:
@@ -179,7 +183,7 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
         common: dict[str, Any] = {"env": env, "activity": s.activity, "unsaved": unsaved}
         if env is not None:
             state = s.activity.state if s.activity is not None and not as_it_starts else env.state
-            common.update(view=top_view(state), tree=support_tree(state), state=state,
+            common.update(view=top_view(state), tree=support_tree(state), state=state, shown=told_apart(state),
                           objects=sorted(state.specs.values(), key=lambda o: (o.name, o.id)))
         return render_template(template, **common, **kw), status
 
@@ -298,6 +302,12 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
                 for a in args:
                     if a not in s.env.state.specs:
                         raise Refused(f"unknown object {a!r}: it is not in this environment")
+                wanted = TASK_ARITY.get(form.get("task", ""))
+                if wanted is not None and len(args) != wanted:
+                    raise Refused(f"{form['task']} takes {objects_in_words(wanted)}, got "
+                                  f"{objects_in_words(len(args))}" + (
+                                      f" ({', '.join(s.env.state.specs[a].name for a in args)})" if args else "")
+                                  + ("; set the second object to (none)" if len(args) > wanted else ""))
                 task = parse_task(f"{form.get('task', '')}({','.join(args)})", s.env.state)
             except (Refused, ValueError) as err:
                 return task_page(s, getattr(err, "status", 400), str(err), dict(form))
@@ -347,7 +357,9 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
         for a in args:
             if a not in activity.state.specs:
                 raise Refused(f"unknown object {a!r}: it is not in this environment")
-        action = Action(primitive, tuple(args))  # ValueError names a wrong number of objects
+        if len(args) != ARITY[primitive]:
+            raise Refused(f"{primitive} takes {objects_in_words(ARITY[primitive])}, got {objects_in_words(len(args))}")
+        action = Action(primitive, tuple(args))  # ValueError names two objects that must differ
         return action, bool(candidates) and action != candidates[0].action
 
     @app.post("/step")

@@ -15,7 +15,6 @@ objects' names, never their ids, and never Python's `None`.
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 
 from ..features.context import StepContext, step_context
@@ -48,7 +47,7 @@ class Imagined:
 
     def text(self) -> str:
         """`move_close(glass), grasp(milk_carton), then follow_traj_pour(...), which breaks ...` in names."""
-        words = [_step(state, action) for state, action in self.steps]
+        words = [in_names(action, state.specs) for state, action in self.steps]
         if not self.harmful:
             return ", ".join(words)
         state, action = self.steps[-1]
@@ -92,19 +91,9 @@ def _why_not_runnable(task: Task, initial: WorldState, state: WorldState, action
     try:
         execute(state, action)
     except PreconditionError as err:
-        return f"{in_names(action, state.specs)}: {_named(state, err.reason)} (check: {err.check})"
+        return f"{in_names(action, state.specs)}: {named(state, err.reason)} (check: {err.check})"
     reason = unsafe_reason(state, action)
     return None if reason is None else f"{in_names(action, state.specs)}: {reason}"
-
-
-def _step(state: WorldState, action: Action) -> str:
-    return "done" if action.primitive == DONE else in_names(action, state.specs)
-
-
-def _named(state: WorldState, text: str) -> str:
-    """`rules.named`, without the name said twice where the simulator gives an id and its name
-    (`dining_table (dining_table) cannot be moved`)."""
-    return re.sub(r"(\b[\w.-]+) \(\1\)", r"\1", named(state, text))
 
 
 def explain(planner: StepScorer, policy: str, task: Task, initial: WorldState, ctx: StepContext, state: WorldState,
@@ -135,7 +124,7 @@ def explain(planner: StepScorer, policy: str, task: Task, initial: WorldState, c
         return plans[y]
 
     def words(y: Y) -> str:
-        return _step(state, ctx.action(y))
+        return in_names(ctx.action(y), state.specs)
 
     looks_ahead = policy == "lookahead"
     stops = looks_ahead and goal_reached(task, initial, state)  # the lookahead proposes `done` first

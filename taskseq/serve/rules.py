@@ -56,13 +56,14 @@ def preconditions() -> dict[str, tuple[str, ...]]:
 
 
 def named(state: WorldState, text: str) -> str:
-    """`text` with every object id replaced by the object's name, and Python's `None` by "nothing"."""
+    """`text` with every object id replaced by the object's name, and Python's `None` by "nothing"; where the
+    simulator wrote an id and its name (`obj02 (kitchen_table) cannot be moved`), the name once."""
     text = re.sub(r"\bNone\b", "nothing", text)
     ids = sorted(state.specs, key=len, reverse=True)  # obj1 must not eat the start of obj14
     if not ids:
         return text
     pattern = re.compile(r"\b(" + "|".join(re.escape(o) for o in ids) + r")\b")
-    return pattern.sub(lambda m: state.specs[m.group(1)].name, text)
+    return re.sub(r"(\b[\w.-]+) \(\1\)", r"\1", pattern.sub(lambda m: state.specs[m.group(1)].name, text))
 
 
 def _why(state: WorldState, action: Action, rule: str) -> str:
