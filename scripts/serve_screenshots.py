@@ -66,7 +66,6 @@ def start_task(page, url: str, task: str, arg1: str, mode: str, participant: str
     submit(page, "#named-form button")
     page.select_option("#task-form select[name=task]", task)
     page.select_option("#task-form select[name=arg1]", arg1)
-    page.select_option("#task-form select[name=arg2]", "")
     page.fill("#task-form input[name=participant]", participant)
     submit(page, f"#task-form button[value={mode}]")
 

@@ -198,12 +198,15 @@ def test_each_object_of_the_picture_is_a_group_a_click_can_name_titled_with_its_
     start(client)
     text = client.get("/demonstrate").get_data(as_text=True)
     svg = text.split('<svg id="scene"')[1].split("</svg>")[0]
-    groups = re.findall(r'<g class="object" data-object="(\w+)" data-name="(\w+)"><title>([^<]*)</title>', svg)
+    group = r'<g class="object" data-object="(\w+)" data-name="(\w+)" data-kind="\w+"><title>([^<]*)</title>'
+    groups = re.findall(group, svg)
     state = world_environment(0, "env01").state
     liquids = {o for o in state.specs if state.specs[o].has("liquid")}
     assert sorted(o for o, _, _ in groups) == sorted(set(state.specs) - liquids - {"obj01"})  # no floor
     assert all(name == state.specs[o].name and title.startswith(name) for o, name, title in groups)
     assert ("obj20", "water_bottle", "water_bottle (water)") in groups
+    kinds = dict(re.findall(r'data-object="(\w+)" data-name="\w+" data-kind="(\w+)"', svg))
+    assert kinds["obj02"] == "furniture" and kinds["obj10"] == "bin" and kinds["obj20"] != "furniture"
     assert sorted(re.findall(r'<tspan class="object" data-object="(\w+)" data-name="\w+" data-liquid>', svg)) == \
         sorted(liquids)
     assert '<select name="a1" aria-label="grasp a1" data-offers="movable things, never a liquid">' in text

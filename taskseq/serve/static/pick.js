@@ -3,7 +3,9 @@
 // container's label) fills the next empty list of the form being filled: the step row last clicked or focused
 // (the first row at first), or the task form. An object the list does not offer is not taken, and the message
 // above the picture says why, by the object's name. A chosen object is highlighted; clicking it again empties
-// its list. The lists stay as they are for the keyboard; without this script the page works as before.
+// its list. A click inside an object's shape means that object even where another's slanted label crosses it.
+// Choosing another task empties and sets aside the lists it does not take. The lists stay as they are for the
+// keyboard; without this script the page works as before.
 (function () {
   var scene = document.getElementById("scene");
   var message = document.getElementById("pick-message");
@@ -48,6 +50,19 @@
 
   function say(text) { message.textContent = text; }
 
+  function progress(form) {  // what is chosen so far, and what to do next
+    var rest = lists(form).slice(0, room(form)).some(function (l) { return l.value === ""; });
+    return what(form) + (rest ? ": click the next object" : ": " + form.getAttribute("data-ready"));
+  }
+
+  function fit(form) {  // the task form's lists beyond the task's objects: emptied and left out of the form
+    var n = room(form);
+    lists(form).forEach(function (list, k) {
+      if (k >= n) { list.value = ""; }
+      list.disabled = k >= n;
+    });
+  }
+
   function show() {  // highlight the objects the active form has chosen, and the row being filled
     var chosen = lists(active).map(function (list) { return list.value; });
     Array.prototype.forEach.call(scene.querySelectorAll("[data-object]"), function (shape) {
@@ -83,8 +98,7 @@
     } else {
       list.value = id;
       show();
-      var rest = all.slice(0, room(active)).some(function (l) { return l.value === ""; });
-      say(what(active) + (rest ? ": click the next object" : ": " + active.getAttribute("data-ready")));
+      say(progress(active));
     }
   }
 
@@ -99,14 +113,41 @@
       }
       list.addEventListener("change", show);
     });
+    var task = form.querySelector("select[name=task]");
+    if (task) {  // another task: the lists it does not take are emptied, and the message says what is chosen now
+      fit(form);
+      task.addEventListener("change", function () { fit(form); show(); say(progress(form)); });
+    }
     var row = form.closest("tr") || form;
     var choose = function () { if (active !== form) { active = form; show(); } };
     row.addEventListener("focusin", choose);
     row.addEventListener("click", choose);
   });
   scene.classList.add("pickable");
+  function under(event) {  // the object whose shape is under the pointer, the topmost drawn; furniture aside
+    var hit = null;
+    Array.prototype.forEach.call(scene.querySelectorAll("g.object:not([data-kind=furniture]) > rect"), function (r) {
+      var box = r.getBoundingClientRect();
+      if (event.clientX >= box.left && event.clientX <= box.right &&
+          event.clientY >= box.top && event.clientY <= box.bottom) { hit = r.parentNode; }
+    });
+    return hit;
+  }
+  function takes(form, shape) {  // whether the next list to fill would take the object
+    var list = lists(form).slice(0, room(form)).filter(function (l) { return l.value === ""; })[0];
+    return list !== undefined && offers(list, shape.getAttribute("data-object")) &&
+      !(list.name === "arg1" && liquidTask(form) && !shape.hasAttribute("data-liquid"));
+  }
+
+  // A click inside an object's shape picks that object, even where another object's slanted label is drawn across
+  // it, unless only the name under the pointer is one the list being filled takes (a liquid in its container's
+  // label, for a liquid task); elsewhere (a label, furniture) what is under the pointer picks.
   scene.addEventListener("click", function (event) {
-    var shape = event.target.closest("[data-object]");
+    var here = [under(event), event.target.closest("[data-object]")].filter(function (s) { return s; });
+    var chosen = lists(active).map(function (list) { return list.value; });
+    var again = here.filter(function (s) { return chosen.indexOf(s.getAttribute("data-object")) >= 0; });
+    var taken = here.filter(function (s) { return takes(active, s); });
+    var shape = again[0] || taken[0] || here[0];  // a chosen one unselects; else one the list takes; else the shape
     if (shape) { pick(shape); }
   });
   var hint = document.getElementById("pick-hint");
