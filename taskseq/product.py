@@ -179,11 +179,13 @@ def runnable_first(policy: Policy, planner: StepScorer, task: Task, initial: Wor
     return checked
 
 
-def in_names(item: Action | Task, specs: Mapping[str, ObjectSpec]) -> str:
-    """A step or task as a person reads it, `pour(milk)`: the objects' names where the records write their ids;
-    a step of no object is its primitive's name alone (`done`)."""
+def in_names(item: Action | Task, specs: Mapping[str, ObjectSpec], told: Mapping[str, str] | None = None) -> str:
+    """A step or task as a person reads it, `pour(milk)`: the objects' names where the records write their ids, or
+    the words `told` gives each (`told_apart`: `stir(cocoa in mug)` where two objects are called cocoa); a step of
+    no object is its primitive's name alone (`done`)."""
     head = item.primitive if isinstance(item, Action) else item.name
-    return f"{head}({', '.join(specs[a].name for a in item.args)})" if item.args else head
+    words = [told[a] if told is not None else specs[a].name for a in item.args]
+    return f"{head}({', '.join(words)})" if item.args else head
 
 
 def where(state: WorldState, obj: str) -> str:

@@ -36,4 +36,9 @@ def test_the_top_view_draws_every_object_once_and_what_the_robot_holds_beside_it
     held = execute(execute(state, Action("move_close", ("obj20",))), Action("grasp", ("obj20",)))
     view = top_view(held)
     assert "obj20" not in {s.id for s in view.shapes} and view.held == "water_bottle (water)"
+    # above the teacup on the shelf, at the room's right end: the picture is wide enough for the whole label
+    above = execute(execute(held, Action("move_close", ("obj17",))), Action("hold_above", ("obj20", "obj17")))
+    view = top_view(above)
+    assert view.robot_label == "robot, holding water_bottle (water), above teacup"
+    assert view.width >= view.robot_label_x + 8 * len(view.robot_label)
     assert "obj20" not in nodes_by_id(support_tree(held))

@@ -677,6 +677,8 @@ def test_objects_that_share_a_name_are_told_apart_by_where_they_are_in_every_lis
     client.post("/step", data=step_form(1, Action("move_close", ("obj02",))))
     refused = message(client.post("/step", data=step_form(2, Action("grasp", ("obj02",)))))
     assert "kitchen_table cannot be moved" in refused and "kitchen_table (kitchen_table)" not in refused
+    assert client.post("/step", data=step_form(2, Action("move_close", ("obj17",)))).status_code == 303
+    assert "<li>move_close(cup on kitchen_shelf) " in client.get("/demonstrate").get_data(as_text=True)
 
 
 def test_a_task_that_pours_into_what_is_no_container_is_refused_by_name(client, data):

@@ -77,8 +77,9 @@ def corrections_text(corrected: list[int], n_steps: int) -> str:
 
 
 def shown(state: WorldState, action: Action) -> tuple[str, str | None]:
-    """A step as the page lists it: in the objects' names, and its ids where they differ (`ids_hint`)."""
-    return in_names(action, state.specs), ids_hint(action, state.specs)
+    """A step as the page lists it: in the objects' names (where names repeat, where each object is:
+    `told_apart`), and its ids where they differ (`ids_hint`)."""
+    return in_names(action, state.specs, told_apart(state)), ids_hint(action, state.specs)
 
 
 class Refused(Exception):
@@ -204,7 +205,7 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
                     proposals=[(c, *shown(activity.state, c.action)) for c in candidates],
                     primitives=ALL_PRIMITIVES, arity=ARITY, goal=activity.goal_reached, preconditions=preconditions(),
                     safety=RULES, choices=argument_choices(activity.state),
-                    task_text=in_names(activity.task, activity.state.specs),
+                    task_text=in_names(activity.task, activity.state.specs, told_apart(activity.env.state)),
                     task_ids=ids_hint(activity.task, activity.state.specs),
                     steps=[shown(activity.states[k], a) for k, a in enumerate(activity.actions)])
 

@@ -16,6 +16,8 @@ WIDTH = 1060.0  # pixels the room is fitted into at most
 MARGIN = 30.0
 TOP = 120.0  # room above the wall for the slanted labels of items
 LABEL_GAP = 13.0  # pixels between the starts of two slanted labels
+ROBOT_LABEL_AT = 16.0  # pixels from the robot's centre to where its label starts
+CHAR_WIDTH = 8.0  # pixels a character of the robot's bold label takes at most, about, in a sans-serif font
 
 
 @dataclass(frozen=True)
@@ -45,6 +47,8 @@ class TopView:
     robot: tuple[float, float]
     reach: float  # radius of the arm's reach, pixels
     held: str | None  # label of the held object, drawn beside the robot
+    robot_label: str  # what is written right of the robot: `robot, holding water_bottle (water), above cup`
+    robot_label_x: float  # where it starts, pixels
 
 
 @dataclass
@@ -115,8 +119,11 @@ def top_view(state: WorldState) -> TopView:
         if state.held_above is not None:
             held += f", above {state.specs[state.held_above].name}"
     height = TOP + (ymax - ymin) * scale + 2 * MARGIN + 20
-    width = 2 * MARGIN + (xmax - xmin) * scale + 160  # room for the robot's label
-    return TopView(round(width, 1), round(height, 1), shapes, (rx, ry), round(REACH * scale, 1), held)
+    robot_label = "robot" + (f", holding {held}" if held else "")
+    label_x = rx + ROBOT_LABEL_AT
+    width = max(2 * MARGIN + (xmax - xmin) * scale + 160, label_x + CHAR_WIDTH * len(robot_label) + MARGIN)
+    return TopView(round(width, 1), round(height, 1), shapes, (rx, ry), round(REACH * scale, 1), held, robot_label,
+                   round(label_x, 1))
 
 
 def support_tree(state: WorldState) -> list[Node]:
