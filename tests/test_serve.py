@@ -590,7 +590,10 @@ def test_starting_another_task_with_unsaved_steps_asks_first_and_changes_nothing
 
 def test_choosing_another_environment_with_unsaved_steps_asks_first(client):
     start(client)
+    assert 'id="under-way"' not in client.get("/").get_data(as_text=True)  # no step yet: nothing under way
     client.post("/step", data=step_form(0, demonstrated()[0]))
+    first = client.get("/").get_data(as_text=True)  # the first page says what is under way, with a link back
+    assert '<a href="/demonstrate">pour(water), 1 step</a>' in first.split('id="under-way"')[1].split("</p>")[0]
     env02 = {"source": "world", "seed": "0", "env_id": "env02"}
     asked = client.post("/environment", data=env02)
     assert asked.status_code == 409 and "its 1 step so far is not saved" in html.unescape(asked.get_data(as_text=True))

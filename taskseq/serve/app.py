@@ -188,14 +188,20 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
                           objects=sorted(state.specs.values(), key=lambda o: (o.name, o.id)))
         return render_template(template, **common, **kw), status
 
+    def under_way(s: Session) -> str | None:
+        """The task under way, as the links back to it name it."""
+        activity = s.activity
+        if activity is None:
+            return None
+        return in_names(activity.task, activity.state.specs, told_apart(activity.env.state))
+
     def choose_page(s: Session, status: int = 200, error: str | None = None):
         return page("choose.html", s, status, error=error, environments=ENVIRONMENTS, names=OBJECTS_BY_ID,
-                    files=named_files(served.environments), folder=served.environments)
+                    files=named_files(served.environments), folder=served.environments, under_way=under_way(s))
 
     def task_page(s: Session, status: int = 200, error: str | None = None, form: dict | None = None):
-        under_way = in_names(s.activity.task, s.activity.state.specs) if s.activity is not None else None
         return page("task.html", s, status, as_it_starts=True, error=error, tasks=TASK_ARITY,
-                    liquid_tasks=LIQUID_TASKS, modes=MODES, form=form or {}, model=served.model, under_way=under_way)
+                    liquid_tasks=LIQUID_TASKS, modes=MODES, form=form or {}, model=served.model, under_way=under_way(s))
 
     def run_page(s: Session, status: int = 200, error: str | None = None):
         activity = s.activity
@@ -205,7 +211,7 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
                     proposals=[(c, *shown(activity.state, c.action)) for c in candidates],
                     primitives=ALL_PRIMITIVES, arity=ARITY, goal=activity.goal_reached, preconditions=preconditions(),
                     safety=RULES, choices=argument_choices(activity.state),
-                    task_text=in_names(activity.task, activity.state.specs, told_apart(activity.env.state)),
+                    task_text=under_way(s),
                     task_ids=ids_hint(activity.task, activity.state.specs),
                     steps=[shown(activity.states[k], a) for k, a in enumerate(activity.actions)])
 
