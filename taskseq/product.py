@@ -54,6 +54,7 @@ def load_environment(path: Path, record: int) -> tuple[list[dict[str, Any]], dic
         state = item.record["steps"][0]["state"]
         _check_support(path, item.line, state["objects"])
         return item.record["objects"], state
+    _not_a_layout(path)
     try:
         text = path.read_text()
     except OSError as err:
@@ -63,12 +64,20 @@ def load_environment(path: Path, record: int) -> tuple[list[dict[str, Any]], dic
 
 def parse_environment(path: Path | str, text: str) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     """(objects, state) of an environment file's text, checked field by field; `path` names it in errors."""
+    _not_a_layout(Path(path))
     try:
         env = json.loads(text)
     except ValueError as err:
         raise ValueError(f"{path}: cannot read the environment: {err}") from None
     _check_environment(path, env)
     return env["objects"], env["state"]
+
+
+def _not_a_layout(path: Path) -> None:
+    """A layout (`taskseq layout`'s YAML input) given where an environment file is wanted is named as such."""
+    if path.suffix in (".yaml", ".yml"):
+        raise ValueError(f"{path}: a layout, not an environment; write the environment from it first: "
+                         f"taskseq layout {path} --output {path.with_suffix('.json')}")
 
 
 def _environment_validator() -> Draft202012Validator:
@@ -260,6 +269,14 @@ def parse_task(task_text: str, state: WorldState) -> Task:
         inside = [specs[o].name for o in state.liquids_in(first)]
         raise ValueError(f"task {said}: {named(first)} is not a liquid; {task.name} names "
                          + (f"the liquid in it: {' or '.join(inside)}" if inside else "a liquid"))
+    source = state.container_of(first)
+    if task.name in LIQUID_TASKS and source is None:
+        raise ValueError(f"task {said}: {named(first)} is in no container, so nothing can {task.name.split('_')[0]} "
+                         "it; a liquid stands in its bottle, cup or pot")
+    if task.name == "pour" and not any(s.has("container") and s.category != "bin" and not s.has("liquid")
+                                       for o, s in specs.items() if o != source):
+        raise ValueError(f"task {said}: {named(source)} is the only container here, so {specs[first].name} has "
+                         "nowhere to be poured; pour needs a cup, a bowl or another container to pour into")
     if task.name == "pour_to" and not specs[task.args[1]].has("container"):
         raise ValueError(f"task {said}: {named(task.args[1])} is not a container; pour_to pours into a cup, a bowl "
                          "or another container")

@@ -37,10 +37,16 @@ def layout(edit):
     (lambda d: d["objects"][3].pop("size"), "objects[3]: missing field 'size'"),
     (lambda d: d["objects"][3].update(size=[0.1, 0.1]), "objects[3]: object thermos: size must be three"),
     (lambda d: d["objects"][3].update(category="spaceship"), "unknown category 'spaceship'"),
-    (lambda d: d["objects"][3].update(flags=["shiny"]), "unknown flags ['shiny']"),
+    (lambda d: d["objects"][3].update(category="spaceship"), "objects[3].category: unknown category 'spaceship'; "
+                                                             "one of beaker, bin, bottle"),
+    (lambda d: d["objects"][3].update(flags=["shiny"]), "objects[3].flags: unknown flag 'shiny'; any of cylinder"),
     (lambda d: d["objects"][3].update(id="../x"), "objects[3].id"),
     (lambda d: d["items"][0].update(colour="red"), "items[0]: unknown field 'colour'"),
-    (lambda d: d["items"][0].update(at="sofa"), "placed on sofa, which is not placed before it"),
+    (lambda d: d["items"][0].update(at="sofa"), "items[0].at: 'sofa' is neither listed in objects nor a catalog"),
+    (lambda d: d["items"][0].update(at="obj10"), "items[0].at: obj10 is placed nowhere itself"),
+    (lambda d: d["objects"].append({"id": "mug2", "name": "mug", "category": "mug", "size": [0.08, 0.08, 0.1]}),
+     "objects[15]: mug2 is listed but placed nowhere; give it an x under furniture, or an entry under items"),
+    (lambda d: d["items"][1].update(at="workbench"), "items[1].at: green_tea is a liquid; it goes in a container"),
     (lambda d: d["items"][8].update(level=7), "items[8].level: 7: tool_rack (tool_rack) has levels 0 to 2"),
     # a negative level counted from the top, and an offset left the item hanging beside its support
     (lambda d: d["items"][8].update(level=-1), "items[8].level: -1: tool_rack"),
@@ -68,3 +74,15 @@ def test_an_item_inside_a_container_may_be_wider_than_it():
     data = {"furniture": {"obj02": 0.0}, "items": [{"id": "obj14", "at": "obj02"}, {"id": "obj31", "at": "obj14"}]}
     env = environment_from_layout(data)
     assert env["state"]["objects"]["obj31"]["support"] == "obj14"
+
+
+def test_the_teach_page_lists_every_category_and_flag_a_layout_takes():
+    import re
+
+    from taskseq.sim.objects import BINARY_ATTRIBUTES, CATEGORIES
+
+    page = (Path(__file__).resolve().parents[1] / "docs" / "teach.md").read_text()
+    said = page.split("Categories are the simulator's:")[1].split("They give the world")[0]
+    assert sorted(re.findall(r"`(\w+)`", said)) == sorted(CATEGORIES - {"floor"})  # the floor comes with every room
+    said = page.split("The flags\nare the binary attributes:")[1].split("A liquid goes")[0]
+    assert re.findall(r"`(\w+)`", said) == [*BINARY_ATTRIBUTES, "levels"]  # the last: the field levels go in

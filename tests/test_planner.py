@@ -386,6 +386,13 @@ def test_plan_command_refuses_a_count_below_one(model_file, benchmark_logs, caps
         capsys.readouterr().err)
 
 
+def test_plan_command_given_a_layout_says_to_write_the_environment_first(model_file, capsys):
+    layout = Path(__file__).resolve().parents[1] / "docs" / "examples" / "workshop.yaml"
+    code = main(["plan", "--model", str(model_file), "--env", str(layout), "--task", "stir(broth)"])
+    assert code == 2 and (f"{layout}: a layout, not an environment; write the environment from it first: "
+                          f"taskseq layout {layout} --output {layout.with_suffix('.json')}") in capsys.readouterr().err
+
+
 def test_plan_command_refuses_to_pour_a_container(model_file, benchmark_logs, capsys):
     record = json.loads((benchmark_logs / "env01.jsonl").read_text().splitlines()[0])
     cup = next(o["id"] for o in record["objects"] if o["attributes"]["liquid"] == 0)

@@ -24,7 +24,8 @@ from taskseq.sim.primitives import Action, execute, try_execute
 from taskseq.sim.procedural import Procedural
 from taskseq.sim.safety import violations
 from taskseq.sim.scenarios import candidate_scenarios, drawn_scenarios
-from taskseq.sim.tasks import goal_reached
+from taskseq.sim.tasks import Task, goal_reached
+from tests.conftest import world
 
 STEPS = 6  # steps followed per program
 
@@ -124,3 +125,19 @@ def test_every_task_the_benchmark_poses_passes_the_products_checks():
     assert {s.task.name for s in pool} == {"stir", "pour", "pour_to", "pick_and_place", "throw_away"}
     for s in pool:
         assert parse_task(str(s.task), s.initial) == s.task, s.id
+
+
+def test_a_liquid_task_no_program_can_do_is_refused_with_the_reason():
+    """Water on the table itself, or in the only container of the room: nothing can pour it (a hand-written room
+    where the planner went to its step cap); a cup beside the bottle makes the same task one to do."""
+    loose = world({2: 0.0}, [(27, 2)])
+    with pytest.raises(ValueError, match=r"water \(obj27\) is in no container, so nothing can pour it"):
+        parse_task("pour(obj27)", loose)
+    with pytest.raises(ValueError, match=r"in no container, so nothing can stir it"):
+        parse_task("stir(water)", loose)
+    alone = world({2: 0.0}, [(20, 2), (27, 20)])
+    with pytest.raises(ValueError, match=r"water_bottle \(obj20\) is the only container here, so water has nowhere "
+                                         r"to be poured"):
+        parse_task("pour(water)", alone)
+    with_a_cup = world({2: 0.0}, [(20, 2, 0, -0.2), (27, 20), (14, 2, 0, 0.2)])
+    assert parse_task("pour(water)", with_a_cup) == Task("pour", ("obj27",))

@@ -690,3 +690,22 @@ def test_a_task_that_pours_into_what_is_no_container_is_refused_by_name(client, 
     assert "kitchen_table (obj02) is not a container; pour_to pours into a cup, a bowl or another container" in (
         message(resp))
     assert not data.exists()
+
+
+def test_the_writers_lock_file_in_the_default_people_folder_is_seen_by_neither_dvc_nor_git():
+    """`taskseq serve` saves into data/people by default and takes its lock file there: a file DVC hashed with
+    the folder would make the `people` and `train` stages out of date after any demonstration, kept or not."""
+    import os
+    import shutil
+
+    from dvc.repo import Repo
+
+    from taskseq.serve.writer import LOCK_NAME
+
+    root = Path(__file__).resolve().parents[1]
+    lock = root / "data" / "people" / LOCK_NAME
+    with Repo(str(root)) as repo:
+        assert repo.dvcignore.is_ignored(repo.fs, os.fspath(lock))
+        assert not repo.dvcignore.is_ignored(repo.fs, os.fspath(lock.with_name("walkthrough-3b547b83.jsonl")))
+    if shutil.which("git") and (root / ".git").exists():
+        assert subprocess.run(["git", "check-ignore", "-q", os.fspath(lock)], cwd=root).returncode == 0

@@ -19,7 +19,7 @@ import yaml
 
 from ..demonstrations.records import spec_to_dict, state_to_dict
 from ..sim.catalog import OBJECTS_BY_ID, EnvironmentSpec, Placement, build_environment, on_furniture
-from ..sim.objects import ObjectSpec
+from ..sim.objects import BINARY_ATTRIBUTES, CATEGORIES, FURNITURE, ObjectSpec
 from .environments import SAFE_NAME
 
 OBJECT_FIELDS = {"id": True, "name": True, "category": True, "size": True, "flags": False, "levels": False}
@@ -50,6 +50,12 @@ def environment_from_layout(layout: Any, where: str = "layout") -> dict[str, Any
             raise ValueError(f"{at}.id: {oid!r}: use letters, digits, _ and - only")
         if oid in objects and oid not in OBJECTS_BY_ID:
             raise ValueError(f"{at}.id: {oid} is listed twice")
+        if str(entry["category"]) not in CATEGORIES:
+            raise ValueError(f"{at}.category: unknown category {entry['category']!r}; one of "
+                             f"{', '.join(sorted(CATEGORIES))}")
+        unknown = sorted(set(map(str, entry.get("flags") or ())) - set(BINARY_ATTRIBUTES))
+        if unknown:
+            raise ValueError(f"{at}.flags: unknown flag {unknown[0]!r}; any of {', '.join(BINARY_ATTRIBUTES)}")
         try:
             objects[oid] = ObjectSpec(oid, str(entry["name"]), str(entry["category"]),
                                       tuple(float(v) for v in entry["size"]), frozenset(entry.get("flags") or ()),
@@ -67,9 +73,23 @@ def environment_from_layout(layout: Any, where: str = "layout") -> dict[str, Any
     for oid in [*furniture, *(p.obj for p in items)]:
         if oid not in objects:
             raise ValueError(f"{where}: {oid!r} is placed but is neither listed in objects nor a catalog object")
+    placed_ids = {*map(str, furniture), *(p.obj for p in items)}
+    for i, entry in enumerate(layout.get("objects") or []):
+        if str(entry["id"]) not in placed_ids:
+            raise ValueError(f"{where}: objects[{i}]: {entry['id']} is listed but placed nowhere; give it an x under "
+                             "furniture, or an entry under items")
     for i, placed in enumerate(items):
-        if placed.on in objects:
-            _check_placement(f"{where}: items[{i}]", placed, objects[placed.obj], objects[placed.on])
+        at = f"{where}: items[{i}]"
+        if placed.on not in objects:
+            raise ValueError(f"{at}.at: {placed.on!r} is neither listed in objects nor a catalog object")
+        if placed.on not in placed_ids:
+            raise ValueError(f"{at}.at: {placed.on} is placed nowhere itself; give it an x under furniture, or an "
+                             "entry under items before this one")
+        spec, base = objects[placed.obj], objects[placed.on]
+        if spec.has("liquid") and not (base.has("container") and base.category not in FURNITURE):
+            raise ValueError(f"{at}.at: {placed.obj} is a liquid; it goes in a container (a bottle, a cup, a pot), "
+                             f"not on {base.name}")
+        _check_placement(at, placed, spec, base)
     spec = EnvironmentSpec(where, tuple((str(k), float(x)) for k, x in furniture.items()), tuple(items),
                            float(layout.get("robot_x", 0.0)))
     try:
