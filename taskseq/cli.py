@@ -97,9 +97,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     # workers stopped mid-job leave semaphores the resource tracker (a child process) warns about at exit
     os.environ.setdefault("PYTHONWARNINGS", "ignore:resource_tracker:UserWarning")
     try:
-        if args.command in STAGES:
-            return _guarded(args, lambda: _stage(args))
-        return _guarded(args, lambda: TOOLS[args.command].run(args))
+        code = _guarded(args, lambda: _stage(args) if args.command in STAGES else TOOLS[args.command].run(args))
+        sys.stdout.flush()  # a reader that left early (`taskseq plan --json | head`) is met here, not at exit
+        return code
+    except BrokenPipeError:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # nothing more to say to a closed pipe
+        return 1
     except KeyboardInterrupt as err:
         stopping.acknowledge()
 

@@ -35,6 +35,10 @@ def _replay_options(p: argparse.ArgumentParser) -> None:
 def _replay(args: argparse.Namespace) -> int:
     from .demonstrations.validate import LogError, check_record, log_files, read_records
 
+    if args.input.is_file() and args.input.suffix != ".jsonl":
+        raise ValueError(f"{args.input}: not a log of demonstrations (JSON Lines, .jsonl); replay re-executes the "
+                         "sequences a log records" + (", and a .json file is an environment" if args.input.suffix
+                                                      == ".json" else ""))
     n_ok, problems = 0, []  # records that replay exactly, problems found
     for path in [args.input] if args.input.is_file() else log_files(args.input):
         try:
@@ -48,6 +52,8 @@ def _replay(args: argparse.Namespace) -> int:
             problems.append(str(err))
     for problem in problems:
         print(problem, file=sys.stderr)
+    if not n_ok and not problems:
+        raise ValueError(f"{args.input}: holds no demonstration: its log files are empty")
     replay = "demonstration replays" if n_ok == 1 else "demonstrations replay"
     print(f"{n_ok} {replay} exactly; {len(problems)} with problems")
     return 1 if problems else 0

@@ -155,6 +155,17 @@ def test_replay_reports_every_bad_record(one_log, capsys):
     assert "with problems" in captured.out and f"{len(records) - 2} demonstrations replay exactly" in captured.out
 
 
+def test_replay_names_an_environment_file_and_a_log_without_demonstrations(tmp_path, capsys):
+    environment = tmp_path / "room.json"
+    environment.write_text('{\n "objects": [],\n "state": {}\n}\n')
+    assert main(["replay", str(environment)]) == 2
+    assert (f"{environment}: not a log of demonstrations (JSON Lines, .jsonl); replay re-executes the sequences a "
+            "log records, and a .json file is an environment") in capsys.readouterr().err
+    (tmp_path / "empty.jsonl").write_text("\n")
+    assert main(["replay", str(tmp_path)]) == 2
+    assert f"{tmp_path}: holds no demonstration: its log files are empty" in capsys.readouterr().err
+
+
 def test_empty_folder_is_a_clear_error(tmp_path, capsys):
     args = ["ingest", "--input", str(tmp_path), "--output", str(tmp_path / "out"), "--metrics", str(tmp_path / "m")]
     assert main(args) == 1

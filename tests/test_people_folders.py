@@ -170,7 +170,7 @@ def test_a_bad_file_of_a_people_folder_is_left_out_where_it_is_and_the_others_ar
     assert f"left out {bad}" in said and reason in said
     assert main(["--no-mlflow", "ingest", "--people", "--input", str(folder), "--output", str(tmp_path / "t")]) == 0
     out = capsys.readouterr()
-    assert "ingested 1 sequences" in out.out and f"left out {bad}" in out.err and reason in out.err
+    assert "ingested 1 sequence (" in out.out and f"left out {bad}" in out.err and reason in out.err
     assert bad.read_bytes() == damaged  # nothing is lost: the file stays as it was
     with pytest.raises(LogError, match=reason):  # the benchmark's own logs fail at their first problem
         load_logs(folder)
@@ -234,7 +234,7 @@ def test_ingest_reads_a_people_folder_the_peoples_way_without_the_flag(tmp_path,
     assert people_folder(folder)
     assert main(["--no-mlflow", "ingest", "--input", str(folder), "--output", str(tmp_path / "t")]) == 0
     out = capsys.readouterr()
-    assert "ingested 1 sequences" in out.out
+    assert "ingested 1 sequence (" in out.out
     assert "ingested as a folder of people's demonstrations" in out.err
     assert f"left out {bad}" in out.err and "not valid JSON" in out.err
 

@@ -406,3 +406,21 @@ def test_plan_command_names_a_truncated_model_file(model_file, benchmark_logs, t
     cut.write_bytes(model_file.read_bytes()[:200])
     code = main(["plan", "--model", str(cut), "--env", str(benchmark_logs / "env01.jsonl"), "--task", "pour(obj27)"])
     assert code == 2 and f"{cut}: not a readable taskseq model file" in capsys.readouterr().err
+
+
+def test_plan_into_a_pipe_its_reader_closed_ends_without_a_traceback(model_file, benchmark_logs):
+    """`taskseq plan --json | head`: the reader may leave before the program is printed; one exit code, no
+    traceback."""
+    import os
+    import subprocess
+    import sys
+
+    reader, writer = os.pipe()
+    os.close(reader)
+    try:
+        done = subprocess.run([sys.executable, "-m", "taskseq.cli", "plan", "--model", str(model_file), "--env",
+                               str(benchmark_logs / "env01.jsonl"), "--task", "pour(obj27)", "--json"],
+                              stdout=writer, stderr=subprocess.PIPE, text=True, timeout=300)
+    finally:
+        os.close(writer)
+    assert done.returncode == 1 and "Traceback" not in done.stderr and "BrokenPipeError" not in done.stderr

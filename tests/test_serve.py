@@ -99,7 +99,7 @@ def test_a_demonstration_is_refused_an_infeasible_step_and_saved_as_a_log_record
     assert [s["primitive"] for s in record["steps"]] == [a.primitive for a in actions]
     assert main(["replay", str(data / "people")]) == 0
     assert main(["--no-mlflow", "ingest", "--input", str(data / "people"), "--output", str(data.parent / "t")]) == 0
-    assert "ingested 1 sequences" in capsys.readouterr().out
+    assert "ingested 1 sequence (" in capsys.readouterr().out
 
 
 def test_undo_takes_back_the_last_step(client):

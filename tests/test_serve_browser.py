@@ -136,7 +136,7 @@ def test_a_person_demonstrates_a_task_in_the_browser_and_the_record_ingests(serv
     record = json.loads((data / "people" / "w0-env01.jsonl").read_text())
     assert record["participant"] == "p01" and len(record["steps"]) == len(actions)
     assert main(["--no-mlflow", "ingest", "--input", str(data / "people"), "--output", str(tmp_path / "t")]) == 0
-    assert "ingested 1 sequences" in capsys.readouterr().out
+    assert "ingested 1 sequence (" in capsys.readouterr().out
 
 
 def test_a_step_that_breaks_a_safety_rule_is_refused_naming_the_rule(server, browser, tmp_path):

@@ -44,6 +44,10 @@ def run(settings: None, options: IngestOptions, tracker: Tracker = NO_RUN) -> di
     if metrics:
         write_json_atomic(metrics, summary)
     tracker.metrics({k: v for k, v in flatten(summary).items() if isinstance(v, (int, float))})
-    print(f"ingested {summary['sequences']} sequences ({summary['steps']} steps, {summary['scenarios']} scenarios, "
-          f"{summary['environments']} environments) into {output}")
+    counts = ", ".join(_count(summary[k], k[:-1]) for k in ("steps", "scenarios", "environments"))
+    print(f"ingested {_count(summary['sequences'], 'sequence')} ({counts}) into {output}")
     return summary
+
+
+def _count(n: int, thing: str) -> str:
+    return f"{n} {thing}{'s' * (n != 1)}"

@@ -66,7 +66,8 @@ def run(settings: Settings, options: PeopleOptions, tracker: Tracker = NO_RUN) -
     write_json_atomic(out / "before_after.json", result)
     write_text_atomic(out / "before_after.md", _markdown(result))
     tracker.metrics({k: float(v) for k, v in summary.items() if isinstance(v, int)})
-    print(f"people's demonstrations: {summary['sequences']} sequences in {summary['environments']} environments"
+    n, rooms = summary["sequences"], summary["environments"]
+    print(f"people's demonstrations: {n} sequence{'s' * (n != 1)} in {rooms} environment{'s' * (rooms != 1)}"
           + (f"; success on their held-out tasks {result['success_before']:.1f}% before, "
              f"{result['success_after']:.1f}% after" if records else ""))
     return result
