@@ -54,6 +54,7 @@ def layout(edit):
     (lambda d: d["items"].append({"id": "obj41", "at": "rag"}), "obj41 (0.42 m wide) is wider than rag"),
     (lambda d: d["furniture"].update(sofa=3.0), "'sofa' is placed but is neither listed"),
     (lambda d: d["items"][2].update(dx=-0.6), "beaker and thermos overlap on workbench"),
+    (lambda d: d["furniture"].update(tool_rack=0.3), "layout: tool_rack and workbench overlap on the floor"),
 ])
 def test_a_bad_layout_names_its_field(edit, message):
     with pytest.raises(ValueError) as err:
