@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import sys
+from collections import Counter
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
@@ -212,14 +213,10 @@ def told_apart(state: WorldState) -> dict[str, str]:
     it is (`cocoa in mug`, `cocoa in milk_carton`, `cup held`), and where that still leaves two alike, its id too
     (`cup on kitchen_table [obj14]`, bracketed as `taskseq plan` prints ids). A person tells objects apart by what
     the picture shows, not by ids."""
-    specs = state.specs
-    sharing: dict[str, int] = {}
-    for spec in specs.values():
-        sharing[spec.name] = sharing.get(spec.name, 0) + 1
-    shown = {o: spec.name if sharing[spec.name] < 2 else f"{spec.name} {where(state, o)}" for o, spec in specs.items()}
-    alike: dict[str, int] = {}
-    for text in shown.values():
-        alike[text] = alike.get(text, 0) + 1
+    sharing = Counter(spec.name for spec in state.specs.values())
+    shown = {o: spec.name if sharing[spec.name] < 2 else f"{spec.name} {where(state, o)}"
+             for o, spec in state.specs.items()}
+    alike = Counter(shown.values())
     return {o: f"{text} [{o}]" if alike[text] > 1 else text for o, text in shown.items()}
 
 

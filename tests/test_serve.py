@@ -650,6 +650,22 @@ def test_the_pages_name_the_task_the_steps_and_a_refusal_by_the_objects_names(cl
     assert "obj20" not in saved.split('id="demo-id"')[0]
 
 
+def test_two_objects_of_one_name_are_told_apart_and_a_name_of_one_is_shown_alone():
+    """`product.told_apart` on env01 with the teacup renamed cup: the two cups (on the kitchen table, on the
+    shelf) say where they are, every other object is its name; and the held cup says so."""
+    from dataclasses import replace
+
+    from taskseq.product import told_apart
+
+    room = world_environment(0, "env01").state
+    state = replace(room, specs={**room.specs, "obj17": replace(room.specs["obj17"], name="cup")})  # a copy
+    told = told_apart(state)
+    assert (told["obj14"], told["obj17"]) == ("cup on kitchen_table", "cup on kitchen_shelf")
+    assert all(told[o] == spec.name for o, spec in state.specs.items() if o not in ("obj14", "obj17"))
+    held = execute(execute(state, Action("move_close", ("obj14",))), Action("grasp", ("obj14",)))
+    assert told_apart(held)["obj14"] == "cup held"
+
+
 def test_objects_that_share_a_name_are_told_apart_by_where_they_are_in_every_list(client):
     """Three cups (the mug and the teacup renamed): the task form and the step forms say where each is, as the
     picture shows it, and the id too where two stand on the same furniture; a simulator's refusal says a name once,

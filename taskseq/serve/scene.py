@@ -6,7 +6,7 @@ every name, so an environment file cannot put markup in the page.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from ..sim.objects import FURNITURE
 from ..sim.state import INSIDE, REACH, WorldState
@@ -47,8 +47,16 @@ class TopView:
     robot: tuple[float, float]
     reach: float  # radius of the arm's reach, pixels
     held: str | None  # label of the held object, drawn beside the robot
-    robot_label: str  # what is written right of the robot: `robot, holding water_bottle (water), above cup`
-    robot_label_x: float  # where it starts, pixels
+
+    @property
+    def robot_label(self) -> str:
+        """What is written right of the robot: `robot, holding water_bottle (water), above cup`."""
+        return "robot" + (f", holding {self.held}" if self.held else "")
+
+    @property
+    def robot_label_x(self) -> float:
+        """Where the robot's label starts, pixels."""
+        return round(self.robot[0] + ROBOT_LABEL_AT, 1)
 
 
 @dataclass
@@ -119,11 +127,10 @@ def top_view(state: WorldState) -> TopView:
         if state.held_above is not None:
             held += f", above {state.specs[state.held_above].name}"
     height = TOP + (ymax - ymin) * scale + 2 * MARGIN + 20
-    robot_label = "robot" + (f", holding {held}" if held else "")
-    label_x = rx + ROBOT_LABEL_AT
-    width = max(2 * MARGIN + (xmax - xmin) * scale + 160, label_x + CHAR_WIDTH * len(robot_label) + MARGIN)
-    return TopView(round(width, 1), round(height, 1), shapes, (rx, ry), round(REACH * scale, 1), held, robot_label,
-                   round(label_x, 1))
+    view = TopView(0.0, round(height, 1), shapes, (rx, ry), round(REACH * scale, 1), held)
+    width = max(2 * MARGIN + (xmax - xmin) * scale + 160,  # room for the robot's label, however long
+                view.robot_label_x + CHAR_WIDTH * len(view.robot_label) + MARGIN)
+    return replace(view, width=round(width, 1))
 
 
 def support_tree(state: WorldState) -> list[Node]:
