@@ -104,7 +104,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # nothing more to say to a closed pipe
         return 1
     except KeyboardInterrupt as err:
-        stopping.acknowledge()
+        stopping.stopped()
 
         how = "SIGTERM" if isinstance(err, stopping.Stopped) else "Ctrl-C"
         from .track.mlflow_runs import tracking_uri

@@ -139,6 +139,31 @@ def test_a_dropped_stop_prints_no_traceback_and_ends_the_command_at_its_write(tm
     assert not out.exists()
 
 
+def test_a_stop_inside_a_constructor_ends_with_one_line_and_no_destructor_traceback(tmp_path):
+    """Ctrl-C landing in Numba's compiler leaves an llvmlite object half built, whose destructor then fails
+    ("Exception ignored ... AttributeError") as the stop's traceback is freed: the command still says one line."""
+    script = (
+        "import os, signal, sys, time\n"
+        "from taskseq import cli\n"
+        "from taskseq.tool_commands import TOOLS, Tool\n"
+        "class HalfBuilt:\n"
+        "    def __init__(self):\n"
+        "        os.kill(os.getpid(), signal.SIGINT)\n"
+        "        time.sleep(0.1)\n"
+        "        self.handle = 'set once built'\n"
+        "    def __del__(self):\n"
+        "        del self.handle\n"
+        "def run(args):\n"
+        "    HalfBuilt()\n"
+        "    return 0\n"
+        "TOOLS['cache'] = Tool(TOOLS['cache'].help, TOOLS['cache'].options, run)\n"
+        "sys.exit(cli.main(['cache', sys.argv[1]]))\n")
+    done = subprocess.run([sys.executable, "-c", script, str(tmp_path)], capture_output=True, text=True,
+                          preexec_fn=_default_sigint, timeout=120)
+    assert done.returncode == 130, done.stderr
+    assert done.stderr == "taskseq cache: stopped by Ctrl-C; nothing was written\n"
+
+
 def test_a_signal_while_the_run_is_being_opened_still_leaves_it_killed(handlers, tmp_path, monkeypatch):
     """A signal landing as the run's first record is sent: the run must end KILLED, not RUNNING or FAILED."""
     from taskseq.track import mlflow_runs

@@ -16,6 +16,11 @@ command says it stopped (`acknowledge`), and `check`, which every atomic
 write calls before it replaces anything and every job of `runtime.jobs`
 before it starts, raises a noted one again; Python's report of the dropped
 exception (a traceback on stderr) is left out, since the stop is not lost.
+A stop that lands inside a constructor (Ctrl-C in Numba's compiler, inside
+llvmlite) leaves an object half built, whose destructor fails when the
+stop's traceback is freed: from the moment a stop is raised until the
+process ends (`stopped`), what Python drops is the stop's debris and goes
+unreported too.
 """
 
 from __future__ import annotations
@@ -29,6 +34,7 @@ from contextlib import contextmanager
 _held = 0  # depth of nested `held()` blocks
 _pending: list[int] = []  # signals that arrived while held, first first
 _raised: list[int] = []  # signals raised by the handler that the command has not said it stopped for
+_ended = False  # the command said it stopped: destructors failing from here on are the stop's debris
 
 
 class Stopped(KeyboardInterrupt):
@@ -57,8 +63,9 @@ def check() -> None:
 
 
 def _unraisable(unraisable: sys.UnraisableHookArgs) -> None:
-    """Python's hook for an exception it drops: silent for a stop this module noted (`check` raises it again)."""
-    if isinstance(unraisable.exc_value, KeyboardInterrupt) and _raised:
+    """Python's hook for an exception it drops: silent from the moment a stop is raised (`check` raises a dropped
+    one again; anything else dropped from then on is the stop's debris), the usual report otherwise."""
+    if _raised or _ended:
         return
     sys.__unraisablehook__(unraisable)
 
@@ -68,6 +75,13 @@ def acknowledge() -> None:
     _raised.clear()
 
 
+def stopped() -> None:
+    """The command has stopped and said so: `check` forgets the signals, and its teardown goes unreported."""
+    global _ended
+    acknowledge()
+    _ended = True
+
+
 def install() -> None:
     """Handle SIGTERM and SIGINT in this process (main thread only, where Python allows handlers).
 
@@ -75,10 +89,12 @@ def install() -> None:
     jobs start that way, and such a stage would otherwise ignore Ctrl-C sent
     with `kill -INT`.
     """
+    global _ended
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, _handler)
         signal.signal(signal.SIGINT, _handler)
         sys.unraisablehook = _unraisable
+    _ended = False
     acknowledge()
 
 
