@@ -297,7 +297,7 @@ def test_plan_command_says_which_method_and_settings_it_runs(small_fit, benchmar
     ("pick_and_place(obj27,obj02)", "water (obj27) is a liquid; pick_and_place takes the object that holds it"),
     ("pick_and_place(obj40,obj43)", "crumpled_paper (obj43) rests on magazine (obj40), so it cannot be put there"),
     ("fly(obj27)", "unknown task 'fly'"),
-    ("pour(obj27,obj14)", "takes 1 argument"),
+    ("pour(obj27,obj14)", "takes one argument"),
     ("pour_to(obj27,obj02)", "task pour_to(water, kitchen_table): kitchen_table (obj02) is not a container; pour_to "
                              "pours into a cup, a bowl or another container"),
     ("pour(obj20)", "task pour(water_bottle): water_bottle (obj20) is not a liquid; pour names the liquid in it: "

@@ -34,7 +34,7 @@ def test_action_parse_and_arity():
     assert str(Action.parse("done")) == "done()"
     with pytest.raises(ValueError, match="unknown primitive"):
         Action.parse("fly(obj02)")
-    with pytest.raises(ValueError, match="takes 2"):
+    with pytest.raises(ValueError, match="takes two arguments"):
         Action.parse("hold_above(obj02)")
     with pytest.raises(ValueError, match="two different"):
         Action.parse("hold_above(obj02,obj02)")

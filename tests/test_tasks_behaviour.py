@@ -77,7 +77,7 @@ def test_tasks_parse_and_refuse_what_they_cannot_be():
         "stir", "pick_and_place", "pour", "pour_to", "throw_away"}
     with pytest.raises(ValueError, match="unknown task 'fly'; known: stir, pick_and_place"):
         Task("fly", ("a",))
-    with pytest.raises(ValueError, match="task pour takes 1 argument"):
+    with pytest.raises(ValueError, match="task pour takes one argument"):
         Task("pour", ("a", "b"))
     with pytest.raises(ValueError, match="cannot parse task 'pour'"):
         Task.parse("pour")

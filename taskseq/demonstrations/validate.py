@@ -22,6 +22,7 @@ from jsonschema import Draft202012Validator
 from ..sim.primitives import ARITY, PreconditionError, execute
 from ..sim.state import WorldState
 from ..sim.tasks import TASK_ARITY, goal_reached
+from ..words import counted
 from .records import expected_attributes, load_schema, parse_record, state_from_dict, state_to_dict
 
 TOLERANCE = 1e-6
@@ -141,7 +142,8 @@ def check_references(item: LoggedRecord) -> None:
                 fail(f"objects[{i}].attributes.{name}", f"{got} does not match the size {obj['size']} ({want:.6g})")
     task = rec["task"]
     if len(task["args"]) != TASK_ARITY[task["name"]]:
-        fail("task.args", f"{task['name']} takes {TASK_ARITY[task['name']]} argument(s), got {len(task['args'])}")
+        fail("task.args", f"{task['name']} takes {counted(TASK_ARITY[task['name']], 'argument', spelled=True)}, "
+                           f"got {len(task['args'])}")
     for j, arg in enumerate(task["args"]):
         if arg not in known:
             fail(f"task.args[{j}]", f"unknown object {arg!r}")
@@ -150,7 +152,8 @@ def check_references(item: LoggedRecord) -> None:
     for k, step in enumerate(rec["steps"]):
         prim = step["primitive"]
         if len(step["args"]) != ARITY[prim]:
-            fail(f"steps[{k}].args", f"{prim} takes {ARITY[prim]} argument(s), got {len(step['args'])}")
+            fail(f"steps[{k}].args", f"{prim} takes {counted(ARITY[prim], 'argument', spelled=True)}, "
+                                        f"got {len(step['args'])}")
         for j, arg in enumerate(step["args"]):
             if arg not in known:
                 fail(f"steps[{k}].args[{j}]", f"unknown object {arg!r}")

@@ -26,6 +26,7 @@ from ..sim.primitives import ALL_PRIMITIVES, ARITY, Action, PreconditionError
 from ..sim.safety import RULES
 from ..sim.state import WorldState
 from ..sim.tasks import TASK_ARITY, Task
+from ..words import counted
 from .environments import SAFE_NAME, file_environment, named_files, read_named, world_environment
 from .explain import explain
 from .rules import UnsafeStep, argument_choices, named, preconditions
@@ -56,10 +57,6 @@ LEAVE_SCRIPT = """\
   });
 })();
 """
-
-
-def objects_in_words(n: int) -> str:
-    return {0: "no object", 1: "one object", 2: "two objects"}.get(n, f"{n} objects")
 
 
 def steps_text(activity: Activity) -> list[str]:
@@ -311,8 +308,8 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
                         raise Refused(f"unknown object {a!r}: it is not in this environment")
                 wanted = TASK_ARITY.get(form.get("task", ""))
                 if wanted is not None and len(args) != wanted:
-                    raise Refused(f"{form['task']} takes {objects_in_words(wanted)}, got "
-                                  f"{objects_in_words(len(args))}" + (
+                    raise Refused(f"{form['task']} takes {counted(wanted, 'object', spelled=True)}, got "
+                                  f"{counted(len(args), 'object', spelled=True)}" + (
                                       f" ({', '.join(s.env.state.specs[a].name for a in args)})" if args else "")
                                   + ("; set the second object to (none)" if len(args) > wanted else ""))
                 task = parse_task(f"{form.get('task', '')}({','.join(args)})", s.env.state)
@@ -365,7 +362,8 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
             if a not in activity.state.specs:
                 raise Refused(f"unknown object {a!r}: it is not in this environment")
         if len(args) != ARITY[primitive]:
-            raise Refused(f"{primitive} takes {objects_in_words(ARITY[primitive])}, got {objects_in_words(len(args))}")
+            raise Refused(f"{primitive} takes {counted(ARITY[primitive], 'object', spelled=True)}, "
+                          f"got {counted(len(args), 'object', spelled=True)}")
         action = Action(primitive, tuple(args))  # ValueError names two objects that must differ
         return action, bool(candidates) and action != candidates[0].action
 

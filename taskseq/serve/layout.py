@@ -12,7 +12,6 @@ containers, each item `at` what holds it. The result is the environment file `ta
 from __future__ import annotations
 
 import json
-import re
 from pathlib import Path
 from typing import Any
 
@@ -97,9 +96,6 @@ def environment_from_layout(layout: Any, where: str = "layout") -> dict[str, Any
         state = build_environment(spec, objects=objects)
     except (IndexError, KeyError) as err:
         raise ValueError(f"{where}: items: a level or object that does not exist ({err})") from None
-    except ValueError as err:  # the catalog's checks name the floor by its catalog id
-        floor = next(o for o, catalog in OBJECTS_BY_ID.items() if catalog.category == "floor")
-        raise ValueError(re.sub(rf"\b{floor}\b", "the floor", str(err))) from None
     return {"objects": [spec_to_dict(state.specs[o]) for o in state.specs], "state": state_to_dict(state)}
 
 

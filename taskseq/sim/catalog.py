@@ -245,4 +245,5 @@ def _check_layout(env_id: str, state: WorldState) -> None:
             sa, sb = state.support.get(a), state.support.get(b)
             side_by_side = sa and sb and sa[0] == sb[0] and sa[1] == ON
             if side_by_side and abs(state.poses[a][2] - state.poses[b][2]) < 1e-6 and state.overlap_top(a, b):
-                raise ValueError(f"{env_id}: {a} and {b} overlap on {sa[0]}")
+                where = "the floor" if state.specs[sa[0]].category == "floor" else sa[0]
+                raise ValueError(f"{env_id}: {a} and {b} overlap on {where}")

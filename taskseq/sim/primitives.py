@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..words import counted
 from .state import EPS, INSIDE, ON, WorldState
 
 ARITY = {
@@ -51,9 +52,8 @@ class Action:
         if self.primitive not in ARITY:
             raise ValueError(f"unknown primitive {self.primitive!r}; known: {', '.join(ALL_PRIMITIVES)}")
         if len(self.args) != ARITY[self.primitive]:
-            raise ValueError(
-                f"{self.primitive} takes {ARITY[self.primitive]} argument(s), got {len(self.args)}: {self.args}"
-            )
+            wanted = counted(ARITY[self.primitive], "argument", spelled=True)
+            raise ValueError(f"{self.primitive} takes {wanted}, got {len(self.args)}: {self.args}")
         if len(self.args) == 2 and self.args[0] == self.args[1]:
             raise ValueError(f"{self.primitive} needs two different objects, got {self.args}")
 

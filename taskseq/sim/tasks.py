@@ -5,6 +5,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
+from ..words import counted
 from .state import INSIDE, WorldState
 
 TASK_ARITY = {"stir": 1, "pick_and_place": 2, "pour": 1, "pour_to": 2, "throw_away": 1}
@@ -20,7 +21,8 @@ class Task:
         if self.name not in TASK_ARITY:
             raise ValueError(f"unknown task {self.name!r}; known: {', '.join(TASKS)}")
         if len(self.args) != TASK_ARITY[self.name]:
-            raise ValueError(f"task {self.name} takes {TASK_ARITY[self.name]} argument(s), got {len(self.args)}")
+            raise ValueError(f"task {self.name} takes {counted(TASK_ARITY[self.name], 'argument', spelled=True)}, "
+                             f"got {len(self.args)}")
 
     def __str__(self) -> str:
         return f"{self.name}({','.join(self.args)})"

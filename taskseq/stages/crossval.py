@@ -26,7 +26,6 @@ from ..runtime.atomic import write_json_atomic, write_text_atomic
 from ..selection import read_selection
 from ..settings import Crossval, Learner, Methods, Params, Procedural
 from ..track.mlflow_runs import NO_RUN, Tracker
-from ..track.recordings import record_program, spread
 from .options import CrossvalOptions
 
 
@@ -43,6 +42,12 @@ def settings(params: Params, world_seed: int | None = None) -> Settings:
     return Settings(params.crossval, params.train.learner, params.pddl.horizon, params.methods, params.procedural)
 
 
+def _spread(ids: list[str], n: int) -> frozenset[str]:
+    """`n` of the ids, evenly spaced in sorted order: the scenarios whose programs are recorded."""
+    ids = sorted(ids)
+    return frozenset(ids[:: max(1, len(ids) // n)][:n]) if n > 0 else frozenset()
+
+
 def run(settings: Settings, options: CrossvalOptions, tracker: Tracker = NO_RUN, n_jobs: int = 1) -> dict[str, Any]:
     crossval, methods, output = settings.crossval, options.methods, options.output
     lineup = Lineup(settings.methods, read_selection(options.selection), settings.learner, crossval, settings.horizon,
@@ -56,7 +61,7 @@ def run(settings: Settings, options: CrossvalOptions, tracker: Tracker = NO_RUN,
     bench = load_benchmark(options.processed)
     print(f"cross-validating {', '.join(factories)} over {crossval.folds} folds grouped by {crossval.group_by} "
           f"({len(bench.scenarios)} scenarios, {len(contexts)} steps, {n_jobs} jobs)")
-    recorded = spread(list(bench.scenarios), options.recordings)
+    recorded = _spread(list(bench.scenarios), options.recordings)
     results = cross_validate(factories, contexts, meta, bench, n_folds=crossval.folds, seed=crossval.seed,
                              group_by=crossval.group_by, max_steps=crossval.max_steps, n_jobs=n_jobs, verbose=5,
                              keep_programs={"full": recorded})
@@ -88,6 +93,8 @@ def run(settings: Settings, options: CrossvalOptions, tracker: Tracker = NO_RUN,
         preds = [y for r in full for y in r.step_predictions]
         confusion_png(confusion([contexts[i] for i in index], preds), str(out / "confusion.png"),
                       "full model, teacher-forced, cross-validated")
+    if recorded:  # Rerun takes half a second to import; `scenes_world` runs this stage recording nothing
+        from ..track.recordings import record_program
     for r in results:
         for sid, program in r.programs.items():
             path = Path(options.recordings_dir or out / "recordings") / f"{file_stem(sid)}.rrd"

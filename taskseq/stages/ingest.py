@@ -10,6 +10,7 @@ from ..demonstrations.validate import LogError
 from ..runtime.atomic import refuse_replacing_inputs, write_json_atomic
 from ..settings import Params
 from ..track.mlflow_runs import NO_RUN, Tracker, flatten
+from ..words import counted
 from .options import IngestOptions
 
 
@@ -44,10 +45,7 @@ def run(settings: None, options: IngestOptions, tracker: Tracker = NO_RUN) -> di
     if metrics:
         write_json_atomic(metrics, summary)
     tracker.metrics({k: v for k, v in flatten(summary).items() if isinstance(v, (int, float))})
-    counts = ", ".join(_count(summary[k], k[:-1]) for k in ("steps", "scenarios", "environments"))
-    print(f"ingested {_count(summary['sequences'], 'sequence')} ({counts}) into {output}")
+    counts = ", ".join(counted(summary[k], k[:-1]) for k in ("steps", "scenarios", "environments"))
+    print(f"ingested {counted(summary['sequences'], 'sequence')} ({counts}) into {output}")
     return summary
 
-
-def _count(n: int, thing: str) -> str:
-    return f"{n} {thing}{'s' * (n != 1)}"

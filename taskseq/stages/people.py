@@ -21,6 +21,7 @@ from ..selection import read_selection
 from ..settings import Learner, Params, People
 from ..sim.scenarios import doable_tasks
 from ..track.mlflow_runs import NO_RUN, Tracker
+from ..words import counted
 from .options import PeopleOptions
 
 
@@ -67,7 +68,7 @@ def run(settings: Settings, options: PeopleOptions, tracker: Tracker = NO_RUN) -
     write_text_atomic(out / "before_after.md", _markdown(result))
     tracker.metrics({k: float(v) for k, v in summary.items() if isinstance(v, int)})
     n, rooms = summary["sequences"], summary["environments"]
-    print(f"people's demonstrations: {n} sequence{'s' * (n != 1)} in {rooms} environment{'s' * (rooms != 1)}"
+    print(f"people's demonstrations: {counted(n, 'sequence')} in {counted(rooms, 'environment')}"
           + (f"; success on their held-out tasks {result['success_before']:.1f}% before, "
              f"{result['success_after']:.1f}% after" if records else ""))
     return result

@@ -115,9 +115,3 @@ def record_program(path: Path | str, recording_id: str, program: Program,
             rec.log("plan/chosen", rr.TextLog(f"infeasible: {program.error}", level=rr.TextLogLevel.ERROR))
     rec.flush()
     del rec
-
-
-def spread(ids: list[str], n: int) -> frozenset[str]:
-    """`n` of the ids, evenly spaced in sorted order: the scenarios whose programs are recorded."""
-    ids = sorted(ids)
-    return frozenset(ids[:: max(1, len(ids) // n)][:n]) if n > 0 else frozenset()

@@ -26,6 +26,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
+from ..words import counted
 from .pddl import Action, And, Domain
 from .release import NameIndex, loose_key
 from .xmltree import VeilFormatError
@@ -117,8 +118,9 @@ class ActionIndex:
             raise ActionError(f"unknown action {words[0]!r} (instructions: {', '.join(sorted(arities))})")
         rest = words[1:]
         if len(rest) not in arities[verb]:
-            counts = " or ".join(str(n) for n in arities[verb])
-            raise ActionError(f"{verb} takes {counts} arguments, not {len(rest)}: {text!r}")
+            *fewer, most = arities[verb]
+            wanted = " or ".join([*map(str, fewer), counted(most, "argument")])
+            raise ActionError(f"{verb} takes {wanted}, not {len(rest)}: {text!r}")
         if verb == "wait":
             if rest and not rest[0].isdigit():
                 raise ActionError(f"wait takes a whole number of seconds, not {rest[0]!r}")

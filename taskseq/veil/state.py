@@ -28,6 +28,7 @@ from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
 
+from ..words import counted
 from .pddl import Action, And, Atom, Eq, ForAll, Formula, Not, Or, When
 from .release import Catalog, Environment, NameIndex
 
@@ -235,7 +236,7 @@ def _effects(state: State, f: Formula, binding: Binding, adds: set[Fact], dels: 
 
 def _bind(action: Action, args: Sequence[str]) -> dict[str, str]:
     if len(args) != action.arity:
-        raise ValueError(f"{action.name} takes {action.arity} arguments, not {len(args)}: {list(args)}")
+        raise ValueError(f"{action.name} takes {counted(action.arity, 'argument')}, not {len(args)}: {list(args)}")
     return dict(zip(action.parameters, args, strict=True))
 
 
