@@ -156,8 +156,16 @@ def test_a_step_that_breaks_a_safety_rule_is_refused_naming_the_rule_and_the_obj
     assert f"breaks the safety rule \u201c{RULES[rule]}\u201d" in text and text.endswith("nothing was done")
     assert all(s in text for s in said), text
     assert not re.search(r"\bobj\d+\b|\bNone\b", text), text  # names, never ids or Python's None
+    # the refused step's row keeps the objects chosen in it (those its lists offer), and no other row chooses any
+    action, html = Action.parse(unsafe), refused.get_data(as_text=True)
+    row = re.search(rf'id="step-{action.primitive}".*?</form>', html, re.S).group(0)
+    offered = set(re.findall(r'<option value="(\w+)"', row))
+    kept = [a for a in action.args if a in offered]
+    assert re.findall(r'<option value="(\w+)" selected>', html) == kept
+    assert kept or rule == "liquid_grasped"  # only the liquid is offered by no list
     page = client.get("/demonstrate").get_data(as_text=True)
     assert f'name="n" value="{len(before)}"' in page  # nothing was done: the steps are those before
+    assert " selected>" not in page  # a fresh page chooses nothing
     assert not (data / "people").exists()
 
 

@@ -154,6 +154,11 @@ def test_a_step_that_breaks_a_safety_rule_is_refused_naming_the_rule(server, bro
                     "first; nothing was done")
     page.screenshot(path=str(tmp_path / "unsafe.png"), full_page=True)
     assert page.locator("#steps li").count() == 1 and not (data / "people").exists()
+    # the refused step's row keeps the magazine, highlighted, and is the row a click fills; no other row chooses
+    assert page.locator("#step-grasp select").input_value() == "obj40"
+    assert page.locator("#step-move_close select").input_value() == ""
+    assert page.locator("tr.picking #step-grasp").count() == 1
+    assert page.locator("g.picked[data-object]").evaluate_all("gs => gs.map(g => g.dataset.object)") == ["obj40"]
 
 
 def test_a_person_corrects_the_planner_in_assist_mode(server, browser, tmp_path):

@@ -200,7 +200,9 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
         return page("task.html", s, status, as_it_starts=True, error=error, tasks=TASK_ARITY,
                     liquid_tasks=LIQUID_TASKS, modes=MODES, form=form or {}, model=served.model, under_way=under_way(s))
 
-    def run_page(s: Session, status: int = 200, error: str | None = None):
+    def run_page(s: Session, status: int = 200, error: str | None = None, refused: dict | None = None):
+        """The page of the task under way; after a refused step (`refused`, its form) that step's row keeps the
+        objects chosen in it, so that one wrong choice is mended without choosing the others again."""
         activity = s.activity
         assert activity is not None
         candidates, none_runs = served.candidates(activity) if activity.mode == ASSIST else ([], None)
@@ -210,7 +212,8 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
                     safety=RULES, choices=argument_choices(activity.state),
                     task_text=under_way(s),
                     task_ids=ids_hint(activity.task, activity.state.specs),
-                    steps=[shown(activity.states[k], a) for k, a in enumerate(activity.actions)])
+                    steps=[shown(activity.states[k], a) for k, a in enumerate(activity.actions)],
+                    refused=refused or {})
 
     def confirm_page(s: Session, action: str, fields: dict[str, str], leaving_for: str):
         """Asks before the steps of the task under way are dropped: posting `fields` again with `discard` drops
@@ -339,7 +342,7 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
             raise Refused("no task is under way in this browser; choose one first", 409)
         n = request.form.get("n", "")
         if n != str(steps := len(s.activity.actions)):
-            raise Refused(f"this page was out of date (the demonstration has {steps} step{'s' * (steps != 1)} now); "
+            raise Refused(f"this page was out of date (the demonstration has {counted(steps, 'step')} now); "
                           f"nothing was done", 409)
         return s.activity
 
@@ -380,15 +383,15 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
             except PreconditionError as err:
                 state = s.activity.state
                 return run_page(s, 409, f"{in_names(err.action, state.specs)} is refused: {named(state, err.reason)} "
-                                        f"(check: {err.check}); nothing was done")
+                                        f"(check: {err.check}); nothing was done", dict(request.form))
             except UnsafeStep as err:
                 return run_page(s, 409, f"{in_names(err.action, s.activity.state.specs)} is refused: {err.reason}; "
-                                        "nothing was done")
+                                        "nothing was done", dict(request.form))
             except Refused as err:
                 return (run_page(s, err.status, str(err)) if s.activity is not None
                         else choose_page(s, err.status, str(err)))
             except ValueError as err:
-                return run_page(s, 400, str(err))
+                return run_page(s, 400, str(err), dict(request.form))
             return redirect(f"/{activity.mode}", 303)
 
     def finish(s: Session, activity: Activity, overridden: bool):

@@ -1,17 +1,18 @@
 "use strict";
 // Objects chosen by clicking them in the top view. A click on an object's shape (or on a liquid's name in its
 // container's label) fills the next empty list of the form being filled: the step row last clicked or focused
-// (the first row at first), or the task form. An object the list does not offer is not taken, and the message
-// above the picture says why, by the object's name. A chosen object is highlighted; clicking it again empties
-// its list. A click inside an object's shape means that object even where another's slanted label crosses it.
-// Choosing another task empties and sets aside the lists it does not take. The lists stay as they are for the
-// keyboard; without this script the page works as before.
+// (the first row at first, or the row of a step just refused), or the task form. An object the list does not
+// offer is not taken, and the message above the picture says why, by the object's name. A chosen object is
+// highlighted; clicking it again empties its list. A click inside an object's shape means that object even where
+// another's slanted label crosses it. Choosing another task empties and sets aside the lists it does not take.
+// The lists stay as they are for the keyboard; without this script the page works as before.
 (function () {
   var scene = document.getElementById("scene");
   var message = document.getElementById("pick-message");
   var forms = Array.prototype.slice.call(document.querySelectorAll("form[data-pick]"));
   if (!scene || !message || !forms.length) { return; }
-  var active = forms[0];
+  // a refused step's row comes back with its objects chosen, and is the one being filled
+  var active = forms.filter(function (f) { return f.querySelector("option[selected]"); })[0] || forms[0];
 
   function lists(form) {
     return Array.prototype.slice.call(form.querySelectorAll("select[data-offers]"));
