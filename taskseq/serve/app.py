@@ -41,17 +41,23 @@ MAX_UPLOAD = 2 * 1024 * 1024  # bytes of an uploaded environment file
 POLICY = ("default-src 'none'; script-src 'self'; style-src 'unsafe-inline'; img-src 'self'; form-action 'self'; "
           "frame-ancestors 'none'")
 # Asks before a page with unsaved steps is left (closed, reloaded, another address): the browser's own
-# `beforeunload` question. The page's own forms (a step, undo, done, the links' pages keep the steps) submit
-# freely; starting another task or environment asks on the server, so that works without the script too.
+# `beforeunload` question. The page's own forms (a step, undo, done) and links (their pages keep the steps, and
+# link back to the task under way) leave freely; starting another task or environment asks on the server, so that
+# works without the script too.
 LEAVE_SCRIPT = """\
 "use strict";
 (function () {
   var unsaved = Number(document.body.getAttribute("data-unsaved") || "0");
   if (!unsaved) { return; }
-  var submitting = false;
-  document.addEventListener("submit", function () { submitting = true; });
+  var kept = false;  // left for another page of this server's: the steps stay where they are
+  document.addEventListener("submit", function () { kept = true; });
+  document.addEventListener("click", function (event) {  // a plain click: a new tab leaves this page in place
+    var link = event.target.closest("a[href]");
+    if (link && link.origin === location.origin && event.button === 0 &&
+        !(event.ctrlKey || event.metaKey || event.shiftKey || event.altKey)) { kept = true; }
+  });
   window.addEventListener("beforeunload", function (event) {
-    if (submitting) { return; }
+    if (kept) { return; }
     event.preventDefault();
     event.returnValue = "";
   });
