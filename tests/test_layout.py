@@ -41,6 +41,10 @@ def layout(edit):
                                                              "one of beaker, bin, bottle"),
     (lambda d: d["objects"][3].update(flags=["shiny"]), "objects[3].flags: unknown flag 'shiny'; any of cylinder"),
     (lambda d: d["objects"][3].update(id="../x"), "objects[3].id"),
+    (lambda d: d["objects"][3].update(name="flask, steel"), "objects[3].name: 'flask, steel': a task names an object "
+                                                            "by its name"),
+    (lambda d: d["objects"][3].update(name="flask (big)"), "objects[3].name: 'flask (big)'"),
+    (lambda d: d["objects"][3].update(name=" "), "objects[3].name: ' '"),
     (lambda d: d["items"][0].update(colour="red"), "items[0]: unknown field 'colour'"),
     (lambda d: d["items"][0].update(at="sofa"), "items[0].at: 'sofa' is neither listed in objects nor a catalog"),
     (lambda d: d["items"][0].update(at="obj10"), "items[0].at: obj10 is placed nowhere itself"),

@@ -50,6 +50,10 @@ def environment_from_layout(layout: Any, where: str = "layout") -> dict[str, Any
             raise ValueError(f"{at}.id: {oid!r}: use letters, digits, _ and - only")
         if oid in objects and oid not in OBJECTS_BY_ID:
             raise ValueError(f"{at}.id: {oid} is listed twice")
+        name = str(entry["name"])
+        if not name.strip() or set(name) & set("(),"):  # `taskseq plan --task "pour(green_tea)"` names it
+            raise ValueError(f"{at}.name: {name!r}: a task names an object by its name, so a name is not empty and "
+                             "has no brackets or commas")
         if str(entry["category"]) not in CATEGORIES:
             raise ValueError(f"{at}.category: unknown category {entry['category']!r}; one of "
                              f"{', '.join(sorted(CATEGORIES))}")
@@ -57,7 +61,7 @@ def environment_from_layout(layout: Any, where: str = "layout") -> dict[str, Any
         if unknown:
             raise ValueError(f"{at}.flags: unknown flag {unknown[0]!r}; any of {', '.join(BINARY_ATTRIBUTES)}")
         try:
-            objects[oid] = ObjectSpec(oid, str(entry["name"]), str(entry["category"]),
+            objects[oid] = ObjectSpec(oid, name, str(entry["category"]),
                                       tuple(float(v) for v in entry["size"]), frozenset(entry.get("flags") or ()),
                                       tuple(float(v) for v in entry.get("levels") or ()))
         except (TypeError, ValueError) as err:
