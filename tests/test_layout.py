@@ -45,6 +45,9 @@ def layout(edit):
                                                             "by its name"),
     (lambda d: d["objects"][3].update(name="flask (big)"), "objects[3].name: 'flask (big)'"),
     (lambda d: d["objects"][3].update(name=" "), "objects[3].name: ' '"),
+    (lambda d: d["objects"][3].update(name="flask "), "objects[3].name: 'flask ': a task names an object by its name "
+                                                      "(`pour(green_tea)`), so a name has no '(', ')' or ',' and no "
+                                                      "space at either end"),
     (lambda d: d["items"][0].update(colour="red"), "items[0]: unknown field 'colour'"),
     (lambda d: d["items"][0].update(at="sofa"), "items[0].at: 'sofa' is neither listed in objects nor a catalog"),
     (lambda d: d["items"][0].update(at="obj10"), "items[0].at: obj10 is placed nowhere itself"),

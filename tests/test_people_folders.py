@@ -192,7 +192,7 @@ def test_a_people_folder_with_no_usable_file_is_an_error_naming_them(tmp_path, c
     (folder / "w0-env01.jsonl").write_text("{not json\n")
     assert main(["--no-mlflow", "ingest", "--people", "--input", str(folder), "--output", str(tmp_path / "t")]) != 0
     said = capsys.readouterr().err
-    assert "w0-env01.jsonl:1" in said and "no usable records: 1 file(s) left out" in said
+    assert "w0-env01.jsonl:1" in said and "no usable records: 1 file left out" in said
     assert not (tmp_path / "t").exists()
 
 

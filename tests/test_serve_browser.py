@@ -292,6 +292,11 @@ def test_leaving_a_task_with_unsaved_steps_asks_first(server, browser, tmp_path)
     page.wait_for_url("**/task")
     assert len(dialogs) == asked and "pour(water), 1 step" in page.inner_text("#under-way")
     assert page.inner_html("#scene") == room  # where a new task would start, not where the one under way is
+    page.go_back()  # back to the steps (from the browser's page cache, where it keeps one): they still ask
+    page.wait_for_url("**/demonstrate")
+    page.click("#status")
+    page.goto(url + "/task")
+    assert len(dialogs) == asked + 1 and dialogs[-1] == "beforeunload"
     page.select_option("#task-form select[name=task]", "throw_away")
     page.select_option("#task-form select[name=arg1]", "obj43")
     submit(page, "#task-form button[value=demonstrate]")

@@ -229,7 +229,7 @@ def test_lines_ground_to_specific_or_generic_actions_and_to_learner_steps(releas
 
 
 @pytest.mark.parametrize("line, words", [
-    ("fly Teapot_1", "unknown action 'fly'"), ("grasp", "grasp takes 1 argument, not 0"),
+    ("fly Teapot_1", "unknown action 'fly'"), ("grasp", "grasp takes one argument, not 0"),
     ("keep Teapot_1 Under Tub", "unknown relation 'Under'"), ("wait long", "whole number"),
     ("open Teapot_1", "no action of the domain executes 'open Teapot_1'"),
 ])

@@ -18,9 +18,9 @@ before it starts, raises a noted one again; Python's report of the dropped
 exception (a traceback on stderr) is left out, since the stop is not lost.
 A stop that lands inside a constructor (Ctrl-C in Numba's compiler, inside
 llvmlite) leaves an object half built, whose destructor fails when the
-stop's traceback is freed: from the moment a stop is raised until the
-process ends (`stopped`), what Python drops is the stop's debris and goes
-unreported too.
+stop's traceback is freed: from the moment a stop is raised, and after the
+command said it stopped (`stopped`) until another command installs the
+handlers, what Python drops is the stop's debris and goes unreported too.
 """
 
 from __future__ import annotations
@@ -110,4 +110,5 @@ def held() -> Iterator[None]:
         if not _held and _pending:
             signum = _pending[0]
             _pending.clear()
+            _raised.append(signum)  # noted as the handler notes a signal it raises at once
             _raise(signum)

@@ -50,11 +50,15 @@ LEAVE_SCRIPT = """\
   var unsaved = Number(document.body.getAttribute("data-unsaved") || "0");
   if (!unsaved) { return; }
   var kept = false;  // left for another page of this server's: the steps stay where they are
+  window.addEventListener("pageshow", function () { kept = false; });  // back again (Back, the page cache)
   document.addEventListener("submit", function () { kept = true; });
-  document.addEventListener("click", function (event) {  // a plain click: a new tab leaves this page in place
-    var link = event.target.closest("a[href]");
-    if (link && link.origin === location.origin && event.button === 0 &&
-        !(event.ctrlKey || event.metaKey || event.shiftKey || event.altKey)) { kept = true; }
+  window.addEventListener("click", function (event) {  // after the page's other scripts: only a click that leaves
+    var link = event.target.closest && event.target.closest("a[href]");
+    if (!link || event.defaultPrevented || event.button !== 0 ||
+        event.ctrlKey || event.metaKey || event.shiftKey || event.altKey) { return; }  // a new tab or window
+    if ((link.target && link.target !== "_self") || link.hasAttribute("download")) { return; }
+    if (link.pathname === location.pathname && link.search === location.search && link.hash) { return; }
+    if (link.origin === location.origin) { kept = true; }
   });
   window.addEventListener("beforeunload", function (event) {
     if (kept) { return; }
@@ -161,6 +165,7 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
     """The application; records go to `data/people/`, named environment files come from `data/environments/`."""
     app = Flask(__name__)
     app.config["MAX_CONTENT_LENGTH"] = MAX_UPLOAD
+    app.jinja_env.filters["counted"] = counted  # the pages count as the messages do
     served = Served(data, model, top_k)
     app.extensions["taskseq"] = served
 

@@ -51,9 +51,9 @@ def environment_from_layout(layout: Any, where: str = "layout") -> dict[str, Any
         if oid in objects and oid not in OBJECTS_BY_ID:
             raise ValueError(f"{at}.id: {oid} is listed twice")
         name = str(entry["name"])
-        if not name.strip() or set(name) & set("(),"):  # `taskseq plan --task "pour(green_tea)"` names it
-            raise ValueError(f"{at}.name: {name!r}: a task names an object by its name, so a name is not empty and "
-                             "has no brackets or commas")
+        if not name.strip() or name != name.strip() or set(name) & set("(),"):
+            raise ValueError(f"{at}.name: {name!r}: a task names an object by its name (`pour(green_tea)`), so a "
+                             "name has no '(', ')' or ',' and no space at either end")
         if str(entry["category"]) not in CATEGORIES:
             raise ValueError(f"{at}.category: unknown category {entry['category']!r}; one of "
                              f"{', '.join(sorted(CATEGORIES))}")

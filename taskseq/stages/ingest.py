@@ -37,7 +37,7 @@ def run(settings: None, options: IngestOptions, tracker: Tracker = NO_RUN) -> di
         for err in skipped:
             print(f"left out {err.path} (the file stays where it is): {err}", file=sys.stderr)
         if not records:
-            raise LogError(input_dir, 0, "(file)", f"no usable records: {len(skipped)} file(s) left out")
+            raise LogError(input_dir, 0, "(file)", f"no usable records: {counted(len(skipped), 'file')} left out")
     else:
         tables, _ = load_logs(input_dir)
     summary = dataset_summary(tables)

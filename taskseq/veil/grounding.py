@@ -119,7 +119,8 @@ class ActionIndex:
         rest = words[1:]
         if len(rest) not in arities[verb]:
             *fewer, most = arities[verb]
-            wanted = " or ".join([*map(str, fewer), counted(most, "argument")])
+            wanted = (" or ".join([*map(str, fewer), counted(most, "argument")]) if fewer  # 0 or 1 argument
+                      else counted(most, "argument", spelled=True))
             raise ActionError(f"{verb} takes {wanted}, not {len(rest)}: {text!r}")
         if verb == "wait":
             if rest and not rest[0].isdigit():

@@ -236,7 +236,8 @@ def _effects(state: State, f: Formula, binding: Binding, adds: set[Fact], dels: 
 
 def _bind(action: Action, args: Sequence[str]) -> dict[str, str]:
     if len(args) != action.arity:
-        raise ValueError(f"{action.name} takes {counted(action.arity, 'argument')}, not {len(args)}: {list(args)}")
+        wanted = counted(action.arity, "argument", spelled=True)
+        raise ValueError(f"{action.name} takes {wanted}, not {len(args)}: {list(args)}")
     return dict(zip(action.parameters, args, strict=True))
 
 
