@@ -11,6 +11,8 @@ import pytest
 
 from taskseq.demonstrations.people import people_records
 from taskseq.features.dataset import build_steps, write_features
+from taskseq.learn.estimator import StepScorer
+from taskseq.learn.persist import describe
 from taskseq.serve.environments import world_environment
 from taskseq.serve.writer import RecordWriter, person_record
 from taskseq.settings import Learner, Methods, People, Teach, Train, World
@@ -87,6 +89,9 @@ def test_the_train_switch_adds_people_steps_and_off_leaves_the_metrics_as_they_w
                                   TrainOptions(features=features, model=tmp_path / "b.npz"))
     assert "people_sequences" not in without and with_people["people_sequences"] == 2
     assert (tmp_path / "a.npz").read_bytes() != (tmp_path / "b.npz").read_bytes()
+    # `taskseq plan` and the web app say which planner runs, people's part in it included
+    assert "people's sequences 2, " in describe(StepScorer.load(tmp_path / "b.npz").meta_)
+    assert "people" not in describe(StepScorer.load(tmp_path / "a.npz").meta_)
 
 
 def test_the_teach_stage_runs_the_shipped_planner_on_the_same_tasks_for_every_k(tmp_path, capsys):

@@ -99,7 +99,8 @@ def policy_of(meta: dict[str, Any]) -> str:
 
 
 def describe(meta: dict[str, Any]) -> str:
-    """One line on what a model file holds: its method and the settings it was trained with."""
+    """One line on what a model file holds: its method, the settings it was trained with, and how many of its
+    training sequences people demonstrated (`taskseq serve`, with `people.train`) where any did."""
     learner = ", ".join(f"{k} {meta[k]:g}" if isinstance(meta[k], float) else f"{k} {meta[k]}"
                         for k in ("C", "tol", "max_iter", "n_slacks") if k in meta)
     policy = (f"policy {meta['policy']}" if "policy" in meta else
@@ -109,8 +110,9 @@ def describe(meta: dict[str, Any]) -> str:
                 f"set, {learner}, {policy}")
     noisy = (f"{meta['noise_copies']} noisy copies at flip rate {meta['noise_rate']:g}, "
              if meta.get("noise_copies") else "")
+    people = f"people's sequences {meta['people_sequences']}, " if meta.get("people_sequences") else ""
     extra = (f"chained starts {'yes' if meta.get('chained_starts') else 'no'}, "
-             f"DAgger rounds {meta.get('dagger_rounds', 0)}, {noisy}{policy}")
+             f"DAgger rounds {meta.get('dagger_rounds', 0)}, {noisy}{people}{policy}")
     why = f"; {meta['chosen_by']}" if meta.get("chosen_by") else ""
     return (f"{meta.get('label', meta['method'])} (method {meta['method']}: {meta['features']} feature set, {learner}, "
             f"{extra}{why})")

@@ -81,6 +81,7 @@ def run(settings: Settings, options: TrainOptions, tracker: Tracker = NO_RUN) ->
     label = method_spec(name).label
     planner.save(model, n_steps=len(contexts), method=name, label=label, chosen_by=chosen_by,
                  chained_starts=method.chained_starts, dagger_rounds=method.dagger_rounds, policy=method.policy,
+                 **({"people_sequences": len(people)} if people else {}),  # without them, the file is as before
                  **({"noise_rate": method.noise_rate, "noise_copies": method.noise_copies} if method.noise_copies
                     else {}))
     ssvm = planner.ssvm_
