@@ -85,6 +85,18 @@ def test_a_signal_inside_a_held_block_is_raised_when_the_block_is_done(handlers,
     assert type(stop.value).__name__ == kind
 
 
+def test_a_stop_raised_as_a_held_block_ends_is_raised_again_where_it_was_dropped(handlers):
+    """The stop a held block raises at its end is noted as the handler notes one: dropped where it landed (a
+    destructor), the next check raises it again."""
+    with pytest.raises(KeyboardInterrupt), handlers.held():
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.1)
+    with pytest.raises(KeyboardInterrupt):
+        handlers.check()  # what every atomic write calls first
+    handlers.acknowledge()
+    handlers.check()  # said to have stopped: nothing raised
+
+
 @pytest.mark.parametrize("write", ["folder", "file"])
 def test_a_stop_dropped_where_it_landed_replaces_no_output(handlers, tmp_path, write):
     """Python drops an exception raised in a ctypes callback (Numba's compiler writing its cache calls one) or a

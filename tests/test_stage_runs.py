@@ -403,3 +403,12 @@ def test_a_stage_loads_the_modules_of_the_methods_it_runs_and_no_other(stage, op
     ran = {name for name, entry in Params.load(root / "params.yaml").methods.entries if stage in entry.experiments}
     added = {f"taskseq/methods/{name}.py" for name in added_modules()}
     assert loaded & added == {f"taskseq/methods/{name}.py" for name in ran} & added  # its own, no other
+
+
+def test_the_recorded_scenarios_are_as_many_as_asked_evenly_spread():
+    from taskseq.stages.crossval import _spread
+
+    ids = [f"s{k:02d}" for k in range(10)]
+    assert _spread(list(reversed(ids)), 3) == {"s00", "s03", "s06"}  # in sorted order, every len // n-th
+    assert _spread(ids, 1) == {"s00"} and _spread(ids, 0) == frozenset()
+    assert _spread(ids, 25) == set(ids)  # more asked than there are: every one
