@@ -34,6 +34,7 @@ from .plan.planner import (
     Program,
     Ranked,
     learned_policy,
+    leaves_loops,
     run_loop,
 )
 from .sim.objects import ObjectSpec
@@ -172,7 +173,7 @@ def runnable_first(policy: Policy, planner: StepScorer, task: Task, initial: Wor
                           "fails, a safety rule would be broken, or it is done before the goal holds)")
         return out
 
-    if isinstance(policy, LoopAware):  # the lookahead's rule against loops, through the same filter
+    if leaves_loops(policy):  # the lookahead's rule against loops, through the same filter
         def without_revisits(ctx: StepContext, state: WorldState, leads_back: LeadsBack) -> Ranked | None:
             """The lookahead's way out, filtered; none when it has none. Where its way out is `done` before the
             goal holds, which the simulator refuses, the next filtered proposal that leads out comes first: the

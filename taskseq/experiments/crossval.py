@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field, replace
 
 from threadpoolctl import threadpool_limits
@@ -109,8 +109,12 @@ def _tested(method, fold, contexts, meta, scenarios, test_scenarios, test_index,
     predictions = method.predict_steps([contexts[i] for i in test_index], [meta[i] for i in test_index], demos)
     outcomes: list[SequenceOutcome] | None = []
     programs = {}
-    for sid in sorted(test_scenarios):
-        program = method.run(scenarios[sid], max_steps)
+    order = sorted(test_scenarios)
+    if isinstance(method, ScorerMethod):  # a learned planner's programs advance together, scored in batches
+        ran: Iterable[Program | None] = method.run_all([scenarios[sid] for sid in order], max_steps)
+    else:  # one at a time, as they are read: a method with no program (None) ends the loop at its first
+        ran = (method.run(scenarios[sid], max_steps) for sid in order)
+    for sid, program in zip(order, ran, strict=True):
         if program is None:
             outcomes = None
             break

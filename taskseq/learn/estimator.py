@@ -27,7 +27,7 @@ from tqdm import tqdm
 from ..features.context import StepContext, is_candidate
 from . import fit_cache
 from .fit_cache import FitRecord, fit_key
-from .mrf import FEATURE_SETS, StepMRF
+from .mrf import FEATURE_SETS, Scored, StepMRF
 from .persist import load_model, save_model
 from .ssvm import Cuts, CuttingPlaneSSVM
 
@@ -208,6 +208,12 @@ class StepScorer:
         """The step's k best candidates with their scores, best first."""
         self._check_fitted()
         return self.model_.top_k(x, self.w_, k)
+
+    def scored(self, X: list[StepContext]) -> list[Scored]:
+        """Every step's candidates and scores, the steps scored together: what `top_k` and `ranked` read, for
+        many programs at once (`plan.planner.run_programs`); each step's are the bits it scores alone."""
+        self._check_fitted()
+        return self.model_.scored(X, self.w_)
 
     def ranked(self, x: StepContext) -> Iterator[tuple[Y, float]]:
         """Every candidate of the step with its score, best first (`top_k`'s order), made as it is read."""

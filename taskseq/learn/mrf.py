@@ -727,17 +727,37 @@ class StepMRF(_Batched):
     # --- factor tables and scores --------------------------------------------
     def tables(self, x: StepContext, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """P (N_PRIM,), U1 and U2 (N_PRIM, n), pair (N_PRIM, n, n): the score's factors, from `batch_tables`."""
+        return self._step_tables([x], w)[0]
+
+    def _step_tables(self, X: list[StepContext], w: np.ndarray) -> list[tuple[np.ndarray, ...]]:
+        """`tables` of every step of X, from one `batch_tables` of them all: each step's entries are the sums its
+        own batch of one makes (`_argument_tables` fills each object's row alone, the pair factor's products sum
+        over R in one order), so a step scores the same bits alone or beside others."""
         if RELATION_FAMILY in self.families:
-            self._relations(x)
-        f = self.batch_tables(StepBatch.of([x], RELATION_FAMILY in self.families, CUE_FAMILY in self.families), w)
-        pair = f.pair[0][None]
-        if f.right.shape[-1]:  # the low-rank term, per primitive
-            pair = pair + matmul(f.left[:, 0], f.right[0].T)
-        return f.P[0], f.U1[0], f.U2[0], np.broadcast_to(pair, (N_PRIM, x.n, x.n))
+            for x in X:
+                self._relations(x)
+        f = self.batch_tables(StepBatch.of(X, RELATION_FAMILY in self.families, CUE_FAMILY in self.families), w)
+        out, pairs = [], f.pair
+        for s, x in enumerate(X):
+            n = x.n
+            pair = pairs[s, :n, :n][None]
+            if f.right.shape[-1]:  # the low-rank term, per primitive
+                pair = pair + matmul(f.left[:, s, :n], f.right[s, :n].T)
+            out.append((f.P[s], f.U1[s, :, :n], f.U2[s, :, :n], np.broadcast_to(pair, (N_PRIM, n, n))))
+        return out
 
     def scores(self, x: StepContext, w: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], np.ndarray]:
         """All candidates of the step and their scores, in `candidate_index` order."""
-        P, U1, U2, pair = self.tables(x, w)
+        return self._candidate_scores(x, self.tables(x, w))
+
+    def scored(self, X: list[StepContext], w: np.ndarray) -> list[Scored]:
+        """Every step's candidates with their scores (`scores`), the steps' tables made in one batch: what a
+        policy ranks from, for many programs advancing together (`plan.planner.run_programs`)."""
+        return [Scored(*self._candidate_scores(x, t)) for x, t in zip(X, self._step_tables(X, w), strict=True)]
+
+    @staticmethod
+    def _candidate_scores(x: StepContext, tables: tuple[np.ndarray, ...]) -> tuple[tuple[np.ndarray, ...], np.ndarray]:
+        P, U1, U2, pair = tables
         cp, ca1, ca2 = candidate_index(x.n)
         has1, has2 = ca1 >= 0, ca2 >= 0
         i1, i2 = np.where(has1, ca1, 0), np.where(has2, ca2, 0)
@@ -764,23 +784,40 @@ class StepMRF(_Batched):
 
     def top_k(self, x: StepContext, w: np.ndarray, k: int) -> list[tuple[Y, float]]:
         """The k best candidates, best first; ties go to the earlier candidate, as in `inference`."""
-        cands, s = self.scores(x, w)
+        return Scored(*self.scores(x, w)).top_k(k)
+
+    def ranked(self, x: StepContext, w: np.ndarray) -> Iterator[tuple[Y, float]]:
+        """Every candidate, best first, in `top_k`'s order, made one at a time as it is read."""
+        return Scored(*self.scores(x, w)).ranked()
+
+
+@dataclass(frozen=True)
+class Scored:
+    """One step's candidates (primitive, a1, a2 arrays in `candidate_index` order) and their scores: what a
+    policy ranks, however the scores were made (alone, `StepMRF.scores`, or in a batch, `StepMRF.scored`)."""
+
+    candidates: tuple[np.ndarray, np.ndarray, np.ndarray]
+    scores: np.ndarray
+
+    def top_k(self, k: int) -> list[tuple[Y, float]]:
+        """The k best candidates, best first; ties go to the earlier candidate, as in `inference`."""
+        s, (cp, ca1, ca2) = self.scores, self.candidates
         k = min(k, len(s))
         kth = np.partition(s, len(s) - k)[len(s) - k]
         idx = np.flatnonzero(s >= kth)  # the k best and whatever ties with the k-th
         idx = idx[np.lexsort((idx, -s[idx]))][:k]
-        return [((int(cands[0][i]), int(cands[1][i]), int(cands[2][i])), float(s[i])) for i in idx]
+        return [((int(cp[i]), int(ca1[i]), int(ca2[i])), float(s[i])) for i in idx]
 
-    def ranked(self, x: StepContext, w: np.ndarray) -> Iterator[tuple[Y, float]]:
+    def ranked(self) -> Iterator[tuple[Y, float]]:
         """Every candidate, best first, in `top_k`'s order, made one at a time as it is read.
 
         A policy that walks down the ranking until a step can run reads a few
         of a room's thousands of candidates; making each a tuple only when it
         is read took the walk from about 0.9 ms to the cost of one sort.
         """
-        cands, s = self.scores(x, w)
+        s, (cp, ca1, ca2) = self.scores, self.candidates
         for i in np.argsort(-s, kind="stable"):  # ties: the earlier candidate first
-            yield (int(cands[0][i]), int(cands[1][i]), int(cands[2][i])), float(s[i])
+            yield (int(cp[i]), int(ca1[i]), int(ca2[i])), float(s[i])
 
 
 @cache

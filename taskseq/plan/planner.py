@@ -7,9 +7,9 @@ expected, changes the next choice.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Hashable
+from collections.abc import Callable, Generator, Hashable, Iterator
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, Protocol, TypeVar
 
 import numpy as np
 
@@ -28,6 +28,68 @@ Ranked = list[tuple[Y, float]]
 # A policy ranks the candidates of the current step, best first: from what the model sees of the step
 # (the context, after `perceive`) and the world itself, which a symbolic planner plans from.
 Policy = Callable[[StepContext, WorldState], Ranked]
+T = TypeVar("T")
+
+
+class Ranking(Protocol):
+    """One step's candidates ranked by a learned planner's scores (`learn.mrf.Scored`)."""
+
+    def top_k(self, k: int) -> Ranked: ...
+
+    def ranked(self) -> Iterator[tuple[Y, float]]: ...
+
+
+# Work that asks for a learned planner's scores as it goes: it yields each step context it needs scored, is sent
+# that step's `Ranking` and returns its result. Run alone (`alone`), each context is scored by itself; many such
+# generators advance together and are scored in batches (`run_programs`); the scores, so the results, are the same.
+Scoring = Generator[StepContext, Ranking, T]
+
+
+class _Alone:
+    """A step's `Ranking` read from the planner when it is read, as a policy alone always read it."""
+
+    def __init__(self, planner: Any, ctx: StepContext) -> None:
+        self.planner, self.ctx = planner, ctx
+
+    def top_k(self, k: int) -> Ranked:
+        return self.planner.top_k(self.ctx, k)
+
+    def ranked(self) -> Iterator[tuple[Y, float]]:
+        return self.planner.ranked(self.ctx)
+
+
+def alone(planner: Any, work: Scoring[T]) -> T:
+    """The result of `work`, each context it asks for scored by itself."""
+    try:
+        ctx = next(work)
+        while True:
+            ctx = work.send(_Alone(planner, ctx))
+    except StopIteration as end:
+        return end.value
+
+
+@dataclass(frozen=True)
+class Learned:
+    """A policy that ranks from a learned planner's scores, in both forms: `steps(ctx, state)` asks for them
+    (`Scoring`), so that programs advancing together are scored in batches; called, it scores alone.
+    `revisits`, where given, is its way out of a loop (as `LoopAware.without_revisits`), in the same form."""
+
+    planner: Any
+    steps: Callable[[StepContext, WorldState], Scoring[Ranked]]
+    revisits: Callable[[StepContext, WorldState, LeadsBack], Scoring[Ranked | None]] | None = None
+
+    def __call__(self, ctx: StepContext, state: WorldState) -> Ranked:
+        return alone(self.planner, self.steps(ctx, state))
+
+    def without_revisits(self, ctx: StepContext, state: WorldState, leads_back: LeadsBack) -> Ranked | None:
+        if self.revisits is None:
+            raise TypeError("this policy has no way out of loops")
+        return alone(self.planner, self.revisits(ctx, state, leads_back))
+
+
+def leaves_loops(policy: Policy) -> bool:
+    """Whether `run_loop` may ask `policy` again for a way out of a loop (`out_of_loops`)."""
+    return isinstance(policy, LoopAware) or (isinstance(policy, Learned) and policy.revisits is not None)
 Perceive = Callable[[StepContext], StepContext]
 Choose = Callable[[list[Action], list[Action]], int]
 LeadsBack = Callable[[Action], bool]  # whether a step would close a loop of the program
@@ -51,18 +113,21 @@ class Abstain(Exception):
     infeasible, with the exception's message as its error."""
 
 
-def greedy(planner: StepScorer, top_k: int = 3) -> Policy:
+def greedy(planner: StepScorer, top_k: int = 3) -> Learned:
     """The learned planner as a policy: its `top_k` candidates of the step."""
-    return lambda ctx, state: planner.top_k(ctx, top_k)
+    def steps(ctx: StepContext, state: WorldState) -> Scoring[Ranked]:
+        return (yield ctx).top_k(top_k)
+
+    return Learned(planner, steps)
 
 
 class _Runnable:
     """The planner's candidates of one step among `done` and the steps whose preconditions hold, best first,
     found only as far down the ranking as they are asked for."""
 
-    def __init__(self, planner: StepScorer, ctx: StepContext, state: WorldState) -> None:
+    def __init__(self, ranking: Ranking, ctx: StepContext, state: WorldState) -> None:
         self.ctx, self.state = ctx, state
-        self._ranked = planner.ranked(ctx)
+        self._ranked = ranking.ranked()
         self._found: Ranked = []
 
     def first(self, limit: int) -> Ranked:
@@ -89,12 +154,7 @@ class _Runnable:
             limit *= 2
 
 
-def _runnable(planner: StepScorer, ctx: StepContext, state: WorldState, limit: int) -> Ranked:
-    """The planner's best `limit` candidates among `done` and the steps whose preconditions hold, best first."""
-    return _Runnable(planner, ctx, state).first(limit)
-
-
-def feasible(planner: StepScorer, top_k: int = 3) -> Policy:
+def feasible(planner: StepScorer, top_k: int = 3) -> Learned:
     """The learned planner's `top_k` best candidates among the steps that can run in the world as it is.
 
     A robot's controllers report whether a primitive's preconditions hold
@@ -102,7 +162,10 @@ def feasible(planner: StepScorer, top_k: int = 3) -> Policy:
     this policy asks them down the ranking, so a step whose preconditions fail
     is never proposed, and the model's scores decide among the rest.
     """
-    return lambda ctx, state: _runnable(planner, ctx, state, top_k)
+    def steps(ctx: StepContext, state: WorldState) -> Scoring[Ranked]:
+        return _Runnable((yield ctx), ctx, state).first(top_k)
+
+    return Learned(planner, steps)
 
 
 # Chosen on the development world (scripts/lookahead_grid.py; docs/model.md, "Safety lookahead"): the best
@@ -112,7 +175,7 @@ LOOKAHEAD_WIDTH = 3
 
 
 def lookahead(planner: StepScorer, task: Task, start: WorldState, top_k: int = 3, perceive: Perceive | None = None,
-              depth: int = LOOKAHEAD_DEPTH, width: int = LOOKAHEAD_WIDTH, stop_at_goal: bool = True) -> Policy:
+              depth: int = LOOKAHEAD_DEPTH, width: int = LOOKAHEAD_WIDTH, stop_at_goal: bool = True) -> Learned:
     """`feasible`, but a step is taken only if the plan it starts breaks no safety rule in the next `depth` steps,
     and the robot stops once the task's goal holds.
 
@@ -170,14 +233,15 @@ def lookahead(planner: StepScorer, task: Task, start: WorldState, top_k: int = 3
     worlds: dict[tuple[Hashable, Action], WorldState] = {}
     steps: dict[tuple[Hashable, tuple[Action, ...]], _Runnable] = {}
 
-    def imagine(state: WorldState, history: list[Action]) -> _Runnable:
+    def imagine(state: WorldState, history: list[Action]) -> Scoring[_Runnable]:
         known = (state.key(), tuple(history))
         step = steps.get(known)
         if step is None:
-            step = steps[known] = _Runnable(planner, seen(step_context(state, task, history)), state)
+            ctx = seen(step_context(state, task, history))
+            step = steps[known] = _Runnable((yield ctx), ctx, state)
         return step
 
-    def harms(state: WorldState, history: list[Action], action: Action) -> bool:
+    def harms(state: WorldState, history: list[Action], action: Action) -> Scoring[bool]:
         for _ in range(depth):
             if violations(state, action):
                 return True
@@ -188,57 +252,57 @@ def lookahead(planner: StepScorer, task: Task, start: WorldState, top_k: int = 3
             if stop_at_goal and goal_reached(task, start, state):  # the robot stops here, and stopping is safe
                 return False
             history = [*history[-1:], action]
-            step = imagine(state, history)
+            step = yield from imagine(state, history)
             action = step.ctx.action(step.first(1)[0][0])
             if action.primitive == DONE:
                 return False
         return bool(violations(state, action))
 
-    def ranking(ctx: StepContext, state: WorldState) -> _Runnable:
+    def ranking(ctx: StepContext, state: WorldState) -> Scoring[_Runnable]:
         """The step's runnable candidates as ranked for real: the imagined step when it is the same."""
         history = ctx.history()
         step = steps.get((state.key(), tuple(history)))
         if step is None and history:  # a step not imagined (the program took another proposal): kept, as imagined
-            step = imagine(state, history)  # ones are, for its imagined plans that come back to it
+            step = yield from imagine(state, history)  # ones are, for its imagined plans that come back to it
         if step is None or step.ctx.object_ids != ctx.object_ids or not np.array_equal(step.ctx.objects, ctx.objects):
-            step = _Runnable(planner, ctx, state)  # the first step, or seen otherwise than the imagined steps
+            step = _Runnable((yield ctx), ctx, state)  # the first step, or seen otherwise than the imagined steps
         return step
 
     def proposals(ctx: StepContext, state: WorldState,
-                  leads_back: LeadsBack | None) -> tuple[Ranked, int | None]:
+                  leads_back: LeadsBack | None) -> Scoring[tuple[Ranked, int | None]]:
         """The runnable candidates, best first, and the position of the first of the `width` best whose imagined
         steps break no rule (and, given `leads_back`, that does not lead back to a world the program was in), or
         None when no candidate is such. `done` always is."""
         history = ctx.history()
-        runnable = ranking(ctx, state).first(max(top_k, width))
-
-        def taken(action: Action) -> bool:
+        runnable = (yield from ranking(ctx, state)).first(max(top_k, width))
+        for i, (y, _) in enumerate(runnable[:width]):
+            action = ctx.action(y)
             if action.primitive == DONE:
-                return True
-            return not (leads_back is not None and leads_back(action)) and not harms(state, history, action)
-
-        return runnable, next((i for i, (y, _) in enumerate(runnable[:width]) if taken(ctx.action(y))), None)
+                return runnable, i
+            if not (leads_back is not None and leads_back(action)) and not (yield from harms(state, history, action)):
+                return runnable, i
+        return runnable, None
 
     def first(runnable: Ranked, pick: int) -> Ranked:
         return ([runnable[pick]] + runnable[:pick] + runnable[pick + 1:])[:top_k]
 
-    def stopping(ctx: StepContext, state: WorldState) -> Ranked:
+    def stopping(ctx: StepContext, state: WorldState) -> Scoring[Ranked]:
         """`done` first, with its score, then the best runnable steps: the goal holds."""
-        step = ranking(ctx, state)
+        step = yield from ranking(ctx, state)
         stop, runnable = step.stop(), step.first(top_k)
         return ([stop] + [c for c in runnable if c[0] != stop[0]])[:top_k]
 
-    def policy(ctx: StepContext, state: WorldState) -> Ranked:
+    def policy(ctx: StepContext, state: WorldState) -> Scoring[Ranked]:
         if stop_at_goal and goal_reached(task, start, state):
-            return stopping(ctx, state)
-        runnable, pick = proposals(ctx, state, None)
+            return (yield from stopping(ctx, state))
+        runnable, pick = yield from proposals(ctx, state, None)
         return first(runnable, 0 if pick is None else pick)
 
-    def without_revisits(ctx: StepContext, state: WorldState, leads_back: LeadsBack) -> Ranked | None:
-        runnable, pick = proposals(ctx, state, leads_back)
+    def without_revisits(ctx: StepContext, state: WorldState, leads_back: LeadsBack) -> Scoring[Ranked | None]:
+        runnable, pick = yield from proposals(ctx, state, leads_back)
         return None if pick is None else first(runnable, pick)
 
-    return LoopAware(policy, without_revisits)
+    return Learned(planner, policy, without_revisits)
 
 
 def closes_loop(states: list[WorldState], history: tuple[Action, ...]) -> LeadsBack:
@@ -260,15 +324,23 @@ def closes_loop(states: list[WorldState], history: tuple[Action, ...]) -> LeadsB
 def out_of_loops(policy: Policy, ranked: Ranked, ctx: StepContext, states: list[WorldState],
                  history: tuple[Action, ...]) -> Ranked:
     """`ranked`, or, when its first step would close a loop (`closes_loop`) and the policy can rank again
-    (`LoopAware`), its proposals with a step that leads out of it first; as they were when it has none. `run_loop`
+    (`leaves_loops`), its proposals with a step that leads out of it first; as they were when it has none. `run_loop`
     applies it to every step, and the web app's assist table to the step it shows."""
-    if not isinstance(policy, LoopAware):
+    return alone(getattr(policy, "planner", None), _out_of_loops(policy, ranked, ctx, states, history))
+
+
+def _out_of_loops(policy: Policy, ranked: Ranked, ctx: StepContext, states: list[WorldState],
+                  history: tuple[Action, ...]) -> Scoring[Ranked]:
+    if not leaves_loops(policy):
         return ranked
     leads_back = closes_loop(states, history)
     first = ctx.action(ranked[0][0])
     if first.primitive == DONE or not leads_back(first):
         return ranked
-    elsewhere = policy.without_revisits(ctx, states[-1], leads_back)
+    if isinstance(policy, Learned):
+        elsewhere = yield from policy.revisits(ctx, states[-1], leads_back)
+    else:
+        elsewhere = policy.without_revisits(ctx, states[-1], leads_back)
     return ranked if elsewhere is None else elsewhere
 
 
@@ -343,6 +415,13 @@ def run_loop(policy: Policy, state: WorldState, task: Task, max_steps: int = 20,
     This holds only for a policy that ranks a step from its context and world
     alone, as the learned policies do.
     """
+    return alone(getattr(policy, "planner", None), program(policy, state, task, max_steps, perceive, choose, memo))
+
+
+def program(policy: Policy, state: WorldState, task: Task, max_steps: int = 20, perceive: Perceive | None = None,
+            choose: Choose | None = None, memo: Memo | None = None) -> Scoring[Program]:
+    """`run_loop`'s program as work that asks for its scores (`Scoring`): a learned policy's steps are scored
+    where it is run, alone (`run_loop`) or beside other programs (`run_programs`)."""
     task.check_objects(state)
     states, steps = [state], []
     history: tuple[Action, ...] = ()
@@ -359,7 +438,8 @@ def run_loop(policy: Policy, state: WorldState, task: Task, max_steps: int = 20,
             if perceive is not None:
                 ctx = perceive(ctx)
             try:
-                ranked: Ranked | str = policy(ctx, state)
+                ranked: Ranked | str = (yield from policy.steps(ctx, state)) if isinstance(policy, Learned) \
+                    else policy(ctx, state)
             except Abstain as why:
                 ranked = str(why)
             if memo is not None:
@@ -368,7 +448,7 @@ def run_loop(policy: Policy, state: WorldState, task: Task, max_steps: int = 20,
             ctx, ranked = known
         if isinstance(ranked, str):
             return Program(task, steps, INFEASIBLE, states, ranked)
-        ranked = out_of_loops(policy, ranked, ctx, states, history)
+        ranked = yield from _out_of_loops(policy, ranked, ctx, states, history)
         if choose is not None:
             pick = choose(list(history), [ctx.action(y) for y, _ in ranked])
             ranked = [ranked[pick]] + ranked[:pick] + ranked[pick + 1 :]
@@ -390,3 +470,31 @@ def run_loop(policy: Policy, state: WorldState, task: Task, max_steps: int = 20,
             except PreconditionError as err:
                 return Program(task, steps, INFEASIBLE, states, str(err))
         states.append(state)
+
+
+def run_programs(planner: StepScorer, programs: list[Scoring[Program]]) -> list[Program]:
+    """The programs (`program`, each of a learned policy of `planner`), run together: in every round each program
+    still running has asked for one step's scores, and the steps are scored in one batch (`StepScorer.scored`).
+
+    Scoring the steps of a fold's programs together costs a fraction of
+    scoring each alone, where Python's work per call outweighs the sums. The
+    programs are the ones each gives alone (a test compares them): a step's
+    scores are the same bits in a batch, and each program's own work runs in
+    its order, the others' between its steps touching only what is theirs.
+    """
+    done: list[Program | None] = [None] * len(programs)
+    asking: list[tuple[int, StepContext]] = []
+
+    def advance(i: int, ranking: Ranking | None) -> None:
+        try:
+            asking.append((i, programs[i].send(ranking)))  # `send(None)` starts a program
+        except StopIteration as end:
+            done[i] = end.value
+
+    for i in range(len(programs)):
+        advance(i, None)
+    while asking:
+        batch, asking = asking, []
+        for (i, _), ranking in zip(batch, planner.scored([ctx for _, ctx in batch]), strict=True):
+            advance(i, ranking)
+    return done  # type: ignore[return-value]  # every program has ended: each holds its Program

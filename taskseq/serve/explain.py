@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 from ..features.context import StepContext, step_context
 from ..learn.estimator import StepScorer
-from ..plan.planner import DONE, LOOKAHEAD_DEPTH, LeadsBack, Ranked, _Runnable
+from ..plan.planner import DONE, LOOKAHEAD_DEPTH, LeadsBack, Ranked, _Alone, _Runnable
 from ..product import in_names
 from ..sim.primitives import Action, PreconditionError, execute
 from ..sim.safety import violations
@@ -73,7 +73,8 @@ def imagine(planner: StepScorer, task: Task, start: WorldState, state: WorldStat
             steps.append((state, Action(DONE)))
             return Imagined(steps, False)
         history = [*history[-1:], action]
-        step = _Runnable(planner, step_context(state, task, history), state)
+        ctx = step_context(state, task, history)
+        step = _Runnable(_Alone(planner, ctx), ctx, state)
         action = step.ctx.action(step.first(1)[0][0])
         if action.primitive == DONE:
             steps.append((state, action))

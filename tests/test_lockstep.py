@@ -1,0 +1,71 @@
+"""Programs run together (`plan.planner.run_programs`): the steps of many programs scored in one batch give the
+programs each gives alone, bit for bit."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from taskseq.demonstrations.records import parse_record, state_from_dict
+from taskseq.features.context import step_context
+from taskseq.learn.estimator import StepScorer
+from taskseq.plan.planner import POLICIES, Memo, learned_policy, program, run_loop, run_programs
+
+
+@pytest.fixture(scope="module")
+def scenarios(benchmark_tables):
+    """Every other scenario of the tiny world: rooms of different sizes, so a batch pads most of its steps."""
+    out = []
+    for item in benchmark_tables[1][::2]:
+        specs, task, _ = parse_record(item.record)
+        out.append((state_from_dict(specs, item.record["steps"][0]["state"]), task))
+    return out
+
+
+@pytest.fixture(scope="module", params=["full", "choice"])
+def scorers(request, benchmark_steps):
+    """A fitted planner, whose programs mostly finish, and one of random weights, whose programs wander, loop and
+    hit the step cap: between them every way a program ends. `choice` has every factor of the score (relations,
+    their low-rank pair term, cues); `full` the paper's."""
+    contexts, _ = benchmark_steps
+    fitted = StepScorer(request.param, C=1.0, tol=0.05, max_iter=30).fit(contexts[:60])
+    rng = np.random.default_rng(3)
+    return [fitted, StepScorer.from_weights(request.param, rng.normal(size=fitted.w_.shape))]
+
+
+def test_steps_scored_together_score_the_bits_they_score_alone(scorers, benchmark_steps):
+    contexts, _ = benchmark_steps
+    steps = contexts[::7]
+    assert len({x.n for x in steps}) > 1  # the batch pads
+    for scorer in scorers:
+        together = scorer.scored(steps)
+        for x, scored in zip(steps, together, strict=True):
+            candidates, scores = scorer.model_.scores(x, scorer.w_)
+            assert scored.scores.tobytes() == scores.tobytes()
+            assert all(np.array_equal(a, b) for a, b in zip(scored.candidates, candidates, strict=True))
+            assert scored.top_k(5) == scorer.top_k(x, 5)
+
+
+@pytest.mark.parametrize("policy", POLICIES)
+def test_programs_run_together_are_the_programs_run_alone(scorers, scenarios, policy):
+    for scorer in scorers:
+        def made(state, task, scorer=scorer):
+            return learned_policy(policy, scorer, task, state), state, task, 12
+
+        alone = [run_loop(*made(state, task), memo=Memo()) for state, task in scenarios]
+        together = run_programs(scorer, [program(*made(state, task), memo=Memo()) for state, task in scenarios])
+        assert len(together) == len(alone)
+        for a, b in zip(alone, together, strict=True):
+            assert (a.status, a.error) == (b.status, b.error)
+            assert [(s.action, s.score, s.alternatives, s.unsafe) for s in a.steps] == \
+                [(s.action, s.score, s.alternatives, s.unsafe) for s in b.steps]
+            assert [s.key() for s in a.states] == [s.key() for s in b.states]
+        assert len({p.status for p in alone}) > 1 or policy != "greedy"  # the random planner's programs vary
+
+
+def test_a_batch_of_one_is_the_step_alone(scorers, scenarios):
+    state, task = scenarios[0]
+    x = step_context(state, task, [])
+    for scorer in scorers:
+        (scored,) = scorer.scored([x])
+        assert scored.scores.tobytes() == scorer.model_.scores(x, scorer.w_)[1].tobytes()
