@@ -69,3 +69,22 @@ def test_a_batch_of_one_is_the_step_alone(scorers, scenarios):
     for scorer in scorers:
         (scored,) = scorer.scored([x])
         assert scored.scores.tobytes() == scorer.model_.scores(x, scorer.w_)[1].tobytes()
+
+
+def test_a_lookahead_program_builds_each_worlds_context_once(scorers, scenarios, monkeypatch):
+    """The loop takes the context the lookahead built when it imagined the world the program reached: each
+    (world, last two steps) a program meets is made into a context once."""
+    import taskseq.plan.planner as planner
+
+    built: list[tuple] = []
+
+    def counted(state, task, history, gold=None):
+        built.append((state.key(), tuple(history[-2:])))
+        return step_context(state, task, history, gold)
+
+    monkeypatch.setattr(planner, "step_context", counted)
+    for state, task in scenarios[:8]:
+        built.clear()
+        ran = run_loop(learned_policy("lookahead", scorers[0], task, state), state, task, 12)
+        assert len(ran.steps) > 1
+        assert len(built) == len(set(built))

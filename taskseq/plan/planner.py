@@ -43,6 +43,7 @@ class Ranking(Protocol):
 # that step's `Ranking` and returns its result. Run alone (`alone`), each context is scored by itself; many such
 # generators advance together and are scored in batches (`run_programs`); the scores, so the results, are the same.
 Scoring = Generator[StepContext, Ranking, T]
+Contexts = dict[tuple[Hashable, tuple[Action, ...]], StepContext]
 
 
 class _Alone:
@@ -77,6 +78,10 @@ class Learned:
     planner: Any
     steps: Callable[[StepContext, WorldState], Scoring[Ranked]]
     revisits: Callable[[StepContext, WorldState, LeadsBack], Scoring[Ranked | None]] | None = None
+    # contexts of the worlds the program may reach as they are (unperceived), by the world's contents
+    # (`WorldState.key`) and the last two steps (what `step_context` reads), shared by the policy and the loop:
+    # each made once, by whichever meets its world first
+    contexts: Contexts | None = None
 
     def __call__(self, ctx: StepContext, state: WorldState) -> Ranked:
         return alone(self.planner, self.steps(ctx, state))
@@ -232,12 +237,16 @@ def lookahead(planner: StepScorer, task: Task, start: WorldState, top_k: int = 3
     # context remembers, what step_context reads: a hit is the very step computed before.
     worlds: dict[tuple[Hashable, Action], WorldState] = {}
     steps: dict[tuple[Hashable, tuple[Action, ...]], _Runnable] = {}
+    contexts: Contexts = {}  # the imagined steps' contexts as they are, for the loop to read when it gets there
 
     def imagine(state: WorldState, history: list[Action]) -> Scoring[_Runnable]:
         known = (state.key(), tuple(history))
         step = steps.get(known)
         if step is None:
-            ctx = seen(step_context(state, task, history))
+            ctx = contexts.get(known)  # made by the loop, for a step it took that was not imagined
+            if ctx is None:
+                ctx = contexts[known] = step_context(state, task, history)
+            ctx = seen(ctx)
             step = steps[known] = _Runnable((yield ctx), ctx, state)
         return step
 
@@ -302,7 +311,7 @@ def lookahead(planner: StepScorer, task: Task, start: WorldState, top_k: int = 3
         runnable, pick = yield from proposals(ctx, state, leads_back)
         return None if pick is None else first(runnable, pick)
 
-    return Learned(planner, policy, without_revisits)
+    return Learned(planner, policy, without_revisits, contexts)
 
 
 def closes_loop(states: list[WorldState], history: tuple[Action, ...]) -> LeadsBack:
@@ -430,7 +439,11 @@ def program(policy: Policy, state: WorldState, task: Task, max_steps: int = 20, 
         if known is None:
             world = memo.worlds.get(history) if memo is not None else None
             if world is None:
-                ctx = step_context(state, task, list(history))
+                # a context the policy made of this world (`lookahead`, imagining it), or one made here for it
+                made = policy.contexts if isinstance(policy, Learned) and policy.contexts is not None else {}
+                ctx = made.get(known := (state.key(), history[-2:]))
+                if ctx is None:
+                    ctx = made[known] = step_context(state, task, list(history))
                 if memo is not None:
                     memo.worlds[history] = (state, ctx)
             else:
