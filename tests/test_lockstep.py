@@ -88,3 +88,39 @@ def test_a_lookahead_program_builds_each_worlds_context_once(scorers, scenarios,
         ran = run_loop(learned_policy("lookahead", scorers[0], task, state), state, task, 12)
         assert len(ran.steps) > 1
         assert len(built) == len(set(built))
+
+
+def test_noise_and_feedback_replays_run_together_are_their_programs_run_alone(scorers, benchmark_tables):
+    """`robustness._replayed` runs each condition's programs of every test scenario together; each outcome is the
+    one its program gives alone, with no memo, perception and observer made as the replay makes them."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from taskseq.demonstrations.benchmark import Benchmark
+    from taskseq.experiments.crossval import judge
+    from taskseq.experiments.robustness import FeedbackCondition, NoiseCondition, _replayed, observer
+    from taskseq.features.perception import flip_masks, noisy_perception
+
+    scenarios = Benchmark.from_records([item.record for item in benchmark_tables[1]]).scenarios
+    test = sorted(scenarios)[::3]
+    conditions = [NoiseCondition(0.0, 0), NoiseCondition(0.2, 0), NoiseCondition(0.2, 1), FeedbackCondition(2, 1),
+                  FeedbackCondition(3, 20)]
+    order = sorted(scenarios)
+    method = SimpleNamespace(policy="lookahead", planner_=scorers[0])
+    replayed = _replayed(method, scenarios, set(test), conditions, 12, seed=5)
+    expected = []
+    for c in conditions:
+        for sid in test:
+            sc = scenarios[sid]
+            perceive = choose = None
+            if isinstance(c, NoiseCondition):
+                rng = np.random.default_rng([5, c.draw, order.index(sid)])
+                perceive = noisy_perception(flip_masks(sorted(sc.initial.specs), c.rate, rng))
+            else:
+                choose = observer(sc.demonstrations, c.n)
+            top_k = c.k if isinstance(c, FeedbackCondition) else 3
+            policy = learned_policy("lookahead", scorers[0], sc.task, sc.initial, top_k, perceive)
+            expected.append((c, judge(sc, run_loop(policy, sc.initial, sc.task, 12, perceive, choose))))
+    assert replayed == expected
+    assert len({o.actions for _, o in replayed}) > len(test)  # the conditions change programs

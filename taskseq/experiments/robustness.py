@@ -18,7 +18,7 @@ from ..evaluate.methods import ScorerMethod
 from ..features.context import StepContext
 from ..features.dataset import StepMeta
 from ..features.perception import flip_masks, noisy_perception
-from ..plan.planner import Memo, learned_policy, run_loop
+from ..plan.planner import Memo, learned_policy, program, run_programs
 from ..runtime.jobs import Shared, run_jobs
 from ..settings import Feedback, Folds, Noise
 from ..sim.primitives import Action
@@ -86,13 +86,20 @@ def _condition(entry: dict) -> Condition:
 
 
 def _replayed(method, scenarios, test, conditions, max_steps, seed):
-    """Each condition's outcome on every test scenario, from the fitted `method`."""
-    order = sorted(scenarios)
+    """Each condition's outcome on every test scenario, from the fitted `method`.
+
+    A condition's programs of every test scenario run together, scored in
+    batches (`run_programs`), one condition after the other; each scenario
+    keeps one `Memo` across the conditions, which meet it in the same order as
+    when each scenario's conditions ran in turn, so the programs are the same.
+    """
+    order, tested = sorted(scenarios), sorted(test)
+    memos = {sid: Memo() for sid in tested}
     outcome = {}
-    for sid in sorted(test):
-        sc = scenarios[sid]
-        memo = Memo()
-        for c in conditions:
+    for c in conditions:
+        programs = []
+        for sid in tested:
+            sc = scenarios[sid]
             perceive = choose = None
             top_k, flips = 3, ()  # flips: each object's attribute flips, bytes (none: seen as it is)
             if isinstance(c, NoiseCondition):
@@ -108,9 +115,11 @@ def _replayed(method, scenarios, test, conditions, max_steps, seed):
             view = (top_k, flips)
             # as the method's own programs pick steps, imagined ones seen through the same perception
             policy = learned_policy(method.policy, method.planner_, sc.task, sc.initial, top_k, perceive)
-            program = run_loop(policy, sc.initial, sc.task, max_steps, perceive, choose, memo.seen_as(view))
-            outcome[c, sid] = judge(sc, program)
-    return [(c, outcome[c, sid]) for c in conditions for sid in sorted(test)]
+            programs.append(program(policy, sc.initial, sc.task, max_steps, perceive, choose,
+                                    memos[sid].seen_as(view)))
+        for sid, ran in zip(tested, run_programs(method.planner_, programs), strict=True):
+            outcome[c, sid] = judge(scenarios[sid], ran)
+    return [(c, outcome[c, sid]) for c in conditions for sid in tested]
 
 
 def evaluate_conditions(makes: Mapping[str, Callable[[], ScorerMethod]], contexts: list[StepContext],

@@ -504,10 +504,15 @@ def run_programs(planner: StepScorer, programs: list[Scoring[Program]]) -> list[
         except StopIteration as end:
             done[i] = end.value
 
+    def scored(contexts: list[StepContext]) -> list[Ranking]:  # a planner with no batch (a test's) step by step
+        if hasattr(planner, "scored"):
+            return planner.scored(contexts)
+        return [_Alone(planner, ctx) for ctx in contexts]
+
     for i in range(len(programs)):
         advance(i, None)
     while asking:
         batch, asking = asking, []
-        for (i, _), ranking in zip(batch, planner.scored([ctx for _, ctx in batch]), strict=True):
+        for (i, _), ranking in zip(batch, scored([ctx for _, ctx in batch]), strict=True):
             advance(i, ranking)
     return done  # type: ignore[return-value]  # every program has ended: each holds its Program
