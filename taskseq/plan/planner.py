@@ -28,6 +28,9 @@ Ranked = list[tuple[Y, float]]
 # A policy ranks the candidates of the current step, best first: from what the model sees of the step
 # (the context, after `perceive`) and the world itself, which a symbolic planner plans from.
 Policy = Callable[[StepContext, WorldState], Ranked]
+Perceive = Callable[[StepContext], StepContext]
+Choose = Callable[[list[Action], list[Action]], int]
+LeadsBack = Callable[[Action], bool]  # whether a step would close a loop of the program
 T = TypeVar("T")
 
 
@@ -44,6 +47,24 @@ class Ranking(Protocol):
 # generators advance together and are scored in batches (`run_programs`); the scores, so the results, are the same.
 Scoring = Generator[StepContext, Ranking, T]
 Contexts = dict[tuple[Hashable, tuple[Action, ...]], StepContext]
+
+
+@dataclass(frozen=True)
+class LoopAware:
+    """A policy that can rank a step again without the steps that would close a loop: `run_loop` asks
+    `without_revisits` when the first proposal would (see `lookahead`). It ranks as `rank` does; `without_revisits`
+    gives its proposals with a step that leads out first, or None when it has none to offer."""
+
+    rank: Policy
+    without_revisits: Callable[[StepContext, WorldState, LeadsBack], Ranked | None]
+
+    def __call__(self, ctx: StepContext, state: WorldState) -> Ranked:
+        return self.rank(ctx, state)
+
+
+class Abstain(Exception):
+    """Raised by a policy that has no step to offer (a planner that finds no plan): the program ends
+    infeasible, with the exception's message as its error."""
 
 
 class _Alone:
@@ -95,27 +116,6 @@ class Learned:
 def leaves_loops(policy: Policy) -> bool:
     """Whether `run_loop` may ask `policy` again for a way out of a loop (`out_of_loops`)."""
     return isinstance(policy, LoopAware) or (isinstance(policy, Learned) and policy.revisits is not None)
-Perceive = Callable[[StepContext], StepContext]
-Choose = Callable[[list[Action], list[Action]], int]
-LeadsBack = Callable[[Action], bool]  # whether a step would close a loop of the program
-
-
-@dataclass(frozen=True)
-class LoopAware:
-    """A policy that can rank a step again without the steps that would close a loop: `run_loop` asks
-    `without_revisits` when the first proposal would (see `lookahead`). It ranks as `rank` does; `without_revisits`
-    gives its proposals with a step that leads out first, or None when it has none to offer."""
-
-    rank: Policy
-    without_revisits: Callable[[StepContext, WorldState, LeadsBack], Ranked | None]
-
-    def __call__(self, ctx: StepContext, state: WorldState) -> Ranked:
-        return self.rank(ctx, state)
-
-
-class Abstain(Exception):
-    """Raised by a policy that has no step to offer (a planner that finds no plan): the program ends
-    infeasible, with the exception's message as its error."""
 
 
 def greedy(planner: StepScorer, top_k: int = 3) -> Learned:
@@ -237,7 +237,7 @@ def lookahead(planner: StepScorer, task: Task, start: WorldState, top_k: int = 3
     # context remembers, what step_context reads: a hit is the very step computed before.
     worlds: dict[tuple[Hashable, Action], WorldState] = {}
     steps: dict[tuple[Hashable, tuple[Action, ...]], _Runnable] = {}
-    contexts: Contexts = {}  # the imagined steps' contexts as they are, for the loop to read when it gets there
+    contexts: Contexts = {}  # the worlds' contexts as they are, made by the loop or imagined here (`Learned`)
 
     def imagine(state: WorldState, history: list[Action]) -> Scoring[_Runnable]:
         known = (state.key(), tuple(history))
@@ -489,9 +489,9 @@ def run_programs(planner: StepScorer, programs: list[Scoring[Program]]) -> list[
     """The programs (`program`, each of a learned policy of `planner`), run together: in every round each program
     still running has asked for one step's scores, and the steps are scored in one batch (`StepScorer.scored`).
 
-    Scoring the steps of a fold's programs together costs a fraction of
-    scoring each alone, where Python's work per call outweighs the sums. The
-    programs are the ones each gives alone (a test compares them): a step's
+    Scoring a step alone costs Python's work per call more than its sums;
+    in a batch that work is paid once per round. The programs are the ones
+    each gives alone (a test compares them): a step's
     scores are the same bits in a batch, and each program's own work runs in
     its order, the others' between its steps touching only what is theirs.
     """
