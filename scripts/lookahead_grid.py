@@ -33,7 +33,7 @@ from taskseq.evaluate.methods import ScorerMethod  # noqa: E402
 from taskseq.evaluate.metrics import summarize  # noqa: E402
 from taskseq.experiments.crossval import cross_validate  # noqa: E402
 from taskseq.features.dataset import read_features  # noqa: E402
-from taskseq.plan.planner import Program, lookahead, run_loop  # noqa: E402
+from taskseq.plan.planner import Policy, lookahead  # noqa: E402
 from taskseq.selection import read_selection  # noqa: E402
 from taskseq.settings import Params  # noqa: E402
 from taskseq.sim.scenarios import Scenario  # noqa: E402
@@ -47,9 +47,8 @@ class LookaheadAt(ScorerMethod):
     depth: int = 4
     width: int = 3
 
-    def run(self, scenario: Scenario, max_steps: int) -> Program:
-        policy = lookahead(self.planner_, scenario.task, scenario.initial, depth=self.depth, width=self.width)
-        return run_loop(policy, scenario.initial, scenario.task, max_steps)
+    def policy_for(self, scenario: Scenario) -> Policy:
+        return lookahead(self.planner_, scenario.task, scenario.initial, depth=self.depth, width=self.width)
 
 
 def rank(rows: list[dict[str, float]]) -> list[dict[str, float]]:

@@ -19,7 +19,8 @@ from taskseq.sim.state import WorldState
 # together. Only the order changes, never what runs.
 SLOWEST_FIRST = ("test_scenes.py", "test_track.py", "test_scaling.py", "test_sweeps.py", "test_stage_runs.py",
                  "test_fold_models.py", "test_ingest.py", "test_signals.py", "test_stages.py", "test_lookahead.py",
-                 "test_processor_independence.py", "test_serve_browser.py", "test_extending.py", "test_feasible.py")
+                 "test_lockstep.py", "test_processor_independence.py", "test_serve_browser.py", "test_extending.py",
+                 "test_feasible.py")
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:

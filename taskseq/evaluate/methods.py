@@ -21,7 +21,7 @@ from ..features.perception import noisy_copies
 from ..imitation.dagger import fit_imitation
 from ..learn.estimator import StepScorer
 from ..learn.store import ModelStore, training_key
-from ..plan.planner import POLICIES, Memo, Program, learned_policy, program, run_loop, run_programs
+from ..plan.planner import POLICIES, Memo, Policy, Program, learned_policy, program, run_loop, run_programs
 from ..plan.symbolic.executor import SymbolicPolicy, first_action
 from ..plan.symbolic.roles import ROLE_OF_TASK, RoleRanker, demonstrated_roles
 from ..settings import Crossval, Pddl, Procedural
@@ -215,16 +215,19 @@ class ScorerMethod:
     def predict_steps(self, contexts: list[StepContext], meta=None, demos=None) -> list[Y]:
         return self.planner_.predict(contexts)
 
+    def policy_for(self, scenario: Scenario) -> Policy:
+        """The policy of one program of `scenario`: the one `run` and `run_all` take (a variant of the method
+        that runs otherwise, `scripts/lookahead_grid.py`'s, changes this alone)."""
+        return learned_policy(self.policy, self.planner_, scenario.task, scenario.initial)
+
     def run(self, scenario: Scenario, max_steps: int) -> Program:
-        return run_loop(*self._program_args(scenario, max_steps))
+        return run_loop(self.policy_for(scenario), scenario.initial, scenario.task, max_steps,
+                        memo=Memo(worlds=_worlds_met(scenario)))
 
     def run_all(self, scenarios: list[Scenario], max_steps: int) -> list[Program]:
         """`run` of every scenario, the programs advancing together and scored in batches (`run_programs`)."""
-        return run_programs(self.planner_, [program(*self._program_args(sc, max_steps)) for sc in scenarios])
-
-    def _program_args(self, scenario: Scenario, max_steps: int) -> tuple:
-        policy = learned_policy(self.policy, self.planner_, scenario.task, scenario.initial)
-        return policy, scenario.initial, scenario.task, max_steps, None, None, Memo(worlds=_worlds_met(scenario))
+        return run_programs(self.planner_, [program(self.policy_for(sc), sc.initial, sc.task, max_steps,
+                                                    memo=Memo(worlds=_worlds_met(sc))) for sc in scenarios])
 
 
 def configured(make: Callable[[], ScorerMethod], **changes: Any) -> ScorerMethod:

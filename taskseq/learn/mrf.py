@@ -733,9 +733,7 @@ class StepMRF(_Batched):
         """`tables` of every step of X, from one `batch_tables` of them all: each step's entries are the sums its
         own batch of one makes (`_argument_tables` fills each object's row alone, the pair factor's products sum
         over R in one order), so a step scores the same bits alone or beside others."""
-        if RELATION_FAMILY in self.families:
-            for x in X:
-                self._relations(x)
+        self._check_relations(X)
         f = self.batch_tables(StepBatch.of(X, RELATION_FAMILY in self.families, CUE_FAMILY in self.families), w)
         out, pairs = [], f.pair
         for s, x in enumerate(X):
@@ -787,8 +785,9 @@ class StepMRF(_Batched):
         return Scored(*self.scores(x, w)).top_k(k)
 
     def ranked(self, x: StepContext, w: np.ndarray) -> Iterator[tuple[Y, float]]:
-        """Every candidate, best first, in `top_k`'s order, made one at a time as it is read."""
-        return Scored(*self.scores(x, w)).ranked()
+        """Every candidate, best first, in `top_k`'s order, made one at a time as it is read (and scored only
+        when the first is: a caller that may read none pays nothing)."""
+        yield from Scored(*self.scores(x, w)).ranked()
 
 
 @dataclass(frozen=True)

@@ -46,7 +46,13 @@ class Ranking(Protocol):
 # that step's `Ranking` and returns its result. Run alone (`alone`), each context is scored by itself; many such
 # generators advance together and are scored in batches (`run_programs`); the scores, so the results, are the same.
 Scoring = Generator[StepContext, Ranking, T]
-Contexts = dict[tuple[Hashable, tuple[Action, ...]], StepContext]
+Contexts = dict[tuple[Hashable, tuple[Action, ...]], StepContext]  # by `seen_at`
+
+
+def seen_at(state: WorldState, history: tuple[Action, ...] | list[Action]) -> tuple[Hashable, tuple[Action, ...]]:
+    """What a step's context is made of: the world's contents (`WorldState.key`) and the last two steps, all
+    `step_context` reads of the past (the world's objects are the program's own)."""
+    return state.key(), tuple(history[-2:])
 
 
 @dataclass(frozen=True)
@@ -111,6 +117,12 @@ class Learned:
         if self.revisits is None:
             raise TypeError("this policy has no way out of loops")
         return alone(self.planner, self.revisits(ctx, state, leads_back))
+
+
+def _planner_of(policy: Policy) -> Any:
+    """The planner whose scores `policy` asks for; None for a policy that asks for none (chance, the symbolic
+    planner, a wrapper that calls a learned policy itself)."""
+    return policy.planner if isinstance(policy, Learned) else None
 
 
 def leaves_loops(policy: Policy) -> bool:
@@ -240,7 +252,7 @@ def lookahead(planner: StepScorer, task: Task, start: WorldState, top_k: int = 3
     contexts: Contexts = {}  # the worlds' contexts as they are, made by the loop or imagined here (`Learned`)
 
     def imagine(state: WorldState, history: list[Action]) -> Scoring[_Runnable]:
-        known = (state.key(), tuple(history))
+        known = seen_at(state, history)
         step = steps.get(known)
         if step is None:
             ctx = contexts.get(known)  # made by the loop, for a step it took that was not imagined
@@ -270,7 +282,7 @@ def lookahead(planner: StepScorer, task: Task, start: WorldState, top_k: int = 3
     def ranking(ctx: StepContext, state: WorldState) -> Scoring[_Runnable]:
         """The step's runnable candidates as ranked for real: the imagined step when it is the same."""
         history = ctx.history()
-        step = steps.get((state.key(), tuple(history)))
+        step = steps.get(seen_at(state, history))
         if step is None and history:  # a step not imagined (the program took another proposal): kept, as imagined
             step = yield from imagine(state, history)  # ones are, for its imagined plans that come back to it
         if step is None or step.ctx.object_ids != ctx.object_ids or not np.array_equal(step.ctx.objects, ctx.objects):
@@ -335,7 +347,7 @@ def out_of_loops(policy: Policy, ranked: Ranked, ctx: StepContext, states: list[
     """`ranked`, or, when its first step would close a loop (`closes_loop`) and the policy can rank again
     (`leaves_loops`), its proposals with a step that leads out of it first; as they were when it has none. `run_loop`
     applies it to every step, and the web app's assist table to the step it shows."""
-    return alone(getattr(policy, "planner", None), _out_of_loops(policy, ranked, ctx, states, history))
+    return alone(_planner_of(policy), _out_of_loops(policy, ranked, ctx, states, history))
 
 
 def _out_of_loops(policy: Policy, ranked: Ranked, ctx: StepContext, states: list[WorldState],
@@ -424,7 +436,7 @@ def run_loop(policy: Policy, state: WorldState, task: Task, max_steps: int = 20,
     This holds only for a policy that ranks a step from its context and world
     alone, as the learned policies do.
     """
-    return alone(getattr(policy, "planner", None), program(policy, state, task, max_steps, perceive, choose, memo))
+    return alone(_planner_of(policy), program(policy, state, task, max_steps, perceive, choose, memo))
 
 
 def program(policy: Policy, state: WorldState, task: Task, max_steps: int = 20, perceive: Perceive | None = None,
@@ -432,6 +444,7 @@ def program(policy: Policy, state: WorldState, task: Task, max_steps: int = 20, 
     """`run_loop`'s program as work that asks for its scores (`Scoring`): a learned policy's steps are scored
     where it is run, alone (`run_loop`) or beside other programs (`run_programs`)."""
     task.check_objects(state)
+    contexts = policy.contexts if isinstance(policy, Learned) else None
     states, steps = [state], []
     history: tuple[Action, ...] = ()
     while True:
@@ -439,11 +452,12 @@ def program(policy: Policy, state: WorldState, task: Task, max_steps: int = 20, 
         if known is None:
             world = memo.worlds.get(history) if memo is not None else None
             if world is None:
-                # a context the policy made of this world (`lookahead`, imagining it), or one made here for it
-                made = policy.contexts if isinstance(policy, Learned) and policy.contexts is not None else {}
-                ctx = made.get(known := (state.key(), history[-2:]))
+                # the context the policy made of this world (`lookahead`, imagining it), or one made here for it
+                ctx = contexts.get(at := seen_at(state, history)) if contexts is not None else None
                 if ctx is None:
-                    ctx = made[known] = step_context(state, task, list(history))
+                    ctx = step_context(state, task, list(history))
+                    if contexts is not None:
+                        contexts[at] = ctx
                 if memo is not None:
                     memo.worlds[history] = (state, ctx)
             else:
