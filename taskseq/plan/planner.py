@@ -171,6 +171,13 @@ class _Runnable:
             limit *= 2
 
 
+def best_runnable(planner: Any, ctx: StepContext, state: WorldState) -> Action:
+    """The planner's best candidate of the step among `done` and the steps whose preconditions hold: the step
+    `lookahead` imagines next, read from the planner alone (the web app's explanations retrace its imagined steps)."""
+    step = _Runnable(_Alone(planner, ctx), ctx, state)
+    return ctx.action(step.first(1)[0][0])
+
+
 def feasible(planner: StepScorer, top_k: int = 3) -> Learned:
     """The learned planner's `top_k` best candidates among the steps that can run in the world as it is.
 

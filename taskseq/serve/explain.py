@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 from ..features.context import StepContext, step_context
 from ..learn.estimator import StepScorer
-from ..plan.planner import DONE, LOOKAHEAD_DEPTH, LeadsBack, Ranked, _Alone, _Runnable
+from ..plan.planner import DONE, LOOKAHEAD_DEPTH, LeadsBack, Ranked, best_runnable
 from ..product import in_names
 from ..sim.primitives import Action, PreconditionError, execute
 from ..sim.safety import violations
@@ -74,8 +74,7 @@ def imagine(planner: StepScorer, task: Task, start: WorldState, state: WorldStat
             return Imagined(steps, False)
         history = [*history[-1:], action]
         ctx = step_context(state, task, history)
-        step = _Runnable(_Alone(planner, ctx), ctx, state)
-        action = step.ctx.action(step.first(1)[0][0])
+        action = best_runnable(planner, ctx, state)
         if action.primitive == DONE:
             steps.append((state, action))
             return Imagined(steps, False)
