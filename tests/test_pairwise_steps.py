@@ -1,4 +1,5 @@
-"""The compiled SMO solver takes the very steps of the plain algorithm its docstring states, bit for bit.
+"""The compiled SMO solver ends where the plain algorithm its docstring states ends, bit for bit: as many steps and
+shrinkings, the same gap, weights and gradients.
 
 `working_set._pairwise_steps` is written for speed (cuts listed group by
 group, first cuts peeled out of loops, padded vector updates); each of those
@@ -33,7 +34,7 @@ def _gradients(gram, losses, alpha):
 
 
 def reference_steps(gram, losses, groups, alpha, C, B, tol, max_steps):
-    """(gap, steps, shrinkings, alpha) of the solver's algorithm, step for step."""
+    """(gap, steps, shrinkings, alpha, gradients) of the solver's algorithm, step for step."""
     K = len(losses)
     grad = _gradients(gram, losses, alpha)
     diag = [gram[k][k] for k in range(K)]
@@ -59,7 +60,7 @@ def reference_steps(gram, losses, groups, alpha, C, B, tol, max_steps):
             largest = max(largest, own_gap[g])
         if gap <= tol or steps >= max_steps or largest <= 0.0:
             if not shrunk:
-                return gap, steps, shrinks, alpha
+                return gap, steps, shrinks, alpha, grad
             grad = _gradients(gram, losses, alpha)
             active, shrunk, since_shrink = list(range(K)), False, 0
             continue
@@ -139,19 +140,28 @@ def _problem(seed: int, K: int, B: int, d: int):
     return gram, losses, groups, alpha
 
 
-@pytest.mark.parametrize("seed, K, B, C, tol", [(0, 240, 90, 0.8, 1e-9), (1, 60, 1, 2.0, 1e-10),
-                                                 (2, 400, 300, 0.3, 1e-8), (3, 300, 12, 1.0, 1e-9)])
-def test_the_compiled_solver_takes_the_reference_steps_bit_for_bit(seed, K, B, C, tol):
+@pytest.mark.parametrize("seed, K, B, C, tol, max_steps, shrinks", [
+    (0, 240, 90, 0.8, 1e-9, 10_000_000, True),  # many small groups, cuts set aside and brought back
+    (1, 60, 1, 2.0, 1e-10, 10_000_000, False),  # one group: the 1-slack problem
+    (2, 400, 300, 0.3, 1e-8, 10_000_000, True),
+    (3, 300, 12, 1.0, 1e-9, 10_000_000, False),  # few large groups: long sums per group
+    (0, 240, 90, 0.8, 1e-9, 57, False),  # stopped by the step bound, the gap still open
+])
+def test_the_compiled_solver_takes_the_reference_steps_bit_for_bit(seed, K, B, C, tol, max_steps, shrinks):
     gram, losses, groups, alpha = _problem(seed, K, B, 8)
     # a start with weight already on some cuts, as every solve after the first has
     alpha[::7] = C / (np.bincount(groups, minlength=B)[groups[::7]] + 1.0)
-    want_gap, want_steps, want_shrinks, want_alpha = reference_steps(
-        gram.tolist(), losses.tolist(), groups.tolist(), alpha.tolist(), C, B, tol, 10_000_000)
-    # the compiled solver reads the first K rows and columns of a larger buffer, as the working set hands it over
-    buffer = np.zeros((K + 5, K + 5))
+    want_gap, want_steps, want_shrinks, want_alpha, want_grad = reference_steps(
+        gram.tolist(), losses.tolist(), groups.tolist(), alpha.tolist(), C, B, tol, max_steps)
+    # the compiled solver reads the first K rows and columns of a larger buffer, as the working set hands it over,
+    # and writes scratch entries past K: there they hold what an earlier, larger set left
+    buffer = np.full((K + 40, K + 40), 1.7)
     buffer[:K, :K] = gram
-    got_alpha, grad = alpha.copy(), np.zeros(K + 5)
-    gap, steps, shrinks = _pairwise_steps(buffer, losses, groups, got_alpha, grad, C, B, tol, 10_000_000)
+    got_alpha, grad = alpha.copy(), np.full(K + 40, -3.0)
+    gap, steps, got_shrinks = _pairwise_steps(buffer, losses, groups, got_alpha, grad, C, B, tol, max_steps)
     assert steps > 20  # not solved in a few steps
-    assert (steps, shrinks) == (want_steps, want_shrinks)
-    assert gap == want_gap and got_alpha.tobytes() == np.array(want_alpha).tobytes()
+    assert (want_shrinks > 0) == shrinks  # the case covers what it is meant to
+    assert (steps, got_shrinks) == (want_steps, want_shrinks)
+    assert gap == want_gap and (gap > tol) == (max_steps < 10_000_000)
+    assert got_alpha.tobytes() == np.array(want_alpha).tobytes()
+    assert grad[:K].tobytes() == np.array(want_grad).tobytes()

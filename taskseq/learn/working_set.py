@@ -242,7 +242,7 @@ class WorkingSet:
                                          self._grad[:size], self._w, self.C, self.n_groups, tol, max_steps)
             self.n_sweeps += sweeps
         else:
-            # the whole Gram buffer goes in (its first K rows and columns are read): no copy per solve
+            # the whole Gram buffer goes in (its first K rows and columns are the cuts'): no copy per solve
             gap, steps, shrinks = _pairwise_steps(self._gram, self.losses, self.groups, self.alpha, self._grad,
                                                   self.C, self.n_groups, tol, max_steps)
             self.n_shrinks += shrinks
@@ -367,7 +367,7 @@ def _pairwise_steps(gram: np.ndarray, losses: np.ndarray, groups: np.ndarray, al
     when shrinking changes them), so each group's gap is summed in registers
     and its visit finds its cuts in one slice; the sums are the same terms in
     the same order as a pass over the cuts in index order, and so the same
-    bits (0.6 of the time the same solves took over the cuts in index order).
+    bits (0.6 to 0.7 of the time the same solves took over the cuts in index order).
     """
     K = losses.shape[0]
     B = n_groups
@@ -564,18 +564,21 @@ def _pairwise_steps(gram: np.ndarray, losses: np.ndarray, groups: np.ndarray, al
 def _cross_update(gram: np.ndarray, grad: np.ndarray, K: int, cuts: np.ndarray, by: np.ndarray, n: int) -> None:
     """grad[k] -= by[j] * gram[cuts[j], k] for every cut k < K, j = 0..n-1 in that order.
 
-    The hot loop of a solve (about 90% of its work, counted on the relations
-    model): every cut of a visited group that moved updates the gradient of
-    every cut. Each gradient takes the same subtractions in the same order as
-    one pass per moved cut would, so the results are the same bits. It runs
-    over all K cuts, with no branch, so the compiler vectorises it: the cuts
-    set aside by shrinking get updates they do not need (their gradients are
-    recomputed before they are read again), and the caller restores the
-    visited group's own gradients, which its steps already updated.
+    The hot loop of a solve (about a third of a full model's solve time,
+    sampled with perf): every cut of a visited group that moved updates the
+    gradient of every cut. Each gradient takes the same subtractions in the
+    same order as one pass per moved cut would, so the results are the same
+    bits. It runs over every cut, with no branch, so the compiler vectorises
+    it: the cuts set aside by shrinking get updates they do not need (their
+    gradients are recomputed before they are read again), and the caller
+    restores the visited group's own gradients, which its steps already
+    updated. It runs on past K, up to a multiple of 32 entries where the
+    buffers hold them, so that the compiled loop ends on whole vectors and not
+    on a scalar remainder of up to 31 (3% of a solve): the entries past K are
+    scratch, never read as gradients (`_gradients` sets the first K at every
+    solve, `add` a new cut's), and the Gram buffer's are finite (`_reserve`
+    zeroes it, `_compact` leaves old entries).
     """
-    # up to a multiple of 32 cuts where the buffers hold them: the compiled loop then ends on whole vectors, not on
-    # a scalar remainder of up to 31 (3% of a solve); entries past K are scratch (`add` writes a new cut's gradient,
-    # `_reserve` zeroes the Gram buffer, so what is read there is finite)
     Kp = min((K + 31) // 32 * 32, gram.shape[1], grad.shape[0])
     for j in range(n):
         c, d = cuts[j], by[j]
