@@ -14,7 +14,8 @@
   noise and feedback tables (`reports/noise.csv`, `feedback.csv`), the failure analysis's
   tables (`reports/failures.md`, `failures.csv`), the
   development world's checks of the scripts (`multiclass_tol.json`, `revisits.json`, `goal_stop.json`,
-  `drawn_rooms_choice.json`, `teach_weight.json`, `teach_room_prior.json`), and the package's layout from its modules'
+  `drawn_rooms_choice.json`, `teach_weight.json`, `teach_room_prior.json`, `teach_adapt.json`), and the package's
+  layout from its modules'
   docstrings.
 
 Nothing is copied by hand, so a build after `dvc repro` (or `taskseq bench`, `taskseq
@@ -563,6 +564,33 @@ def teach_room_prior() -> str:
             + _rows(["refitted with", "prior (beta)", "misses", "change", "successes", "programs"], "llrrrr", rows))
 
 
+TEACH_ADAPT_COMMAND = (
+    "python scripts/teach_adapt.py --Cs 0.1 0.3 1 --dev-seeds 100 101 102 103 104 --output reports/teach_adapt.json")
+
+
+def teach_adapt() -> str:
+    """The room correction's misses and successes, as `scripts/teach_adapt.py` measured them on development draws."""
+    adapt = _json("teach_adapt.json")
+    if adapt is None:
+        return _missing("teach_adapt.json", TEACH_ADAPT_COMMAND)
+    seeds = [str(s) for s in adapt["dev_seeds"]]
+    base = {r["refit_k"]: r for r in adapt["rows"] if r["C"] == 0}
+    rows = []
+    for r in adapt["rows"]:
+        refit = ("nothing (k = 0)" if r["refit_k"] == 0
+                 else f"the first {r['refit_k']} tasks, each step {adapt['weight']} times")
+        change = r["misses"] - base[r["refit_k"]]["misses"]
+        rows.append([refit, "none" if r["C"] == 0 else f"{r['C']:g}", *(r["misses_by_world"][s] for s in seeds),
+                     r["misses"], "" if r["C"] == 0 else f"{change:+d}", r["successes"], r["programs"]])
+    return (f"`{TEACH_ADAPT_COMMAND}`: the drawn development worlds {', '.join(seeds)}, rooms "
+            f"{', '.join(adapt['environments'])} held out, the first {adapt['taught']} tasks of each taught, the "
+            f"shipped planner (`{adapt['method']}`, C = {adapt['C']:g}); misses of sequence arg per world and in all, "
+            "the change in misses against the same planner without the correction, and successes, over the other "
+            "tasks of those rooms.\n\n"
+            + _rows(["refitted with", "correction C", *(f"misses, world {s}" for s in seeds), "misses, all",
+                     "change", "successes", "programs"], "ll" + "r" * (len(seeds) + 4), rows))
+
+
 MULTICLASS_TOL_COMMAND = "python scripts/multiclass_tol.py --world data/dev --output reports/multiclass_tol.json"
 
 
@@ -758,6 +786,7 @@ GENERATED = {
     "teach-results": teach_results,
     "teach-weight": teach_weight,
     "teach-room-prior": teach_room_prior,
+    "teach-adapt": teach_adapt,
     "bench-training": bench_training,
     "bench-latency": bench_latency,
     "scaling-fit": scaling_fit,

@@ -1,0 +1,202 @@
+"""Measure a room correction for teaching on drawn development worlds: weights shared by every task of the room.
+
+The shipped planner keeps most of what says which object a step takes per task
+kind: an argument's relations to the step's reference objects and its choice
+cues are weighted per task, so a pour-to lesson in a room (set the cup down on
+the table under the jug) moves nothing of a pour's or a stir's. A room
+correction is a second weight vector d, one for the whole room and shared by
+every task: it adds to the planner's weights w0 the same amount in every task's
+copy of those families, and to the argument's attributes by primitive (already
+shared). It is fitted to the room's taught steps alone by the project's
+structural SVM, with w0's scores as a fixed offset:
+
+    min_d  0.5 ||d||^2 + C sum_i max_y [loss(y_i, y) - (w0 + T d) . (psi(x_i, y_i) - psi(x_i, y))]
+
+(T copies d into every task), so d stays small unless the room's
+demonstrations disagree with w0, and it takes a second, not a refit. This
+script runs the teach protocol (`taskseq.stages.teach`: the rooms
+`teach.environments` held out, the first max(`teach.k`) tasks of each taught,
+every other task judged) on development draws only (`world.dev_seed` by
+default; `--dev-seeds` adds others, never a reported one), for each C of a grid,
+on the planner without the taught steps and on the one refitted with them as
+`teach` does, and prints the sequence-arg misses and the successes pooled over
+the draws. docs/teach.md shows the table this writes:
+
+    python scripts/teach_adapt.py --Cs 0.1 0.3 1 --dev-seeds 100 101 102 103 104 \
+        --output reports/teach_adapt.json
+
+Run it after `dvc repro` has run `select` (the shipped planner and its C are read from reports/selection.json).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sp
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "scripts"))  # the teach protocol's options and checks, as teach_weight.py has them
+
+from teach_weight import add_dev_options, dev_setting  # noqa: E402
+
+from taskseq.demonstrations.benchmark import Benchmark  # noqa: E402
+from taskseq.demonstrations.records import scenario_records  # noqa: E402
+from taskseq.experiments.crossval import judge  # noqa: E402
+from taskseq.experiments.teaching import Taught  # noqa: E402
+from taskseq.features.context import StepContext  # noqa: E402
+from taskseq.features.dataset import build_steps  # noqa: E402
+from taskseq.learn.estimator import StepScorer  # noqa: E402
+from taskseq.learn.mrf import StepMRF  # noqa: E402
+from taskseq.learn.ssvm import CuttingPlaneSSVM  # noqa: E402
+from taskseq.runtime.atomic import write_json_atomic  # noqa: E402
+from taskseq.serve.environments import Environment  # noqa: E402
+from taskseq.serve.writer import person_record  # noqa: E402
+from taskseq.settings import Generate  # noqa: E402
+from taskseq.sim.scenarios import world_scenarios  # noqa: E402
+from taskseq.stages.teach import SCRIPTED, taught_method, teach_jobs, written_and_read_back  # noqa: E402
+
+# The blocks a room correction moves (slots 1 and 2 of each): those kept per task get one copy of d for every task
+SHARED = ("primitive_argument_environment",)
+PER_TASK = ("relations", "cues")
+
+
+def sharing(mrf: StepMRF) -> sp.csr_matrix:
+    """(size of w, size of d): T, which copies each weight of d into its place in every task's block."""
+    rows, cols, n, start = [], [], 0, 0
+    for block in mrf.blocks:  # in weight order
+        start += block.size
+        family = block.name[:-1] if block.name[-1] in "12" else block.name
+        if family not in SHARED + PER_TASK:
+            continue
+        where = np.arange(start - block.size, start).reshape(block.shape)
+        copies = where if family in PER_TASK else where[None]  # (tasks or 1, ...) positions of each copy
+        width = copies[0].size
+        for copy in copies:
+            rows.append(copy.ravel())
+            cols.append(n + np.arange(width))
+        n += width
+    r, c = np.concatenate(rows), np.concatenate(cols)
+    return sp.csr_matrix((np.ones(len(r)), (r, c)), shape=(mrf.size_joint_feature, n))
+
+
+class RoomCorrection:
+    """The structured model of a room correction, in the learner's protocol: an example is the index of a taught
+    step, a label the row (index, primitive, a1, a2), and a cut's loss is the Hamming loss less what w0 already
+    gives the demonstrated step over the other (so the learner's margin is that of w0 + T d)."""
+
+    def __init__(self, mrf: StepMRF, w0: np.ndarray, steps: list[StepContext]) -> None:
+        self.mrf, self.w0, self.steps = mrf, w0, steps
+        self.T = sharing(mrf)
+        self.size_joint_feature = self.T.shape[1]
+
+    def weights(self, d: np.ndarray) -> np.ndarray:
+        return self.w0 + self.T @ d
+
+    def _split(self, Y: np.ndarray) -> tuple[list[StepContext], np.ndarray, np.ndarray]:
+        Y = np.asarray(Y, dtype=np.int64)
+        return [self.steps[i] for i in Y[:, 0]], Y[:, 0], Y[:, 1:]
+
+    def batch_loss_augmented_inference(self, X: list[int], Y: np.ndarray, d: np.ndarray) -> np.ndarray:
+        steps, index, labels = self._split(Y)
+        return np.column_stack([index, self.mrf.batch_loss_augmented_inference(steps, labels, self.weights(d))])
+
+    def batch_loss(self, Y: np.ndarray, Y_hat: np.ndarray) -> np.ndarray:
+        steps, _, labels = self._split(Y)
+        hats = np.asarray(Y_hat, dtype=np.int64)[:, 1:]
+        given = (self.mrf.batch_joint_feature_rows(steps, labels)
+                 - self.mrf.batch_joint_feature_rows(steps, hats)) @ self.w0
+        return self.mrf.batch_loss(labels, hats) - given
+
+    def batch_joint_feature_rows(self, X: list[int], Y: np.ndarray) -> sp.csr_matrix:
+        steps, _, labels = self._split(Y)
+        return sp.csr_matrix(self.mrf.batch_joint_feature_rows(steps, labels) @ self.T)
+
+
+def fit_correction(scorer: StepScorer, steps: list[StepContext], C: float) -> tuple[RoomCorrection, CuttingPlaneSSVM]:
+    """The correction of `scorer` fitted at C to `steps` (the room's taught steps): its model and fitted learner."""
+    model = RoomCorrection(StepMRF(scorer.features), scorer.w_, steps)
+    labels = np.array([(i, *x.gold) for i, x in enumerate(steps)], dtype=np.int64)
+    ssvm = CuttingPlaneSSVM(model, C=C, tol=scorer.tol, max_iter=scorer.max_iter, n_slacks=0)
+    ssvm.fit(list(range(len(steps))), labels)
+    model.mrf.release()
+    return model, ssvm
+
+
+def corrected(scorer: StepScorer, steps: list[StepContext], C: float) -> StepScorer:
+    """`scorer` with a room correction fitted at C to `steps`."""
+    model, ssvm = fit_correction(scorer, steps, C)
+    return StepScorer.from_weights(scorer.features, model.weights(ssvm.w_), C=scorer.C, tol=scorer.tol,
+                                   max_iter=scorer.max_iter, n_slacks=scorer.n_slacks)
+
+
+def taught_steps(room: Taught, k: int) -> list[StepContext]:
+    """The steps of the first k tasks shown in `room`, as a person's records are written and read back."""
+    records = written_and_read_back([person_record(Environment(room.env_id, room.env_id, room.state), task,
+                                                   list(actions), SCRIPTED) for task, actions in room.shown[:k]])
+    return build_steps(records)[0]
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--Cs", type=float, nargs="+", default=[0.1, 0.3, 1.0],
+                        help="the correction's C, to try (default: 0.1 0.3 1); no correction is always run too, "
+                             "as what the others are compared with")
+    add_dev_options(parser)
+    args = parser.parse_args(argv)
+    if any(not c > 0 for c in args.Cs):
+        parser.error("--Cs: every C must be positive")
+    dev = dev_setting(parser, args)
+    params, make, teach = dev.params, dev.make, dev.params.teach
+    most = max(teach.k)
+    print(f"the shipped planner ({dev.shipped}, C = {dev.C:g}) on the drawn development worlds "
+          f"{' '.join(map(str, dev.seeds))}: rooms {' '.join(teach.environments)} held out, the first {most} tasks "
+          f"of each taught", file=sys.stderr)
+    Cs = [0.0, *sorted(set(args.Cs))]
+    # (k of the refit, C) -> programs, as demonstrated, successes, misses per world
+    counts: dict[tuple[int, float], dict] = {}
+    for seed in dev.seeds:
+        scenarios, _ = world_scenarios(Generate(seed, "procedural", params.procedural))
+        bench = Benchmark.from_records(scenario_records(scenarios))
+        _, (_, _, base, rooms, known, weight, _, max_steps) = teach_jobs(seed, bench, teach, make,
+                                                                        params.crossval.max_steps)[0]
+        lessons = {room.env_id: taught_steps(room, most) for room in rooms}
+        for k in (0, most):  # the planner without the refit, and refitted with the taught steps as `teach` does
+            method = taught_method(k, base, rooms, known, weight, make)
+            fitted = method.planner_
+            for C in Cs:
+                tally = counts.setdefault((k, C), {"programs": 0, "arg": 0, "successes": 0, "misses_by_world": {}})
+                missed = 0
+                for room in rooms:
+                    method.planner_ = corrected(fitted, lessons[room.env_id], C) if C else fitted
+                    for scenario in room.tested:
+                        outcome = judge(scenario, method.run(scenario, max_steps))
+                        tally["programs"] += 1
+                        tally["arg"] += int(outcome.arg_correct)
+                        tally["successes"] += int(outcome.success)
+                        missed += int(not outcome.arg_correct)
+                tally["misses_by_world"][str(seed)] = missed
+                print(f"world {seed}, refit with k = {k}, C = {C:g}: {missed} misses", file=sys.stderr)
+            method.planner_ = fitted
+    rows = [{"refit_k": k, "C": C, "programs": t["programs"], "misses": t["programs"] - t["arg"],
+             "successes": t["successes"], "misses_by_world": t["misses_by_world"]}
+            for (k, C), t in sorted(counts.items())]
+    print("| refit with | correction C | sequence-arg misses | successes | of programs |")
+    print("|---|---:|---:|---:|---:|")
+    for r in rows:
+        refit = ("nothing (k = 0)" if r["refit_k"] == 0
+                 else f"the first {r['refit_k']} tasks (teach.weight {teach.weight})")
+        print(f"| {refit} | {'none' if r['C'] == 0 else format(r['C'], 'g')} | {r['misses']} | {r['successes']} | "
+              f"{r['programs']} |")
+    if args.output:
+        write_json_atomic(args.output, {"dev_seeds": dev.seeds, "method": dev.shipped, "C": dev.C,
+                                        "environments": list(teach.environments), "taught": most,
+                                        "weight": teach.weight, "rows": rows})
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
