@@ -165,6 +165,16 @@ def test_parameters_and_bad_arguments():
             CuttingPlaneSSVM(model, C=C).fit(X2, Y2)
     with pytest.raises(ValueError, match=r"^n_slacks must be 0 \(one per example\) or more, got -1$"):
         CuttingPlaneSSVM(model, n_slacks=-1).fit(X2, Y2)
+    for tol in (-1e-3, float("nan")):
+        with pytest.raises(ValueError, match=rf"^tol must be 0 or more \(a relative gap\), got {tol}$"):
+            CuttingPlaneSSVM(model, tol=tol).fit(X2, Y2)
+    with pytest.raises(ValueError, match=r"^max_iter must be 0 \(no oracle call: w = 0, certifying nothing\) or "
+                                         r"more, got -1$"):
+        CuttingPlaneSSVM(model, max_iter=-1).fit(X2, Y2)
+    with pytest.raises(ValueError, match=r"^inactive_window must be 0 \(keep every cut\) or more, got -1$"):
+        CuttingPlaneSSVM(model, inactive_window=-1).fit(X2, Y2)
+    exact = CuttingPlaneSSVM(model, tol=0.0, max_iter=50).fit(X2, Y2)  # a zero gap is a tolerance too: to the end
+    assert exact.n_iter_ <= 50 and exact.primal_objective_ == pytest.approx(0.25)
 
 
 def test_the_default_settings_solve_to_the_default_tolerance():

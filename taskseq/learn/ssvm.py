@@ -138,7 +138,8 @@ class CuttingPlaneSSVM:
     C : float
         Weight of the slack (`C * sum_i xi_i`).
     tol : float
-        Stop when (best primal - dual) <= tol * max(1, |best primal|).
+        Stop when (best primal - dual) <= tol * max(1, |best primal|); at least 0 (0 stops only when the
+        gap closes or at max_iter).
     max_iter : int
         Upper bound on oracle calls (cutting-plane iterations).
     n_slacks : int
@@ -179,6 +180,14 @@ class CuttingPlaneSSVM:
             raise ValueError(f"C must be positive, got {self.C}")
         if self.n_slacks < 0:
             raise ValueError(f"n_slacks must be 0 (one per example) or more, got {self.n_slacks}")
+        # a negative tolerance is never met: every solve would run to its step bound and the fit to max_iter
+        if not self.tol >= 0:
+            raise ValueError(f"tol must be 0 or more (a relative gap), got {self.tol}")
+        if self.max_iter < 0:
+            raise ValueError(f"max_iter must be 0 (no oracle call: w = 0, certifying nothing) or more, got "
+                             f"{self.max_iter}")
+        if self.inactive_window < 0:
+            raise ValueError(f"inactive_window must be 0 (keep every cut) or more, got {self.inactive_window}")
         n = len(X)
         n_groups = min(self.n_slacks, n) if self.n_slacks else n
         groups = (np.arange(n) * n_groups) // n  # consecutive examples share a slack
