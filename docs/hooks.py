@@ -14,9 +14,8 @@
   noise and feedback tables (`reports/noise.csv`, `feedback.csv`), the failure analysis's
   tables (`reports/failures.md`, `failures.csv`), the
   development world's checks of the scripts (`multiclass_tol.json`, `revisits.json`, `goal_stop.json`,
-  `drawn_rooms_choice.json`, `teach_weight.json`, `teach_room_prior.json`, `teach_adapt.json`), and the package's
-  layout from its modules'
-  docstrings.
+  `drawn_rooms_choice.json`, `teach_weight.json`, `teach_room_prior.json`, `teach_adapt.json`), and the
+  package's layout from its modules' docstrings.
 
 Nothing is copied by hand, so a build after `dvc repro` (or `taskseq bench`, `taskseq
 scaling`, `scripts/mutation.py`) shows that run's numbers.

@@ -3,17 +3,19 @@
 The shipped planner keeps most of what says which object a step takes per task
 kind: an argument's relations to the step's reference objects and its choice
 cues are weighted per task, so a pour-to lesson in a room (set the cup down on
-the table under the jug) moves nothing of a pour's or a stir's. A room
-correction is a second weight vector d, one for the whole room and shared by
-every task: it adds to the planner's weights w0 the same amount in every task's
-copy of those families, and to the argument's attributes by primitive (already
-shared). It is fitted to the room's taught steps alone by the project's
-structural SVM, with w0's scores as a fixed offset:
+the table under the jug) reaches a pour's or a stir's choices only through the
+few families every task shares. A room correction is a second weight vector d,
+one for the whole room and shared by every task: it adds to the planner's
+weights w0 the same amount in every task's copy of those families, and to the
+argument's attributes by primitive (already shared). It is fitted to the
+room's taught steps alone by the project's structural SVM, with w0's scores as
+a fixed offset:
 
     min_d  0.5 ||d||^2 + C sum_i max_y [loss(y_i, y) - (w0 + T d) . (psi(x_i, y_i) - psi(x_i, y))]
 
-(T copies d into every task), so d stays small unless the room's
-demonstrations disagree with w0, and it takes a second, not a refit. This
+(T copies d into every task): d is pulled by every taught step that w0 does
+not already rank above each other candidate by that candidate's loss (margin
+rescaling), right or wrong, and held towards 0 by the norm; no refit. This
 script runs the teach protocol (`taskseq.stages.teach`: the rooms
 `teach.environments` held out, the first max(`teach.k`) tasks of each taught,
 every other task judged) on development draws only (`world.dev_seed` by
@@ -98,7 +100,9 @@ class RoomCorrection:
 
     def _split(self, Y: np.ndarray) -> tuple[list[StepContext], np.ndarray, np.ndarray]:
         Y = np.asarray(Y, dtype=np.int64)
-        return [self.steps[i] for i in Y[:, 0]], Y[:, 0], Y[:, 1:]
+        # the learner asks for every step in order: the same list each time, so the model's batch is built once
+        everyone = np.array_equal(Y[:, 0], np.arange(len(self.steps)))
+        return (self.steps if everyone else [self.steps[i] for i in Y[:, 0]]), Y[:, 0], Y[:, 1:]
 
     def batch_loss_augmented_inference(self, X: list[int], Y: np.ndarray, d: np.ndarray) -> np.ndarray:
         steps, index, labels = self._split(Y)
@@ -123,6 +127,9 @@ def fit_correction(scorer: StepScorer, steps: list[StepContext], C: float) -> tu
     ssvm = CuttingPlaneSSVM(model, C=C, tol=scorer.tol, max_iter=scorer.max_iter, n_slacks=0)
     ssvm.fit(list(range(len(steps))), labels)
     model.mrf.release()
+    if not ssvm.converged_:
+        raise RuntimeError(f"a room correction at C = {C:g} did not reach the gap {scorer.tol:g} in "
+                           f"{scorer.max_iter} iterations")
     return model, ssvm
 
 

@@ -160,21 +160,22 @@ def test_parameters_and_bad_arguments():
         CuttingPlaneSSVM(model).fit(X2, Y2[:1])
     with pytest.raises(ValueError, match=r"^cannot fit on no examples$"):
         CuttingPlaneSSVM(model).fit([], [])
-    for C in (0.0, -1.0, float("nan")):
-        with pytest.raises(ValueError, match=rf"^C must be positive, got {C}$"):
+    for C in (0.0, -1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match=rf"^C must be positive and finite, got {C}$"):
             CuttingPlaneSSVM(model, C=C).fit(X2, Y2)
     with pytest.raises(ValueError, match=r"^n_slacks must be 0 \(one per example\) or more, got -1$"):
         CuttingPlaneSSVM(model, n_slacks=-1).fit(X2, Y2)
-    for tol in (-1e-3, float("nan")):
-        with pytest.raises(ValueError, match=rf"^tol must be 0 or more \(a relative gap\), got {tol}$"):
+    for tol in (0.0, -1e-3, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match=rf"^tol must be positive and finite \(a relative gap\), got {tol}$"):
             CuttingPlaneSSVM(model, tol=tol).fit(X2, Y2)
-    with pytest.raises(ValueError, match=r"^max_iter must be 0 \(no oracle call: w = 0, certifying nothing\) or "
-                                         r"more, got -1$"):
-        CuttingPlaneSSVM(model, max_iter=-1).fit(X2, Y2)
-    with pytest.raises(ValueError, match=r"^inactive_window must be 0 \(keep every cut\) or more, got -1$"):
-        CuttingPlaneSSVM(model, inactive_window=-1).fit(X2, Y2)
-    exact = CuttingPlaneSSVM(model, tol=0.0, max_iter=50).fit(X2, Y2)  # a zero gap is a tolerance too: to the end
-    assert exact.n_iter_ <= 50 and exact.primal_objective_ == pytest.approx(0.25)
+    for max_iter in (-1, 2.5):
+        with pytest.raises(ValueError, match=rf"^max_iter must be a whole number, 0 \(no oracle call: the start is "
+                                             rf"returned, certifying nothing\) or more, got {max_iter}$"):
+            CuttingPlaneSSVM(model, max_iter=max_iter).fit(X2, Y2)
+    for window in (-1, 0.5):
+        with pytest.raises(ValueError, match=rf"^inactive_window must be a whole number, 0 \(keep every cut\) or "
+                                             rf"more, got {window}$"):
+            CuttingPlaneSSVM(model, inactive_window=window).fit(X2, Y2)
 
 
 def test_the_default_settings_solve_to_the_default_tolerance():

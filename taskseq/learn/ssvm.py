@@ -44,6 +44,8 @@ from __future__ import annotations
 
 import hashlib
 import logging
+import math
+import numbers
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -138,8 +140,7 @@ class CuttingPlaneSSVM:
     C : float
         Weight of the slack (`C * sum_i xi_i`).
     tol : float
-        Stop when (best primal - dual) <= tol * max(1, |best primal|); at least 0 (0 stops only when the
-        gap closes or at max_iter).
+        Stop when (best primal - dual) <= tol * max(1, |best primal|); positive.
     max_iter : int
         Upper bound on oracle calls (cutting-plane iterations).
     n_slacks : int
@@ -176,18 +177,20 @@ class CuttingPlaneSSVM:
             raise ValueError(f"X has {len(X)} examples but Y has {len(Y)}")
         if len(X) == 0:
             raise ValueError("cannot fit on no examples")
-        if not self.C > 0:
-            raise ValueError(f"C must be positive, got {self.C}")
+        # math.isfinite: an infinite C or tol returns w = 0 as "converged" after one oracle call
+        if not (self.C > 0 and math.isfinite(self.C)):
+            raise ValueError(f"C must be positive and finite, got {self.C}")
         if self.n_slacks < 0:
             raise ValueError(f"n_slacks must be 0 (one per example) or more, got {self.n_slacks}")
-        # a negative tolerance is never met: every solve would run to its step bound and the fit to max_iter
-        if not self.tol >= 0:
-            raise ValueError(f"tol must be 0 or more (a relative gap), got {self.tol}")
-        if self.max_iter < 0:
-            raise ValueError(f"max_iter must be 0 (no oracle call: w = 0, certifying nothing) or more, got "
-                             f"{self.max_iter}")
-        if self.inactive_window < 0:
-            raise ValueError(f"inactive_window must be 0 (keep every cut) or more, got {self.inactive_window}")
+        # a gap of 0 (or less) is never certified in floating point: every solve would run to its step bound
+        if not (self.tol > 0 and math.isfinite(self.tol)):
+            raise ValueError(f"tol must be positive and finite (a relative gap), got {self.tol}")
+        if not isinstance(self.max_iter, numbers.Integral) or self.max_iter < 0:
+            raise ValueError(f"max_iter must be a whole number, 0 (no oracle call: the start is returned, "
+                             f"certifying nothing) or more, got {self.max_iter!r}")
+        if not isinstance(self.inactive_window, numbers.Integral) or self.inactive_window < 0:
+            raise ValueError(f"inactive_window must be a whole number, 0 (keep every cut) or more, got "
+                             f"{self.inactive_window!r}")
         n = len(X)
         n_groups = min(self.n_slacks, n) if self.n_slacks else n
         groups = (np.arange(n) * n_groups) // n  # consecutive examples share a slack
