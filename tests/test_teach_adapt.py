@@ -4,6 +4,7 @@ scores as an offset."""
 from __future__ import annotations
 
 import importlib.util
+import json
 from pathlib import Path
 
 import numpy as np
@@ -84,3 +85,30 @@ def test_the_learners_objective_is_the_corrections_own_with_the_planners_scores_
     primal = 0.5 * float(ssvm.w_ @ ssvm.w_) + C * slack
     assert primal == pytest.approx(ssvm.primal_objective_, rel=1e-9, abs=1e-9)
     assert slack > 0  # the lesson is not separable at this C: the offset matters to the sum
+
+
+def test_the_script_runs_the_teach_protocol_on_a_development_draw(tmp_path):
+    """One development draw, one C: the rows without a correction are the teach protocol's own (the misses
+    `scripts/teach_weight.py` recorded for that draw at the weight params.yaml uses), every row is the committed
+    report's for that draw, and the correction changes the untaught planner's programs there."""
+    out = tmp_path / "adapt.json"
+    assert teach_adapt.main(["--Cs", "1", "--dev-seeds", "100", "--output", str(out)]) == 0
+    report = json.loads(out.read_text())
+    rows = {(r["refit_k"], r["C"]): r for r in report["rows"]}
+    assert set(rows) == {(0, 0.0), (0, 1.0), (3, 0.0), (3, 1.0)} and report["dev_seeds"] == [100]
+    assert len({r["programs"] for r in rows.values()}) == 1  # every row judges the same tasks
+    recorded = json.loads((ROOT / "reports" / "teach_weight.json").read_text())
+    assert report["weight"] == recorded["chosen"]
+    at_weight = next(r for r in recorded["ranked"] if r["weight"] == recorded["chosen"])
+    assert [rows[(0, 0.0)]["misses"], rows[(3, 0.0)]["misses"]] == at_weight["misses"]["100"]
+    # and the committed report's column for that draw, corrections included, comes out again
+    committed = {(r["refit_k"], r["C"]): r["misses_by_world"]["100"]
+                 for r in json.loads((ROOT / "reports" / "teach_adapt.json").read_text())["rows"]}
+    assert {key: r["misses"] for key, r in rows.items()} == {key: committed[key] for key in rows}
+    assert rows[(0, 1.0)]["misses"] != rows[(0, 0.0)]["misses"]
+
+
+def test_a_reported_world_is_refused(capsys):
+    with pytest.raises(SystemExit):
+        teach_adapt.main(["--dev-seeds", "0"])
+    assert "is a reported world seed" in capsys.readouterr().err
