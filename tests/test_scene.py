@@ -2,9 +2,14 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from taskseq.serve.environments import world_environment
-from taskseq.serve.scene import support_tree, top_view
+from taskseq.serve.scene import LABEL_GAP, support_tree, top_view
+from taskseq.settings import Procedural
+from taskseq.sim.catalog import build_environment
 from taskseq.sim.primitives import Action, execute
+from taskseq.sim.procedural import Redraw, draw_room
 
 
 def nodes_by_id(nodes, out=None):
@@ -42,3 +47,30 @@ def test_the_top_view_draws_every_object_once_and_what_the_robot_holds_beside_it
     assert view.robot_label == "robot, holding water_bottle (water), above teacup"
     assert view.width >= view.robot_label_x + 8 * len(view.robot_label)
     assert "obj20" not in nodes_by_id(support_tree(held))
+
+
+def drawn_rooms(n: int, seed: int = 7):
+    """`n` rooms as the procedural family draws them (a draw it refuses is drawn again)."""
+    rng, rooms = np.random.default_rng(seed), []
+    while len(rooms) < n:
+        try:
+            env, objects = draw_room(f"proc{len(rooms) + 1:03d}", Procedural(), rng)
+        except Redraw:
+            continue
+        rooms.append(build_environment(env, objects=objects))
+    return rooms
+
+
+def test_no_two_slanted_labels_write_over_each_other_in_drawn_rooms():
+    """An item's label rises at 45 degrees from its top edge, on the line x + y = anchor + top: labels of items at
+    different depths of a deep shelf share a line unless the layout keeps the lines apart, not only the starts."""
+    rooms = drawn_rooms(40) + [world_environment(0, f"env{i:02d}").state for i in range(1, 14)]
+    crowded = 0
+    for state in rooms:
+        slanted = [s for s in top_view(state).shapes if s.kind in ("vessel", "item")]
+        lines = np.sort([s.anchor + s.y for s in slanted])
+        assert np.all(np.diff(lines) >= LABEL_GAP - 0.2)  # (anchors and rows are rounded to a tenth of a pixel)
+        assert all(s.anchor >= s.x + s.w / 2 - 0.1 for s in slanted)  # from its centre, or right of it
+        centres = np.sort([s.x + s.w / 2 + s.y for s in slanted])
+        crowded += bool(np.any(np.diff(centres) < LABEL_GAP))
+    assert crowded >= 10  # rooms where labels started at their centres would have met: the rule was needed

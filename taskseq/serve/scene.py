@@ -15,7 +15,7 @@ MAX_SCALE = 240.0  # pixels per metre at most
 WIDTH = 1060.0  # pixels the room is fitted into at most
 MARGIN = 30.0
 TOP = 120.0  # room above the wall for the slanted labels of items
-LABEL_GAP = 13.0  # pixels between the starts of two slanted labels
+LABEL_GAP = 16.0  # pixels between two slanted labels' lines, measured along a row (11 px across the slant)
 ROBOT_LABEL_AT = 16.0  # pixels from the robot's centre to where its label starts
 CHAR_WIDTH = 8.0  # pixels a character of the robot's bold label takes at most, about, in a sans-serif font
 
@@ -103,7 +103,11 @@ def top_view(state: WorldState) -> TopView:
 
     order = sorted(shown, key=lambda o: (state.specs[o].category not in FURNITURE, state.poses[o][2], o))
     shapes: list[Shape] = []
-    anchors: list[float] = []  # where item labels start: a stacked item's label moves right of its base's
+    # An item's label rises to the right at 45 degrees from (anchor, its top edge), so it lies on the line
+    # x + y = anchor + top; two labels are apart when their lines are, whatever their rows: items at different depths
+    # on a deep shelf or table would otherwise write over each other. A label whose line comes too near one drawn
+    # before (a stacked item's, its base's) starts further right.
+    lines: list[float] = []
     for o in order:
         spec = state.specs[o]
         x0, y0, _, x1, y1, _ = state.box(o)
@@ -114,9 +118,10 @@ def top_view(state: WorldState) -> TopView:
         level = _level(state, o)
         label = _label(state, o) + (f" · level {level}" if level else "")
         anchor = ax + w / 2
-        while kind in ("vessel", "item") and any(abs(anchor - a) < LABEL_GAP for a in anchors):
-            anchor += LABEL_GAP
-        anchors.append(anchor)
+        if kind in ("vessel", "item"):
+            while any(abs(anchor + ay - line) < LABEL_GAP for line in lines):
+                anchor += 1.0
+            lines.append(anchor + ay)
         liquids = tuple((li, state.specs[li].name) for li in state.liquids_in(o))
         shapes.append(Shape(o, ax, ay, round(w, 1), round(h, 1), kind, label, bool(liquids), round(anchor, 1),
                             spec.name, liquids, level))
