@@ -537,6 +537,21 @@ def teach_weight() -> str:
                     "rrr" + "r" * (len(seeds) + 1), rows))
 
 
+def _against_untouched(report: dict, setting: str) -> list[tuple[dict, str, str, str]]:
+    """Each row of a report of `scripts/teach_weight.py`'s `room_variants` (the room prior's, the room
+    correction's), with what its planner was refitted with, its setting (`none` where 0: the planner untouched)
+    and its change in misses against the untouched planner of the same refit."""
+    untouched = {r["refit_k"]: r["misses"] for r in report["rows"] if r[setting] == 0}
+    out = []
+    for r in report["rows"]:
+        refit = ("nothing (k = 0)" if r["refit_k"] == 0
+                 else f"the first {r['refit_k']} tasks, each step {report['weight']} times")
+        none = r[setting] == 0
+        out.append((r, refit, "none" if none else f"{r[setting]:g}",
+                    "" if none else f"{r['misses'] - untouched[r['refit_k']]:+d}"))
+    return out
+
+
 TEACH_ROOM_PRIOR_COMMAND = (
     "python scripts/teach_room_prior.py --betas 0.25 0.5 1 2 --dev-seeds 100 101 102 103 104 "
     "--output reports/teach_room_prior.json")
@@ -547,14 +562,8 @@ def teach_room_prior() -> str:
     prior = _json("teach_room_prior.json")
     if prior is None:
         return _missing("teach_room_prior.json", TEACH_ROOM_PRIOR_COMMAND)
-    base = {r["refit_k"]: r for r in prior["rows"] if r["beta"] == 0}
-    rows = []
-    for r in prior["rows"]:
-        refit = ("nothing (k = 0)" if r["refit_k"] == 0
-                 else f"the first {r['refit_k']} tasks, each step {prior['weight']} times")
-        change = r["misses"] - base[r["refit_k"]]["misses"]
-        rows.append([refit, "none" if r["beta"] == 0 else f"{r['beta']:g}", r["misses"],
-                     "" if r["beta"] == 0 else f"{change:+d}", r["successes"], r["programs"]])
+    rows = [[refit, setting, r["misses"], change, r["successes"], r["programs"]]
+            for r, refit, setting, change in _against_untouched(prior, "beta")]
     return (f"`{TEACH_ROOM_PRIOR_COMMAND}`: the drawn development worlds "
             f"{', '.join(map(str, prior['dev_seeds']))} pooled, rooms {', '.join(prior['environments'])} held out, "
             f"the first {prior['taught']} tasks of each taught, the shipped planner (`{prior['method']}`, "
@@ -573,14 +582,8 @@ def teach_adapt() -> str:
     if adapt is None:
         return _missing("teach_adapt.json", TEACH_ADAPT_COMMAND)
     seeds = [str(s) for s in adapt["dev_seeds"]]
-    base = {r["refit_k"]: r for r in adapt["rows"] if r["C"] == 0}
-    rows = []
-    for r in adapt["rows"]:
-        refit = ("nothing (k = 0)" if r["refit_k"] == 0
-                 else f"the first {r['refit_k']} tasks, each step {adapt['weight']} times")
-        change = r["misses"] - base[r["refit_k"]]["misses"]
-        rows.append([refit, "none" if r["C"] == 0 else f"{r['C']:g}", *(r["misses_by_world"][s] for s in seeds),
-                     r["misses"], "" if r["C"] == 0 else f"{change:+d}", r["successes"], r["programs"]])
+    rows = [[refit, setting, *(r["misses_by_world"][s] for s in seeds), r["misses"], change, r["successes"],
+             r["programs"]] for r, refit, setting, change in _against_untouched(adapt, "C")]
     return (f"`{TEACH_ADAPT_COMMAND}`: the drawn development worlds {', '.join(seeds)}, rooms "
             f"{', '.join(adapt['environments'])} held out, the first {adapt['taught']} tasks of each taught, the "
             f"shipped planner (`{adapt['method']}`, C = {adapt['C']:g}); misses of sequence arg per world and in all, "

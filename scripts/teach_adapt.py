@@ -43,23 +43,17 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "scripts"))  # the teach protocol's options and checks, as teach_weight.py has them
 
-from teach_weight import add_dev_options, dev_setting  # noqa: E402
+from teach_weight import add_dev_options, dev_setting, room_variants, show_variants  # noqa: E402
 
-from taskseq.demonstrations.benchmark import Benchmark  # noqa: E402
-from taskseq.demonstrations.records import scenario_records  # noqa: E402
-from taskseq.experiments.crossval import judge  # noqa: E402
 from taskseq.experiments.teaching import Taught  # noqa: E402
 from taskseq.features.context import StepContext  # noqa: E402
 from taskseq.features.dataset import build_steps  # noqa: E402
 from taskseq.learn.estimator import StepScorer  # noqa: E402
 from taskseq.learn.mrf import StepMRF  # noqa: E402
 from taskseq.learn.ssvm import CuttingPlaneSSVM  # noqa: E402
-from taskseq.runtime.atomic import write_json_atomic  # noqa: E402
 from taskseq.serve.environments import Environment  # noqa: E402
 from taskseq.serve.writer import person_record  # noqa: E402
-from taskseq.settings import Generate  # noqa: E402
-from taskseq.sim.scenarios import world_scenarios  # noqa: E402
-from taskseq.stages.teach import SCRIPTED, taught_method, teach_jobs, written_and_read_back  # noqa: E402
+from taskseq.stages.teach import SCRIPTED, written_and_read_back  # noqa: E402
 
 # The blocks a room correction moves (slots 1 and 2 of each): those kept per task get one copy of d for every task
 SHARED = ("primitive_argument_environment",)
@@ -157,51 +151,10 @@ def main(argv: list[str] | None = None) -> int:
     if any(not c > 0 for c in args.Cs):
         parser.error("--Cs: every C must be positive")
     dev = dev_setting(parser, args)
-    params, make, teach = dev.params, dev.make, dev.params.teach
-    most = max(teach.k)
-    print(f"the shipped planner ({dev.shipped}, C = {dev.C:g}) on the drawn development worlds "
-          f"{' '.join(map(str, dev.seeds))}: rooms {' '.join(teach.environments)} held out, the first {most} tasks "
-          f"of each taught", file=sys.stderr)
-    Cs = [0.0, *sorted(set(args.Cs))]
-    # (k of the refit, C) -> programs, as demonstrated, successes, misses per world
-    counts: dict[tuple[int, float], dict] = {}
-    for seed in dev.seeds:
-        scenarios, _ = world_scenarios(Generate(seed, "procedural", params.procedural))
-        bench = Benchmark.from_records(scenario_records(scenarios))
-        _, (_, _, base, rooms, known, weight, _, max_steps) = teach_jobs(seed, bench, teach, make,
-                                                                        params.crossval.max_steps)[0]
-        lessons = {room.env_id: taught_steps(room, most) for room in rooms}
-        for k in (0, most):  # the planner without the refit, and refitted with the taught steps as `teach` does
-            method = taught_method(k, base, rooms, known, weight, make)
-            fitted = method.planner_
-            for C in Cs:
-                tally = counts.setdefault((k, C), {"programs": 0, "arg": 0, "successes": 0, "misses_by_world": {}})
-                missed = 0
-                for room in rooms:
-                    method.planner_ = corrected(fitted, lessons[room.env_id], C) if C else fitted
-                    for scenario in room.tested:
-                        outcome = judge(scenario, method.run(scenario, max_steps))
-                        tally["programs"] += 1
-                        tally["arg"] += int(outcome.arg_correct)
-                        tally["successes"] += int(outcome.success)
-                        missed += int(not outcome.arg_correct)
-                tally["misses_by_world"][str(seed)] = missed
-                print(f"world {seed}, refit with k = {k}, C = {C:g}: {missed} misses", file=sys.stderr)
-            method.planner_ = fitted
-    rows = [{"refit_k": k, "C": C, "programs": t["programs"], "misses": t["programs"] - t["arg"],
-             "successes": t["successes"], "misses_by_world": t["misses_by_world"]}
-            for (k, C), t in sorted(counts.items())]
-    print("| refit with | correction C | sequence-arg misses | successes | of programs |")
-    print("|---|---:|---:|---:|---:|")
-    for r in rows:
-        refit = ("nothing (k = 0)" if r["refit_k"] == 0
-                 else f"the first {r['refit_k']} tasks (teach.weight {teach.weight})")
-        print(f"| {refit} | {'none' if r['C'] == 0 else format(r['C'], 'g')} | {r['misses']} | {r['successes']} | "
-              f"{r['programs']} |")
-    if args.output:
-        write_json_atomic(args.output, {"dev_seeds": dev.seeds, "method": dev.shipped, "C": dev.C,
-                                        "environments": list(teach.environments), "taught": most,
-                                        "weight": teach.weight, "rows": rows})
+    most = max(dev.params.teach.k)
+    rows = room_variants(dev, [0.0, *sorted(set(args.Cs))],
+                         lambda fitted, room, C: corrected(fitted, taught_steps(room, most), C) if C else fitted, "C")
+    show_variants(dev, rows, "C", args.output)
     return 0
 
 

@@ -34,19 +34,12 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "scripts"))  # the teach protocol's options and checks, as teach_weight.py has them
 
-from teach_weight import add_dev_options, dev_setting  # noqa: E402
+from teach_weight import add_dev_options, dev_setting, room_variants, show_variants  # noqa: E402
 
-from taskseq.demonstrations.benchmark import Benchmark  # noqa: E402
-from taskseq.demonstrations.records import scenario_records  # noqa: E402
-from taskseq.experiments.crossval import judge  # noqa: E402
 from taskseq.experiments.teaching import Taught  # noqa: E402
 from taskseq.features.context import StepContext  # noqa: E402
 from taskseq.learn.estimator import StepScorer  # noqa: E402
-from taskseq.runtime.atomic import write_json_atomic  # noqa: E402
-from taskseq.settings import Generate  # noqa: E402
 from taskseq.sim.primitives import ALL_PRIMITIVES  # noqa: E402
-from taskseq.sim.scenarios import world_scenarios  # noqa: E402
-from taskseq.stages.teach import taught_method, teach_jobs  # noqa: E402
 
 Use = tuple[str, int, str]  # (primitive, argument position, object id) of a taught step
 
@@ -92,43 +85,10 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--betas: a prior favours the taught objects, so every beta must be at least 0")
     betas = sorted({0.0, *args.betas})
     dev = dev_setting(parser, args)
-    params, make, teach = dev.params, dev.make, dev.params.teach
-    most = max(teach.k)
-    print(f"the shipped planner ({dev.shipped}, C = {dev.C:g}) on the drawn development worlds "
-          f"{' '.join(map(str, dev.seeds))}: rooms {' '.join(teach.environments)} held out, the first {most} tasks "
-          f"of each taught", file=sys.stderr)
-    counts: dict[tuple[int, float], list[int]] = {}  # (k of the refit, beta) -> [programs, as demonstrated, success]
-    for seed in dev.seeds:
-        scenarios, _ = world_scenarios(Generate(seed, "procedural", params.procedural))
-        bench = Benchmark.from_records(scenario_records(scenarios))
-        _, (_, _, base, rooms, known, weight, _, max_steps) = teach_jobs(seed, bench, teach, make,
-                                                                        params.crossval.max_steps)[0]
-        for k in (0, most):  # the planner without the refit, and refitted with the taught steps as `teach` does
-            method = taught_method(k, base, rooms, known, weight, make)
-            fitted = method.planner_
-            for beta in betas:
-                tally = counts.setdefault((k, beta), [0, 0, 0])
-                for room in rooms:
-                    method.planner_ = RoomPrior(fitted, taught_uses(room, most), beta)
-                    for scenario in room.tested:
-                        outcome = judge(scenario, method.run(scenario, max_steps))
-                        tally[0] += 1
-                        tally[1] += int(outcome.arg_correct)
-                        tally[2] += int(outcome.success)
-                print(f"world {seed}, refit with k = {k}, beta = {beta:g}: done", file=sys.stderr)
-            method.planner_ = fitted
-    rows = [{"refit_k": k, "beta": beta, "programs": n, "misses": n - arg, "successes": ok}
-            for (k, beta), (n, arg, ok) in sorted(counts.items())]
-    print("| refit with | beta | sequence-arg misses | successes | of programs |")
-    print("|---|---:|---:|---:|---:|")
-    for r in rows:
-        refit = ("nothing (k = 0)" if r["refit_k"] == 0
-                 else f"the first {r['refit_k']} tasks (teach.weight {teach.weight})")
-        print(f"| {refit} | {r['beta']:g} | {r['misses']} | {r['successes']} | {r['programs']} |")
-    if args.output:
-        write_json_atomic(args.output, {"dev_seeds": dev.seeds, "method": dev.shipped, "C": dev.C,
-                                        "environments": list(teach.environments), "taught": most,
-                                        "weight": teach.weight, "rows": rows})
+    most = max(dev.params.teach.k)
+    rows = room_variants(dev, betas, lambda fitted, room, beta: RoomPrior(fitted, taught_uses(room, most), beta),
+                         "beta")
+    show_variants(dev, rows, "beta", args.output)
     return 0
 
 

@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import statistics
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -32,12 +33,13 @@ sys.path.insert(0, str(ROOT))
 
 from taskseq.demonstrations.benchmark import Benchmark  # noqa: E402
 from taskseq.demonstrations.records import scenario_records  # noqa: E402
+from taskseq.experiments.crossval import judge  # noqa: E402
 from taskseq.methods import Lineup  # noqa: E402
 from taskseq.runtime.atomic import write_json_atomic  # noqa: E402
 from taskseq.selection import read_selection  # noqa: E402
 from taskseq.settings import Generate, Params  # noqa: E402
 from taskseq.sim.scenarios import world_scenarios  # noqa: E402
-from taskseq.stages.teach import teach_world  # noqa: E402
+from taskseq.stages.teach import taught_method, teach_jobs, teach_world  # noqa: E402
 
 
 def rank(rows: list[dict[str, float]]) -> list[dict[str, float]]:
@@ -84,6 +86,61 @@ def dev_setting(parser: argparse.ArgumentParser, args: argparse.Namespace) -> De
         parser.error(f"{args.selection}: names no method ranked first; run `taskseq select` again")
     make = Lineup(params.methods, selection, params.train.learner, procedural=params.procedural).mrf([shipped])[shipped]
     return DevSetting(params, seeds, shipped, selection.of(shipped), make)
+
+
+def room_variants(dev: DevSetting, settings: list[float], planner_for: Callable[[Any, Any, float], Any],
+                  what: str) -> list[dict[str, Any]]:
+    """The teach protocol on each development draw with the planner changed per taught room: for the planner
+    without the taught steps (k = 0) and the one refitted with the first max(`teach.k`) tasks of each room as
+    `teach` does, every setting s of `settings` runs `planner_for(fitted, room, s)` (a planner, or `fitted`
+    itself) on that room's judged tasks. One row per (k of the refit, setting): the programs, the misses of
+    sequence arg in all and per draw, and the successes. `what` names the setting in the progress lines."""
+    params, make, teach = dev.params, dev.make, dev.params.teach
+    most = max(teach.k)
+    print(f"the shipped planner ({dev.shipped}, C = {dev.C:g}) on the drawn development worlds "
+          f"{' '.join(map(str, dev.seeds))}: rooms {' '.join(teach.environments)} held out, the first {most} tasks "
+          f"of each taught", file=sys.stderr)
+    counts: dict[tuple[int, float], dict[str, Any]] = {}
+    for seed in dev.seeds:
+        scenarios, _ = world_scenarios(Generate(seed, "procedural", params.procedural))
+        bench = Benchmark.from_records(scenario_records(scenarios))
+        _, (_, _, base, rooms, known, weight, _, max_steps) = teach_jobs(seed, bench, teach, make,
+                                                                        params.crossval.max_steps)[0]
+        for k in (0, most):
+            method = taught_method(k, base, rooms, known, weight, make)
+            fitted = method.planner_
+            for setting in settings:
+                tally = counts.setdefault((k, setting), {"programs": 0, "misses": 0, "successes": 0,
+                                                         "misses_by_world": {}})
+                missed = 0
+                for room in rooms:
+                    method.planner_ = planner_for(fitted, room, setting)
+                    for scenario in room.tested:
+                        outcome = judge(scenario, method.run(scenario, max_steps))
+                        tally["programs"] += 1
+                        tally["successes"] += int(outcome.success)
+                        missed += int(not outcome.arg_correct)
+                tally["misses"] += missed
+                tally["misses_by_world"][str(seed)] = missed
+                print(f"world {seed}, refit with k = {k}, {what} {setting:g}: {missed} misses", file=sys.stderr)
+            method.planner_ = fitted
+    return [{"refit_k": k, what: setting, **tally} for (k, setting), tally in sorted(counts.items())]
+
+
+def show_variants(dev: DevSetting, rows: list[dict[str, Any]], what: str, output: Path | None) -> None:
+    """Print `room_variants`' rows as a table (setting `what`, none where 0) and write them as JSON to `output`."""
+    teach = dev.params.teach
+    print(f"| refit with | {what} | sequence-arg misses | successes | of programs |")
+    print("|---|---:|---:|---:|---:|")
+    for r in rows:
+        refit = ("nothing (k = 0)" if r["refit_k"] == 0
+                 else f"the first {r['refit_k']} tasks (teach.weight {teach.weight})")
+        print(f"| {refit} | {'none' if r[what] == 0 else format(r[what], 'g')} | {r['misses']} | {r['successes']} | "
+              f"{r['programs']} |")
+    if output:
+        write_json_atomic(output, {"dev_seeds": dev.seeds, "method": dev.shipped, "C": dev.C,
+                                   "environments": list(teach.environments), "taught": max(teach.k),
+                                   "weight": teach.weight, "rows": rows})
 
 
 def main(argv: list[str] | None = None) -> int:
