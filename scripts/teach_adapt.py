@@ -88,6 +88,8 @@ class RoomCorrection:
         self.mrf, self.w0, self.steps = mrf, w0, steps
         self.T = sharing(mrf)
         self.size_joint_feature = self.T.shape[1]
+        # w0's score of each demonstrated step: the learner's labels are always these, so it is reckoned once
+        self._gold_scores = mrf.batch_joint_feature_rows(steps, [x.gold for x in steps]) @ w0
 
     def weights(self, d: np.ndarray) -> np.ndarray:
         return self.w0 + self.T @ d
@@ -103,10 +105,9 @@ class RoomCorrection:
         return np.column_stack([index, self.mrf.batch_loss_augmented_inference(steps, labels, self.weights(d))])
 
     def batch_loss(self, Y: np.ndarray, Y_hat: np.ndarray) -> np.ndarray:
-        steps, _, labels = self._split(Y)
+        steps, index, labels = self._split(Y)
         hats = np.asarray(Y_hat, dtype=np.int64)[:, 1:]
-        given = (self.mrf.batch_joint_feature_rows(steps, labels)
-                 - self.mrf.batch_joint_feature_rows(steps, hats)) @ self.w0
+        given = self._gold_scores[index] - self.mrf.batch_joint_feature_rows(steps, hats) @ self.w0
         return self.mrf.batch_loss(labels, hats) - given
 
     def batch_joint_feature_rows(self, X: list[int], Y: np.ndarray) -> sp.csr_matrix:
@@ -152,8 +153,15 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--Cs: every C must be positive")
     dev = dev_setting(parser, args)
     most = max(dev.params.teach.k)
+    lessons: dict[int, tuple[Taught, list[StepContext]]] = {}  # each room's taught steps, read back once
+
+    def lesson(room: Taught) -> list[StepContext]:
+        if id(room) not in lessons:
+            lessons[id(room)] = (room, taught_steps(room, most))  # the room kept: its id is not reused meanwhile
+        return lessons[id(room)][1]
+
     rows = room_variants(dev, [0.0, *sorted(set(args.Cs))],
-                         lambda fitted, room, C: corrected(fitted, taught_steps(room, most), C) if C else fitted, "C")
+                         lambda fitted, room, C: corrected(fitted, lesson(room), C) if C else fitted, "C")
     show_variants(dev, rows, "C", args.output)
     return 0
 

@@ -106,7 +106,7 @@ def top_view(state: WorldState) -> TopView:
     # An item's label rises to the right at 45 degrees from (anchor, its top edge), so it lies on the line
     # x + y = anchor + top; two labels are apart when their lines are, whatever their rows: items at different depths
     # on a deep shelf or table would otherwise write over each other. A label whose line comes too near one drawn
-    # before (a stacked item's, its base's) starts further right.
+    # before (a stacked item's, its base's) starts just far enough right: past each such line in turn, in order.
     lines: list[float] = []
     for o in order:
         spec = state.specs[o]
@@ -119,9 +119,12 @@ def top_view(state: WorldState) -> TopView:
         label = _label(state, o) + (f" · level {level}" if level else "")
         anchor = ax + w / 2
         if kind in ("vessel", "item"):
-            while any(abs(anchor + ay - line) < LABEL_GAP for line in lines):
-                anchor += 1.0
-            lines.append(anchor + ay)
+            line = anchor + ay
+            for drawn in sorted(lines):
+                if abs(line - drawn) < LABEL_GAP:
+                    line = drawn + LABEL_GAP
+            lines.append(line)
+            anchor = line - ay
         liquids = tuple((li, state.specs[li].name) for li in state.liquids_in(o))
         shapes.append(Shape(o, ax, ay, round(w, 1), round(h, 1), kind, label, bool(liquids), round(anchor, 1),
                             spec.name, liquids, level))
