@@ -113,6 +113,31 @@ def _check_environment(path: Path, env: Any) -> None:
         if state[key] is not None and state[key] not in known:
             raise LogError(path, 1, f"state.{key}", f"unknown object {state[key]!r}")
     _check_support(path, 1, state["objects"])
+    _check_physical(path, env)
+
+
+def _check_physical(path: Path | str, env: dict[str, Any]) -> None:
+    """What the simulator never makes, refused in a hand-written file: the robot holding what cannot be moved or a
+    liquid itself, and a liquid anywhere but in a container (the planner would plan from a world that cannot be)."""
+    specs = {o["id"]: o for o in env["objects"]}
+    state = env["state"]
+
+    def called(obj: str) -> str:
+        return specs[obj]["name"] if specs[obj]["name"] == obj else f"{specs[obj]['name']} ({obj})"
+
+    held = state["held"]
+    if held is not None and specs[held]["attributes"]["liquid"]:
+        raise LogError(path, 1, "state.held", f"{called(held)} is a liquid: the robot holds the container it is in, "
+                       "never the liquid")
+    if held is not None and not specs[held]["attributes"]["movable"]:
+        raise LogError(path, 1, "state.held", f"{called(held)} cannot be held: it is not movable")
+    for obj, entry in state["objects"].items():
+        support = entry["support"]
+        if specs[obj]["attributes"]["liquid"] and not (entry["relation"] == INSIDE and support is not None
+                                                       and specs[support]["attributes"]["container"]):
+            where = "resting on nothing" if support is None else f"{entry['relation']} {called(support)}"
+            raise LogError(path, 1, f"state.objects.{obj}", f"{called(obj)} is a liquid: it must be inside a "
+                           f"container (relation '{INSIDE}', support a container), not {where}")
 
 
 def _check_support(path: Path | str, line: int, objects: dict[str, Any]) -> None:
@@ -331,8 +356,15 @@ def print_program(program: Program, specs: Mapping[str, ObjectSpec], out=None) -
     print(f"program for {with_ids(program.task, specs)}:", file=out)
     labels = [with_ids(s.action, specs) for s in program.steps]
     width = max(map(len, labels), default=0)
+    counts = Counter(spec.name for spec in specs.values())
+
+    def alternative(a: Action) -> str:
+        """In names, with the ids where a name is shared: `grasp(cup) [obj14]; grasp(cup) [obj13]` tells them apart."""
+        shared = any(counts[specs[o].name] > 1 for o in a.args)
+        return in_names(a, specs) + (f" [{', '.join(a.args)}]" if shared else "")
+
     for k, (s, text) in enumerate(zip(program.steps, labels, strict=True), start=1):
-        alts = "; ".join(f"{in_names(a, specs)} {sc:.2f}" for a, sc in s.alternatives)
+        alts = "; ".join(f"{alternative(a)} {sc:.2f}" for a, sc in s.alternatives)
         warn = f"  UNSAFE: {', '.join(s.unsafe)}" if s.unsafe else ""
         print(f"{k:3d}. {text:{width}s}  score {s.score:6.2f}   next best: {alts}{warn}", file=out)
     print(f"status: {program.status}; goal {'reached' if program.goal_reached else 'not reached'}"

@@ -69,8 +69,10 @@ def _plan_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--record", type=positive, default=1,
                    help="with a .jsonl log: which record (line) to take, from 1 (default 1: the first)")
     p.add_argument("--task", required=True,
-                   help='the task, each object by its id or by a name only it has there, e.g. "pour(obj27)", '
-                        '"pour(milk)" or "pick_and_place(obj40,obj04)"')
+                   help='the task, each object by its id or by a name only it has there: pour(LIQUID) into '
+                        'any other container, pour_to(LIQUID,CONTAINER), stir(LIQUID), throw_away(OBJECT) or '
+                        'pick_and_place(OBJECT,PLACE); e.g. "pour(obj27)", "pour(milk)" or '
+                        '"pick_and_place(obj40,obj04)"')
     p.add_argument("--max-steps", type=positive, default=Crossval.max_steps,
                    help=f"stop after this many primitives (default {Crossval.max_steps})")
     p.add_argument("--top-k", type=positive, default=3, help="candidates shown per step (default 3)")

@@ -69,6 +69,34 @@ def test_generate_with_another_seed_draws_another_world(benchmark_logs, tmp_path
     assert (out / name).read_bytes() != (benchmark_logs / name).read_bytes()
 
 
+@pytest.mark.parametrize("name", ["generate", "drawn_world"])
+def test_a_stage_that_draws_a_world_requires_its_seed_and_says_so(name, tmp_path, capsys):
+    """The seed decides the world these stages draw: their help says so, and a missing or negative one is refused by
+    the option's name before anything runs."""
+    assert "the world to draw" in " ".join(SUBCOMMANDS[name].format_help().split())
+    for seed, message in (([], "the following arguments are required: --world-seed"),
+                          (["--world-seed", "-1"], "argument --world-seed: expected a whole number, 0 or more, got "
+                                                   "'-1'")):
+        with pytest.raises(SystemExit) as end:
+            main(["--no-mlflow", name, *seed, "--output", str(tmp_path / "out")])
+        assert end.value.code == 2 and message in capsys.readouterr().err
+    assert not any(tmp_path.iterdir())
+    # elsewhere the seed only labels the runs, and the help says that instead
+    assert "changes no result" in " ".join(SUBCOMMANDS["crossval"].format_help().split())
+
+
+def test_a_missing_feature_folder_is_named_as_such(tmp_path, capsys):
+    model = tmp_path / "m.npz"
+    code = main(["--no-mlflow", "train", "--features", str(tmp_path / "nothere"), "--model", str(model),
+                 "--set", "train.method=full"])
+    err = capsys.readouterr().err
+    assert code == 1 and f"error: {tmp_path / 'nothere'}: not a feature folder (no such folder; `taskseq features` " \
+                          "writes one)" in err and not model.exists()
+    code = main(["--no-mlflow", "train", "--features", str(tmp_path), "--model", str(model), "--set",
+                 "train.method=full"])
+    assert code == 1 and "not a feature folder (it holds no steps.parquet" in capsys.readouterr().err
+
+
 @pytest.fixture(scope="module")
 def one_environment(benchmark_logs, tmp_path_factory) -> Path:
     """The Parquet tables of a single environment's demonstrations."""

@@ -35,7 +35,20 @@ def layout(edit):
 
 @pytest.mark.parametrize("edit, message", [
     (lambda d: d["objects"][3].pop("size"), "objects[3]: missing field 'size'"),
-    (lambda d: d["objects"][3].update(size=[0.1, 0.1]), "objects[3]: object thermos: size must be three"),
+    (lambda d: d["objects"][3].update(size=[0.1, 0.1]), "objects[3].size: expected [width, length, height] in "
+                                                        "metres, got [0.1, 0.1]"),
+    # a value of the wrong type is named by its field and given whole (a string was cut to its first letter)
+    (lambda d: d["objects"][3].update(size="big"), "objects[3].size: expected [width, length, height] in metres, "
+                                                   "got 'big'"),
+    (lambda d: d["objects"][3].update(size=[0.1, "wide", 0.2]), "objects[3].size: expected [width, length, "
+                                                                "height] in metres, got 'wide'"),
+    (lambda d: d["objects"][1].update(levels="three"), "objects[1].levels: expected a list of shelf heights"),
+    (lambda d: d.update(robot_x="abc"), "layout: robot_x: expected an x in metres, got 'abc'"),
+    (lambda d: d["furniture"].update(workbench="middle"), "layout: furniture.workbench: expected an x in metres, "
+                                                          "got 'middle'"),
+    (lambda d: d["items"][0].update(dx="left"), "items[0].dx: expected an offset in metres, got 'left'"),
+    (lambda d: d["items"][8].update(level=1.5), "items[8].level: expected a whole number, got 1.5"),
+    (lambda d: d["items"][0].update(back="yes"), "items[0].back: expected true or false, got 'yes'"),
     (lambda d: d["objects"][3].update(category="spaceship"), "unknown category 'spaceship'"),
     (lambda d: d["objects"][3].update(category="spaceship"), "objects[3].category: unknown category 'spaceship'; "
                                                              "one of beaker, bin, bottle"),
@@ -74,6 +87,12 @@ def test_the_layout_command_reports_a_bad_file_and_writes_nothing(tmp_path, caps
     bad.write_text(json.dumps(layout(lambda d: d["objects"][3].pop("size"))))
     assert main(["layout", str(bad), "--output", str(tmp_path / "out.json")]) == 2
     assert "missing field 'size'" in capsys.readouterr().err and not (tmp_path / "out.json").exists()
+    # a YAML syntax error in one line, with where the parser stopped
+    bad.write_text("robot_x: 0.3\nobjects: [\n")
+    assert main(["layout", str(bad), "--output", str(tmp_path / "out.json")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: {bad}: not valid YAML at line 3, column 1: ") and err.count("\n") == 1
+    assert not (tmp_path / "out.json").exists()
 
 
 def test_an_item_inside_a_container_may_be_wider_than_it():

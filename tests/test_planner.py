@@ -190,6 +190,14 @@ def test_a_model_file_names_its_weights_in_one_utf8_text_and_one_of_format_2_sti
              meta=np.array(json.dumps({**meta, "format": FORMAT})))
     with pytest.raises(ValueError, match="not a readable taskseq model file"):
         load_model(tmp_path / "v3_bad.npz")
+    # a VEIL-500 model is named as one, and a file that is no archive is not blamed on pickles
+    np.savez(tmp_path / "veil.npz", w=fit.w_, meta=np.array(json.dumps({"format": "taskseq.veil-mrf/2"})))
+    with pytest.raises(ValueError, match="a VEIL-500 model .*not one of `taskseq train`"):
+        load_model(tmp_path / "veil.npz")
+    (tmp_path / "notes.npz").write_text("# not a model\n")
+    with pytest.raises(ValueError, match="not the .npz archive `taskseq train` writes") as err:
+        load_model(tmp_path / "notes.npz")
+    assert "pickle" not in str(err.value)
 
 
 @pytest.fixture
@@ -241,6 +249,33 @@ def test_plan_command_lists_steps_and_next_best_in_names_with_the_ids_records_wr
         shown = [f"{a.primitive}({', '.join(names[o] for o in a.args)}) {sc:.2f}"
                  for a, sc in ((Action.parse(x), sc) for x, sc in step["alternatives"])]
         assert line.split("next best: ")[1].split("  UNSAFE")[0] == "; ".join(shown)
+
+
+def test_next_best_steps_on_objects_that_share_a_name_carry_their_ids():
+    """Drawn rooms and hand-written ones may call two objects alike: the alternatives then say which is which."""
+    import io
+
+    import yaml
+
+    from taskseq.demonstrations.records import spec_from_dict
+    from taskseq.plan.records import PlanStep, Program
+    from taskseq.product import print_program
+    from taskseq.serve.layout import environment_from_layout
+    from taskseq.sim.tasks import Task
+
+    layout = yaml.safe_load((Path(__file__).resolve().parents[1] / "docs" / "examples" / "workshop.yaml").read_text())
+    next(o for o in layout["objects"] if o["id"] == "beaker")["name"] = "enamel_cup"  # as enamel_cup is called
+    env = environment_from_layout(layout)
+    specs = {o["id"]: spec_from_dict(o) for o in env["objects"]}
+    state = state_from_dict(specs, env["state"])
+    step = PlanStep(Action("move_close", ("oil_can",)), 2.0,
+                    [(Action("grasp", ("enamel_cup",)), 1.5), (Action("grasp", ("beaker",)), 1.25),
+                     (Action("grasp", ("wrench",)), 1.0)])
+    out = io.StringIO()
+    print_program(Program(Task("pour", ("oil",)), [step], "step_cap", [state, state]), specs, out)
+    line = out.getvalue().splitlines()[1]
+    assert line.split("next best: ")[1] == ("grasp(enamel_cup) [enamel_cup] 1.50; grasp(enamel_cup) [beaker] 1.25; "
+                                            "grasp(wrench) 1.00")
 
 
 def test_a_task_may_name_its_objects_by_a_name_only_they_have(model_file, benchmark_logs, tmp_path, capsys):
@@ -337,8 +372,26 @@ def _listed_twice(env):
     env["objects"].append(dict(env["objects"][3]))
 
 
+def _holds_what_cannot_move(env):
+    env["state"]["held"] = next(o["id"] for o in env["objects"] if not o["attributes"]["movable"])
+
+
+def _holds_a_liquid(env):
+    env["state"]["held"] = "obj27"  # water
+
+
+def _liquid_on_a_table(env):
+    table = next(o["id"] for o in env["objects"] if o["attributes"]["large_surface"] and not o["attributes"]["movable"])
+    env["state"]["objects"]["obj27"].update(support=table, relation="on")
+
+
 @pytest.mark.parametrize("edit, message", [
     (_drop_size, "env.json:1: objects[0]: 'size' is a required property"),
+    # worlds the simulator never makes: planning from them gave programs that "reached" the goal
+    (_holds_what_cannot_move, "state.held: "),
+    (_holds_what_cannot_move, "cannot be held: it is not movable"),
+    (_holds_a_liquid, "state.held: water (obj27) is a liquid: the robot holds the container it is in"),
+    (_liquid_on_a_table, "state.objects.obj27: water (obj27) is a liquid: it must be inside a container"),
     (_unknown_support, "support: unknown object 'obj99'"),
     # planning in such a world went round the loop until memory ran out
     (_rests_on_itself, "support: the objects it rests on form a loop through"),

@@ -247,6 +247,14 @@ def test_a_model_file_keeps_the_lookaheads_width_and_refuses_another_format(data
     np.savez(path, w=method.w_, meta=np.array(json.dumps(meta)))
     with pytest.raises(ValueError, match="veil-mrf/1"):
         load_mrf(path)
+    # a model of `taskseq train` is named as one, and a file that is no archive is not blamed on pickles
+    np.savez(path, w=method.w_, meta=np.array(json.dumps({"format": "taskseq.mrf/3"})))
+    with pytest.raises(ValueError, match="a model of `taskseq train`.*not a VEIL-500 model"):
+        load_mrf(path)
+    path.write_text("# not a model\n")
+    with pytest.raises(ValueError, match="not the .npz archive `taskseq veil train` writes") as err:
+        load_mrf(path)
+    assert "pickle" not in str(err.value)
 
 
 def test_rows_that_make_the_same_fits_share_them(release_dir: Path, monkeypatch) -> None:  # noqa: F811

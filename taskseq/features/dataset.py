@@ -115,6 +115,10 @@ def write_features(contexts: list[StepContext], meta: list[StepMeta], output: Pa
 
 def read_features(directory: Path | str) -> tuple[list[StepContext], list[StepMeta]]:
     directory = Path(directory)
+    for name in ("steps.parquet", "objects.npz"):
+        if not (directory / name).is_file():
+            what = "no such folder" if not directory.is_dir() else f"it holds no {name}"
+            raise FileNotFoundError(f"{directory}: not a feature folder ({what}; `taskseq features` writes one)")
     steps = pq.read_table(directory / "steps.parquet", schema=STEP_SCHEMA).to_pylist()
     with np.load(directory / "objects.npz", allow_pickle=False) as z:
         columns = tuple(str(c) for c in z["columns"])

@@ -63,15 +63,26 @@ def load_model(path: Path | str) -> tuple[StepMRF, np.ndarray, dict[str, Any]]:
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such model file (run `dvc repro train` or `taskseq train`)")
+    if not zipfile.is_zipfile(path):  # else NumPy's reason is about pickles, which a model never holds
+        raise ValueError(f"{path}: not a readable taskseq model file (not the .npz archive `taskseq train` writes)")
     try:
         with np.load(path, allow_pickle=False) as z:
             meta = json.loads(str(z["meta"]))
-            w, stored = z["w"], z["feature_names"]
-            names = (bytes(stored).decode("utf-8").split("\n") if meta.get("format") == FORMAT
-                     else [str(n) for n in stored])
+            arrays = {name: z[name] for name in ("w", "feature_names") if name in z.files}
     except KeyError as err:
         raise ValueError(f"{path}: not a taskseq model file (missing {err.args[0]})") from None
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as err:  # a bad UTF-8 text is a ValueError
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as err:
+        raise ValueError(f"{path}: not a readable taskseq model file ({err})") from None
+    if str(meta.get("format")).startswith("taskseq.veil"):
+        raise ValueError(f"{path}: a VEIL-500 model (`taskseq veil train`), not one of `taskseq train`: it plans in "
+                         "a release's environment files (`taskseq plan --env <release>/Environments/...xml`)")
+    for name in ("w", "feature_names"):
+        if name not in arrays:
+            raise ValueError(f"{path}: not a taskseq model file (missing {name})")
+    w, stored = arrays["w"], arrays["feature_names"]
+    try:
+        names = bytes(stored).decode("utf-8").split("\n") if meta.get("format") == FORMAT else [str(n) for n in stored]
+    except ValueError as err:  # a bad UTF-8 text
         raise ValueError(f"{path}: not a readable taskseq model file ({err})") from None
     if meta.get("format") == FORMAT_1:
         names = [_format_1_name(n) for n in names]

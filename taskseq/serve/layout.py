@@ -38,6 +38,25 @@ def _fields(where: str, entry: Any, allowed: dict[str, bool]) -> dict[str, Any]:
     return entry
 
 
+def _number(at: str, value: Any, what: str = "a number") -> float:
+    """A number of the layout (bools are not numbers here, though Python counts them as such)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f"{at}: expected {what}, got {value!r}")
+    return float(value)
+
+
+def _numbers(at: str, value: Any, what: str, count: int | None = None) -> tuple[float, ...]:
+    if not isinstance(value, list) or (count is not None and len(value) != count):
+        raise ValueError(f"{at}: expected {what}, got {value!r}")
+    return tuple(_number(at, v, what) for v in value)
+
+
+def _whole(at: str, value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ValueError(f"{at}: expected a whole number, got {value!r}")
+    return value
+
+
 def environment_from_layout(layout: Any, where: str = "layout") -> dict[str, Any]:
     """The environment file's content; every error names the field of the layout that is wrong."""
     layout = _fields(where, layout, {"objects": False, "furniture": True, "items": False, "robot_x": False})
@@ -60,10 +79,11 @@ def environment_from_layout(layout: Any, where: str = "layout") -> dict[str, Any
         unknown = sorted(set(map(str, entry.get("flags") or ())) - set(BINARY_ATTRIBUTES))
         if unknown:
             raise ValueError(f"{at}.flags: unknown flag {unknown[0]!r}; any of {', '.join(BINARY_ATTRIBUTES)}")
+        size = _numbers(f"{at}.size", entry["size"], "[width, length, height] in metres", 3)
+        levels = _numbers(f"{at}.levels", entry.get("levels") or [], "a list of shelf heights in metres")
         try:
-            objects[oid] = ObjectSpec(oid, name, str(entry["category"]),
-                                      tuple(float(v) for v in entry["size"]), frozenset(entry.get("flags") or ()),
-                                      tuple(float(v) for v in entry.get("levels") or ()))
+            objects[oid] = ObjectSpec(oid, name, str(entry["category"]), size, frozenset(entry.get("flags") or ()),
+                                      levels)
         except (TypeError, ValueError) as err:
             raise ValueError(f"{at}: {err}") from None
     furniture = layout["furniture"]
@@ -71,9 +91,13 @@ def environment_from_layout(layout: Any, where: str = "layout") -> dict[str, Any
         raise ValueError(f"{where}: furniture: expected a mapping of object id to x (m)")
     items = []
     for i, entry in enumerate(layout.get("items") or []):
-        entry = _fields(f"{where}: items[{i}]", entry, ITEM_FIELDS)
-        items.append(Placement(str(entry["id"]), str(entry["at"]), int(entry.get("level", 0)),
-                               float(entry.get("dx", 0.0)), bool(entry.get("back", False))))
+        at = f"{where}: items[{i}]"
+        entry = _fields(at, entry, ITEM_FIELDS)
+        back = entry.get("back", False)
+        if not isinstance(back, bool):
+            raise ValueError(f"{at}.back: expected true or false, got {back!r}")
+        items.append(Placement(str(entry["id"]), str(entry["at"]), _whole(f"{at}.level", entry.get("level", 0)),
+                               _number(f"{at}.dx", entry.get("dx", 0.0), "an offset in metres"), back))
     for oid in [*furniture, *(p.obj for p in items)]:
         if oid not in objects:
             raise ValueError(f"{where}: {oid!r} is placed but is neither listed in objects nor a catalog object")
@@ -94,8 +118,9 @@ def environment_from_layout(layout: Any, where: str = "layout") -> dict[str, Any
             raise ValueError(f"{at}.at: {placed.obj} is a liquid; it goes in a container (a bottle, a cup, a pot), "
                              f"not on {base.name}")
         _check_placement(at, placed, spec, base)
-    spec = EnvironmentSpec(where, tuple((str(k), float(x)) for k, x in furniture.items()), tuple(items),
-                           float(layout.get("robot_x", 0.0)))
+    spec = EnvironmentSpec(where, tuple((str(k), _number(f"{where}: furniture.{k}", x, "an x in metres"))
+                                        for k, x in furniture.items()), tuple(items),
+                           _number(f"{where}: robot_x", layout.get("robot_x", 0.0), "an x in metres"))
     try:
         state = build_environment(spec, objects=objects)
     except (IndexError, KeyError) as err:
@@ -126,7 +151,9 @@ def write_environment(layout_path: Path, output: Path) -> int:
     try:
         layout = yaml.safe_load(Path(layout_path).read_text(encoding="utf-8"))
     except yaml.YAMLError as err:
-        raise ValueError(f"{layout_path}: not valid YAML: {err}") from None
+        mark = getattr(err, "problem_mark", None)  # where the parser stopped, when it knows
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        raise ValueError(f"{layout_path}: not valid YAML{where}: {getattr(err, 'problem', None) or err}") from None
     env = environment_from_layout(layout, str(layout_path))
     write_text_atomic(output, json.dumps(env, indent=1) + "\n")
     return len(env["objects"])

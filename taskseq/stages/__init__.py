@@ -29,6 +29,7 @@ class Stage:
     options: type  # its `Options` class: the command's options
     parallel: bool = False  # takes `n_jobs`
     per_world: bool = False  # runs on one world's data (`--world-seed`)
+    draws: bool = False  # draws the world `--world-seed` names (required), where other stages only label runs with it
     cached: bool = False  # fits models or runs programs: takes `--cache` (`taskseq.runtime.cache`)
     # the methods whose modules it loads (`taskseq.methods.method_spec`): "" none (a stage that writes tables reads
     # the labels from taskseq/methods/labels.json), "all" every one (Table I), an experiment's (those whose entry of
@@ -46,7 +47,7 @@ STAGES: dict[str, Stage] = {
                       opts.ChooseCOptions, True, cached=True, runs="select", per_method=True),
     "select": Stage("rank the MRF methods, each at the C the development world chose for it", opts.SelectOptions),
     "generate": Stage("simulate the demonstrator and write demonstration logs (JSON Lines)", opts.GenerateOptions,
-                      per_world=True),
+                      per_world=True, draws=True),
     "ingest": Stage("validate logs and write them as Parquet tables plus dataset metrics", opts.IngestOptions,
                     per_world=True),
     "features": Stage("build every teacher-forced step's candidates and features from the Parquet tables",
@@ -66,7 +67,7 @@ STAGES: dict[str, Stage] = {
     "recipes": Stage("chain programs into recipes in environments held out from training", opts.EvaluationOptions,
                      per_world=True, runs="recipes"),
     "drawn_world": Stage("draw a world of rooms by a reported world's seed (logs, tables, features) into one folder",
-                         opts.WorldFolderOptions, per_world=True),
+                         opts.WorldFolderOptions, per_world=True, draws=True),
     "scenes_world": Stage("one world seed with whole rooms held out of training, paper-shaped and drawn (noise and "
                           "feedback there too), and models of the paper-shaped rooms run in drawn ones",
                           opts.ScenesWorldOptions, True, True, cached=True, runs="all"),

@@ -30,6 +30,13 @@ def positive(value: str) -> int:
     return int(value)
 
 
+def seed(value: str) -> int:
+    """A world seed from the command line: a whole number, 0 or more (NumPy's generators take no negative seed)."""
+    if not value.isdigit():
+        raise argparse.ArgumentTypeError(f"expected a whole number, 0 or more, got {value!r}")
+    return int(value)
+
+
 def add_parser(sub: Any, name: str) -> None:
     """The stage's subcommand: an option per field of its `Options` class, then the options every stage shares."""
     stage = STAGES[name]
@@ -49,10 +56,13 @@ def add_parser(sub: Any, name: str) -> None:
                         "the repository's params.yaml)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
                    help="override one setting, e.g. --set train.tol=1e-4 or --set 'noise.rates=0 0.2' (repeatable)")
-    if stage.per_world:
-        p.add_argument("--world-seed", type=int, default=None,
-                       help="the world drawn (generate, drawn_world), or the world these data were drawn with: a "
-                            "label of the MLflow runs, so runs of several worlds can be compared (changes no result)")
+    if stage.draws:
+        p.add_argument("--world-seed", type=seed, required=True,
+                       help="the world to draw: the same seed draws the same rooms and demonstrations, bit for bit")
+    elif stage.per_world:
+        p.add_argument("--world-seed", type=seed, default=None,
+                       help="the world these data were drawn with: a label of the MLflow runs, so runs of several "
+                            "worlds can be compared (changes no result)")
     if stage.cached:
         p.add_argument("--cache", type=Path, default=None, metavar="DIR",
                        help="keep every fit and every fold's program outcomes in DIR, and read back those already "

@@ -33,7 +33,8 @@ def _selection() -> Any:
 
 def _store() -> Any:
     return option("folder written by `taskseq fold_models`: models trained on the same steps with the same settings "
-                  "are loaded from it instead of trained again (default: train)", None)
+                  "are loaded from it instead of trained again (default: no store: every model is trained in this "
+                  "run)", None)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -89,7 +90,8 @@ class TrainOptions:
     processed: Path | None = option("folder of Parquet tables: the training scenarios, which methods with chained "
                                     "starts or DAgger need (default: not read)", None, input=True)
     selection: Path | None = option("the file `taskseq select` wrote: each method's C, and the method when "
-                                    "train.method is best (default: no file: C = 3, taskseq.selection.UNTUNED_C)",
+                                    "train.method is best, as params.yaml has it (then required); without it a "
+                                    "method named by train.method trains at C = 3 (taskseq.selection.UNTUNED_C)",
                                     None)
     model: Path = option("model file to write (.npz)")
     metrics: Path | None = option("training metrics (JSON; default: not written)", None)

@@ -56,6 +56,9 @@ def load_mrf(path: Path | str) -> tuple[TrainedModel, dict[str, Any]]:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such model file (run `dvc repro veil/dvc.yaml` or `taskseq veil train`)")
+    if not zipfile.is_zipfile(path):  # else NumPy's reason is about pickles, which a model never holds
+        raise ValueError(f"{path}: not a readable taskseq VEIL model file (not the .npz archive `taskseq veil train` "
+                         "writes)")
     try:
         with np.load(path, allow_pickle=False) as z:
             meta = json.loads(str(z["meta"]))
@@ -64,6 +67,9 @@ def load_mrf(path: Path | str) -> tuple[TrainedModel, dict[str, Any]]:
         raise ValueError(f"{path}: not a taskseq VEIL model file (missing {err.args[0]})") from None
     except (OSError, ValueError, zipfile.BadZipFile, EOFError) as err:
         raise ValueError(f"{path}: not a readable taskseq VEIL model file ({err})") from None
+    if str(meta.get("format")).startswith("taskseq.mrf"):
+        raise ValueError(f"{path}: a model of `taskseq train` (the simulated kitchens), not a VEIL-500 model: give "
+                         "one `taskseq veil train` wrote")
     if meta.get("format") != FORMAT:
         raise ValueError(f"{path}: format {meta.get('format')!r}, expected {FORMAT!r}")
     v = meta["vocabulary"]
