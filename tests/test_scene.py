@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from taskseq.serve.environments import world_environment
-from taskseq.serve.scene import LABEL_GAP, support_tree, top_view
+from taskseq.serve.scene import LABEL_GAP, LABEL_LIFT, support_tree, top_view
 from taskseq.settings import Procedural
 from taskseq.sim.catalog import build_environment
 from taskseq.sim.primitives import Action, execute
@@ -74,3 +74,27 @@ def test_no_two_slanted_labels_write_over_each_other_in_drawn_rooms():
         centres = np.sort([s.x + s.w / 2 + s.y for s in slanted])
         crowded += bool(np.any(np.diff(centres) < LABEL_GAP))
     assert crowded >= 10  # rooms where labels started at their centres would have met: the rule was needed
+
+
+def test_a_name_moved_off_its_shapes_middle_is_led_back_to_its_own_shape():
+    """A name pushed right can start over a neighbour (env01: the teacup's over the tablespoon) and read as that
+    one's: every moved name has a line from where it starts to its own shape, and no other name has one."""
+    rooms = drawn_rooms(40) + [world_environment(0, f"env{i:02d}").state for i in range(1, 14)]
+    led = 0
+    for state in rooms:
+        shapes = top_view(state).shapes
+        for s in shapes:
+            moved = s.kind in ("vessel", "item") and s.anchor - (s.x + s.w / 2) > 0.1  # beyond rounding
+            if not moved:
+                assert s.leader is None, s
+                continue
+            x1, y1, x2, y2 = s.leader
+            assert (x1, y1) == (s.anchor, round(s.y - LABEL_LIFT, 1))  # from where the name starts
+            assert s.x <= x2 <= s.x + s.w and s.y <= y2 <= s.y + s.h  # to its own shape
+            assert abs(x2 - (s.x + s.w / 2)) <= 0.1  # at its middle, where an unmoved name starts
+            led += 1
+    assert led >= 100  # (133 in these rooms)
+    shapes = {s.name: s for s in top_view(world_environment(0, "env01").state).shapes}
+    teacup, spoon = shapes["teacup"], shapes["tablespoon"]
+    assert spoon.x <= teacup.anchor <= spoon.x + spoon.w  # the name starts over the tablespoon...
+    assert teacup.x <= teacup.leader[2] <= teacup.x + teacup.w  # ...and its line leads to the teacup

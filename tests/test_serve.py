@@ -24,6 +24,7 @@ from taskseq.serve.app import corrections_text, create_app
 from taskseq.serve.environments import world_environment
 from taskseq.serve.load import Client, LoadResult, run_load, scripted_tasks
 from taskseq.serve.rules import preconditions
+from taskseq.serve.scene import top_view
 from taskseq.serve.writer import RecordWriter, person_record
 from taskseq.sim.demonstrator import demonstrate
 from taskseq.sim.primitives import ALL_PRIMITIVES, ARITY, Action, PreconditionError, execute
@@ -220,6 +221,23 @@ def test_each_object_of_the_picture_is_a_group_a_click_can_name_titled_with_its_
     assert '<select name="a1" aria-label="grasp a1" data-offers="movable things, never a liquid">' in text
     script = client.get("/static/pick.js")
     assert script.status_code == 200 and script.mimetype.endswith("javascript")
+
+
+def test_a_moved_name_is_drawn_with_a_line_to_its_shape_that_is_never_clicked_nor_over_a_name(client):
+    """The lines of `Shape.leader` in the picture: one per moved name, above the shapes, out of the way of clicks,
+    masked by every item's name (each name is cut out of the mask), so that no line covers a name."""
+    start(client)
+    svg = client.get("/demonstrate").get_data(as_text=True).split('<svg id="scene"')[1].split("</svg>")[0]
+    led = {s.id: s.leader for s in top_view(world_environment(0, "env01").state).shapes if s.leader}
+    assert set(led) == {"obj17", "obj43"}  # the teacup's name, over the tablespoon; the crumpled paper's
+    assert '<g id="leaders" mask="url(#leader-mask)" pointer-events="none"' in svg
+    lines = re.findall(r'data-leader-of="(\w+)"><line x1="([^"]+)" y1="([^"]+)" x2="([^"]+)" y2="([^"]+)"', svg)
+    assert {o: tuple(float(v) for v in xy) for o, *xy in lines} == led
+    assert svg.index('id="leaders"') > svg.rindex('<g class="object"')  # above every shape
+    names = re.findall(r'<text id="(name-\d+)"', svg)
+    cut = re.findall(r'<use href="#(name-\d+)" class="knockout"/>', svg.split('<mask id="leader-mask"')[1])
+    assert cut and set(cut) <= set(names) and len(cut) == sum(1 for s in top_view(
+        world_environment(0, "env01").state).shapes if s.kind in ("vessel", "item"))
 
 
 def test_the_checks_the_page_lists_are_the_checks_the_simulator_makes():
@@ -612,6 +630,93 @@ def test_choosing_another_environment_with_unsaved_steps_asks_first(client):
     assert refused.status_code == 400 and "no environment is waiting" in message(refused)
 
 
+def drawn_for(page: str) -> dict[str, str]:
+    """The activity and step count a page's forms carry: what a form of that page, kept open in a tab, posts."""
+    activity = re.search(r'name="activity" value="([^"]*)"', page).group(1)
+    n = re.search(r'name="activity" value="[^"]*"><input type="hidden" name="n" value="([^"]*)"', page).group(1)
+    return {"activity": activity, "n": n}
+
+
+THROW = Task("throw_away", ("obj43",))  # env01: the crumpled paper
+
+
+def test_every_form_acting_on_the_task_under_way_names_the_activity_it_was_drawn_for(client):
+    """Each step row, done, undo and the proposals of assist, and the button that drops unsaved steps."""
+    for mode in ("demonstrate", "assist"):
+        start(client, mode=mode)
+        client.post("/step", data=step_form(0, demonstrated()[0]))
+        page = client.get(f"/{mode}").get_data(as_text=True)
+        forms = re.findall(r"<form [^>]*>.*?</form>", page, re.S)
+        ids = {re.search(r'id="([^"]+)"', f).group(1) for f in forms}
+        assert {"undo-form", "step-grasp", "step-done"} <= ids and ("proposals" in ids) == (mode == "assist")
+        assert all(re.search(r'name="activity" value="\d+"><input type="hidden" name="n" value="1"', f) for f in forms)
+        asked = client.post("/task", data={"task": "throw_away", "arg1": "obj43", "arg2": "", "mode": mode})
+        assert drawn_for(asked.get_data(as_text=True)) == drawn_for(page)
+        client.post("/task", data={"task": "throw_away", "arg1": "obj43", "arg2": "", "mode": mode, "discard": "yes",
+                                   **drawn_for(page)})
+        assert drawn_for(client.get(f"/{mode}").get_data(as_text=True))["activity"] != drawn_for(page)["activity"]
+
+
+def test_a_step_from_a_page_of_another_task_is_refused_even_at_the_same_step_count(client, data):
+    """Two tabs of one browser share its session: a page of throw_away(crumpled_paper) left open at step 0 while
+    the other tab starts pour(water), also at step 0, must not add its step to pour(water)."""
+    start(client, THROW)
+    tab_a = drawn_for(client.get("/demonstrate").get_data(as_text=True))
+    assert client.post("/task", data={"task": "pour", "arg1": "obj27", "arg2": "",  # tab B: nothing to ask
+                                      "mode": "demonstrate"}).status_code == 303
+    for path, form in (("/step", step_form(0, Action("move_close", ("obj43",)))),
+                       ("/step", step_form(0, Action("done"))), ("/undo", {})):
+        refused = client.post(path, data={**form, **tab_a})
+        assert refused.status_code == 409, path
+        assert message(refused) == ("this page was for a task no longer under way: since it was drawn, pour(water) "
+                                    "was started in this browser (0 steps now); nothing was done")
+    page = client.get("/demonstrate").get_data(as_text=True)
+    assert "<code>pour(water)</code>" in page and "None yet." in page  # nothing was added
+    tab_b = drawn_for(page)
+    assert client.post("/step", data={**step_form(0, demonstrated()[0]), **tab_b}).status_code == 303
+    stale = client.post("/step", data={**step_form(0, demonstrated()[1]), **tab_b})  # the same task, a step behind
+    assert stale.status_code == 409
+    assert message(stale) == "this page was out of date (the demonstration has 1 step now); nothing was done"
+    assert not (data / "people").exists()
+
+
+def test_a_page_of_steps_another_tab_dropped_for_another_task_says_the_task_changed(client):
+    start(client)
+    for k, action in enumerate(demonstrated()[:2]):
+        client.post("/step", data=step_form(k, action))
+    tab_a = drawn_for(client.get("/demonstrate").get_data(as_text=True))
+    other = {"task": "throw_away", "arg1": "obj43", "arg2": "", "mode": "demonstrate"}
+    asked = client.post("/task", data=other)  # tab B: asked first, then drops the two steps
+    assert client.post("/task", data={**other, "discard": "yes",
+                                      **drawn_for(asked.get_data(as_text=True))}).status_code == 303
+    refused = client.post("/step", data={**step_form(2, demonstrated()[2]), **tab_a})
+    assert refused.status_code == 409 and "out of date" not in message(refused)
+    assert message(refused) == ("this page was for a task no longer under way: since it was drawn, "
+                                "throw_away(crumpled_paper) was started in this browser (0 steps now); "
+                                "nothing was done")
+    assert "None yet." in refused.get_data(as_text=True)
+
+
+def test_dropping_steps_from_a_page_another_tab_has_outdated_asks_again(client):
+    """The page that asks before steps are dropped lists them; its button drops those, not the steps or the task
+    another tab has taken or started since: the server asks again, listing what is under way now."""
+    start(client)
+    actions = demonstrated()
+    client.post("/step", data=step_form(0, actions[0]))
+    other = {"task": "throw_away", "arg1": "obj43", "arg2": "", "mode": "demonstrate"}
+    tab_a = drawn_for(client.post("/task", data=other).get_data(as_text=True))  # asked about 1 step
+    client.post("/step", data=step_form(1, actions[1]))  # tab B takes another
+    again = client.post("/task", data={**other, "discard": "yes", **tab_a})
+    text = html.unescape(re.sub(r"<[^>]+>", "", again.get_data(as_text=True)))
+    assert again.status_code == 409 and "its 2 steps so far are not saved" in text
+    assert message(again) == ("this page was out of date (the demonstration has 2 steps now); nothing was dropped: "
+                              "drop the steps below, or go back to them")
+    assert "<code>pour(water)</code>" in client.get("/demonstrate").get_data(as_text=True)  # kept
+    assert client.post("/task", data={**other, "discard": "yes",
+                                      **drawn_for(again.get_data(as_text=True))}).status_code == 303
+    assert "None yet." in client.get("/demonstrate").get_data(as_text=True)
+
+
 @pytest.mark.parametrize("option, expected", [
     (["--port", "70000"], "argument --port: expected a port from 0 to 65535, got '70000'"),
     (["--port", "-5"], "argument --port: expected a port from 0 to 65535, got '-5'"),
@@ -733,3 +838,18 @@ def test_the_writers_lock_file_in_the_default_people_folder_is_seen_by_neither_d
         assert not repo.dvcignore.is_ignored(repo.fs, os.fspath(lock.with_name("walkthrough-3b547b83.jsonl")))
     if shutil.which("git") and (root / ".git").exists():
         assert subprocess.run(["git", "check-ignore", "-q", os.fspath(lock)], cwd=root).returncode == 0
+
+
+def test_a_stir_over_a_liquid_itself_is_refused_saying_where_to_hold(client):
+    """The simulator lets the gripper hold a spoon above the tea itself; the stir then finds no liquid in what is
+    below, which its own words put as "tea holds no liquid to stir": the page says what is below and where to hold."""
+    start(client, Task("stir", ("obj31",)))  # env01: tea, in a mug (obj13)
+    steps = [Action("move_close", ("obj34",)), Action("grasp", ("obj34",)), Action("move_close", ("obj13",)),
+             Action("hold_above", ("obj34", "obj31"))]
+    for k, action in enumerate(steps):
+        assert client.post("/step", data=step_form(k, action)).status_code == 303, action
+    refused = client.post("/step", data=step_form(len(steps), Action("follow_traj_circle", ("obj34",))))
+    assert refused.status_code == 409
+    assert message(refused) == ("follow_traj_circle(teaspoon) is refused: teaspoon is held above tea, a liquid "
+                                "itself, not a container; hold it above mug, which holds tea (check: liquid below); "
+                                "nothing was done")

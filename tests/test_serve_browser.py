@@ -3,8 +3,8 @@
 A person demonstrates a task (refused an infeasible step on the way) and the
 record ingests; another chooses a task and steps by clicking objects in the
 picture; another corrects the learned planner in assist mode; two
-browsers at once write two whole records. Screenshots of each page go to
-the test's temporary folder.
+browsers at once write two whole records; a step from a tab left on another
+task is refused. Screenshots of each page go to the test's temporary folder.
 """
 
 from __future__ import annotations
@@ -200,6 +200,23 @@ def test_two_browsers_at_once_write_two_whole_records(server, browser):
     records = [json.loads(line) for line in (data / "people" / "w0-env01.jsonl").read_text().splitlines()]
     got = {r["participant"]: (r["task"]["name"], [s["primitive"] for s in r["steps"]]) for r in records}
     assert got == {w: (t.name, [a.primitive for a in p[:-1]]) for w, t, p in zip("ab", tasks, plans, strict=True)}
+
+
+def test_a_step_from_a_tab_left_on_another_task_is_refused_naming_the_task_under_way(server, browser):
+    """Two tabs of one browser share its session: a step taken in a tab still showing throw_away(crumpled_paper),
+    after the other tab started pour(water) (both at step 0), is refused and lands in neither task."""
+    url, data = server
+    context = browser.new_context(viewport={"width": 1200, "height": 900})
+    tab_a, tab_b = context.new_page(), context.new_page()  # one context: one cookie, one session
+    choose(tab_a, url, Task("throw_away", ("obj43",)), "demonstrate")
+    choose(tab_b, url, Task("pour", ("obj27",)), "demonstrate")
+    click_step(tab_a, Action("move_close", ("obj43",)))
+    assert tab_a.inner_text("#message") == ("this page was for a task no longer under way: since it was drawn, "
+                                            "pour(water) was started in this browser (0 steps now); nothing was done")
+    assert tab_a.inner_text("#status code") == "pour(water)" and tab_a.inner_text("#steps") == "None yet."
+    tab_b.reload()
+    assert tab_b.inner_text("#steps") == "None yet." and not data.joinpath("people").exists()
+    context.close()
 
 
 def test_markup_in_an_uploaded_environment_file_is_shown_as_text_and_never_run(server, browser, tmp_path):

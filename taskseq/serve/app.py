@@ -29,7 +29,7 @@ from ..sim.tasks import TASK_ARITY, Task
 from ..words import counted
 from .environments import SAFE_NAME, file_environment, named_files, read_named, world_environment
 from .explain import explain
-from .rules import UnsafeStep, argument_choices, named, preconditions
+from .rules import UnsafeStep, argument_choices, preconditions, refusal
 from .scene import support_tree, top_view
 from .sessions import ASSIST, DEMONSTRATE, MODES, Activity, Session, SessionStore
 from .writer import RecordWriter, WriterClosed, person_record
@@ -226,16 +226,42 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
                     steps=[shown(activity.states[k], a) for k, a in enumerate(activity.actions)],
                     refused=refused or {})
 
+    def stale_page(activity: Activity) -> str | None:
+        """Why the posted form does not fit the task under way, or None where it does.
+
+        A page's forms carry the activity they were drawn for and its step count. Another tab of the same browser
+        (one session) may since have dropped that task and started another, which is often at the same step: the
+        step count alone would let a step land in a task the person never saw, so the activity is checked first,
+        and the message names the task now under way. A form without an activity (a script's, an older page's)
+        is checked by its step count alone."""
+        steps = counted(len(activity.actions), "step")
+        drawn_for = request.form.get("activity")
+        if drawn_for is not None and drawn_for != str(activity.id):
+            task = in_names(activity.task, activity.state.specs, told_apart(activity.env.state))
+            return (f"this page was for a task no longer under way: since it was drawn, {task} was started in this "
+                    f"browser ({steps} now)")
+        if request.form.get("n", "") != str(len(activity.actions)):
+            return f"this page was out of date (the demonstration has {steps} now)"
+        return None
+
     def confirm_page(s: Session, action: str, fields: dict[str, str], leaving_for: str):
         """Asks before the steps of the task under way are dropped: posting `fields` again with `discard` drops
         them; the other button goes back to the task. Nothing changes until the person answers."""
         activity = s.activity
         assert activity is not None
-        return page("confirm.html", s, 409, action=action, fields=fields, leaving_for=leaving_for,
+        stale = stale_page(activity) if request.form.get("discard") == "yes" else None  # asked on a page since
+        error = None if stale is None else f"{stale}; nothing was dropped: drop the steps below, or go back to them"
+        return page("confirm.html", s, 409, error=error, action=action, fields=fields, leaving_for=leaving_for,
                     task_text=in_names(activity.task, activity.state.specs), steps=steps_text(activity))
 
     def unsaved(s: Session) -> bool:
-        return s.activity is not None and bool(s.activity.actions) and request.form.get("discard") != "yes"
+        """Whether starting something else would drop steps the person has not agreed to drop: agreeing (`discard`)
+        counts only for the task and steps its page listed, not for those another tab has taken since."""
+        if s.activity is None or not s.activity.actions:
+            return False
+        if request.form.get("discard") != "yes":
+            return True
+        return "activity" in request.form and stale_page(s.activity) is not None  # a script's yes is taken as is
 
     @app.get("/leave.js")
     def leave_script():
@@ -349,12 +375,11 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
     app.add_url_rule("/assist", "assist", lambda: show(ASSIST))
 
     def current(s: Session) -> Activity:
+        """The task under way, if the form was drawn for it as it stands: refused (409, nothing done) otherwise."""
         if s.activity is None:
             raise Refused("no task is under way in this browser; choose one first", 409)
-        n = request.form.get("n", "")
-        if n != str(steps := len(s.activity.actions)):
-            raise Refused(f"this page was out of date (the demonstration has {counted(steps, 'step')} now); "
-                          f"nothing was done", 409)
+        if (stale := stale_page(s.activity)) is not None:
+            raise Refused(f"{stale}; nothing was done", 409)
         return s.activity
 
     def chosen(activity: Activity) -> tuple[Action, bool]:
@@ -393,7 +418,7 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
                 activity.step(action, overridden)
             except PreconditionError as err:
                 state = s.activity.state
-                return run_page(s, 409, f"{in_names(err.action, state.specs)} is refused: {named(state, err.reason)} "
+                return run_page(s, 409, f"{in_names(err.action, state.specs)} is refused: {refusal(state, err)} "
                                         f"(check: {err.check}); nothing was done", dict(request.form))
             except UnsafeStep as err:
                 return run_page(s, 409, f"{in_names(err.action, s.activity.state.specs)} is refused: {err.reason}; "

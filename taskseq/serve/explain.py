@@ -25,7 +25,7 @@ from ..sim.primitives import Action, PreconditionError, execute
 from ..sim.safety import violations
 from ..sim.state import WorldState
 from ..sim.tasks import Task, goal_reached
-from .rules import named, unsafe_reason
+from .rules import refusal, unsafe_reason
 
 Y = tuple[int, int, int]
 SHOWN_REASONS = 3  # steps that cannot run named per row; the rest are counted
@@ -91,7 +91,7 @@ def _why_not_runnable(task: Task, initial: WorldState, state: WorldState, action
     try:
         execute(state, action)
     except PreconditionError as err:
-        return f"{in_names(action, state.specs)}: {named(state, err.reason)} (check: {err.check})"
+        return f"{in_names(action, state.specs)}: {refusal(state, err)} (check: {err.check})"
     reason = unsafe_reason(state, action)
     return None if reason is None else f"{in_names(action, state.specs)}: {reason}"
 

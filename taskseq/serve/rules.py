@@ -19,7 +19,7 @@ import re
 from dataclasses import dataclass
 
 from ..sim import primitives
-from ..sim.primitives import ALL_PRIMITIVES, Action
+from ..sim.primitives import ALL_PRIMITIVES, Action, PreconditionError
 from ..sim.safety import RULES, violations
 from ..sim.state import WorldState
 
@@ -64,6 +64,20 @@ def named(state: WorldState, text: str) -> str:
         return text
     pattern = re.compile(r"\b(" + "|".join(re.escape(o) for o in ids) + r")\b")
     return re.sub(r"(\b[\w.-]+) \(\1\)", r"\1", pattern.sub(lambda m: state.specs[m.group(1)].name, text))
+
+
+def refusal(state: WorldState, err: PreconditionError) -> str:
+    """Why the simulator refuses a step, in names. The simulator lets the gripper hold a thing above a liquid itself
+    (nothing breaks), after which a stir or a pour there finds no liquid or no container, which its own words
+    (`water holds no liquid to stir`) make sound absurd: then the reason says what is below and where to hold."""
+    below = state.held_above
+    if err.check in ("liquid below", "container") and below is not None and state.specs[below].has("liquid"):
+        container = state.container_of(below)
+        where = f"; hold it above {state.specs[container].name}, which holds {state.specs[below].name}" if (
+            container and err.check == "liquid below") else ""
+        return (f"{state.specs[state.held].name} is held above {state.specs[below].name}, a liquid itself, not a "
+                f"container{where}")
+    return named(state, err.reason)
 
 
 def _why(state: WorldState, action: Action, rule: str) -> str:

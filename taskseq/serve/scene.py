@@ -18,6 +18,7 @@ TOP = 120.0  # room above the wall for the slanted labels of items
 LABEL_GAP = 16.0  # pixels between two slanted labels' lines, measured along a row (11 px across the slant)
 ROBOT_LABEL_AT = 16.0  # pixels from the robot's centre to where its label starts
 CHAR_WIDTH = 8.0  # pixels a character of the robot's bold label takes at most, about, in a sans-serif font
+LABEL_LIFT = 3.0  # pixels above its top edge where an item's slanted name starts (scene.html writes it there)
 
 
 @dataclass(frozen=True)
@@ -37,6 +38,10 @@ class Shape:
     name: str = ""
     liquids: tuple[tuple[str, str], ...] = ()  # (id, name) of each liquid inside
     level: int | None = None  # shelf level it stands on
+    # A slanted name moved right of its shape's middle (so as not to write over another name) may start over a
+    # neighbouring object and read as that one's: a thin line leads from where it starts back to the middle of its
+    # own shape's top edge, where an unmoved name starts. (x1, y1, x2, y2): the name's start, then the shape's edge.
+    leader: tuple[float, float, float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -86,6 +91,15 @@ def _level(state: WorldState, obj: str) -> int | None:
     return min(range(len(heights)), key=lambda k: abs(heights[k] - z)) + 1
 
 
+def _leader(anchor: float, middle: float, top: float) -> tuple[float, float, float, float] | None:
+    """The line from a slanted name's start back to the middle of its shape's top edge, where the name was moved
+    away from there; None where it starts there (the layout moves a name right only: less than a tenth of a
+    pixel is rounding)."""
+    if anchor - middle < 0.1:
+        return None
+    return round(anchor, 1), round(top - LABEL_LIFT, 1), round(middle, 1), round(top, 1)
+
+
 def top_view(state: WorldState) -> TopView:
     """Footprints seen from above, the wall at the top and the robot below; liquids show in their container."""
     shown = [o for o in state.specs if state.specs[o].category != "floor" and o != state.held
@@ -127,7 +141,7 @@ def top_view(state: WorldState) -> TopView:
             anchor = line - ay
         liquids = tuple((li, state.specs[li].name) for li in state.liquids_in(o))
         shapes.append(Shape(o, ax, ay, round(w, 1), round(h, 1), kind, label, bool(liquids), round(anchor, 1),
-                            spec.name, liquids, level))
+                            spec.name, liquids, level, _leader(anchor, ax + w / 2, ay)))
     rx, ry = px(*state.robot)
     held = None
     if state.held is not None:

@@ -8,6 +8,7 @@ of one browser (a double click) change it one after the other.
 
 from __future__ import annotations
 
+import itertools
 import secrets
 import threading
 from collections import OrderedDict
@@ -23,6 +24,7 @@ DEMONSTRATE, ASSIST = "demonstrate", "assist"
 MODES = (DEMONSTRATE, ASSIST)
 MAX_STEPS = 40  # a demonstration longer than this is refused: the benchmark's longest has 10
 MAX_SESSIONS = 1000  # the least recently used session is dropped beyond this
+_ACTIVITY_IDS = itertools.count(1)  # CPython hands out each number once, whatever thread asks
 
 
 @dataclass
@@ -37,6 +39,10 @@ class Activity:
     states: list[WorldState] = field(default_factory=list)
     corrected: list[int] = field(default_factory=list)  # assist: steps where the person overrode the planner
     offers: dict = field(default_factory=dict)  # assist: the planner's proposals after each history, made once
+    # Which start of a task this is: a page's forms carry it, so that a form drawn for a task that another tab of the
+    # browser has since dropped or finished is refused instead of acting on the task under way now. The step count
+    # alone cannot tell: two tasks are often at the same step. Distinct, not secret: the session is the browser's own.
+    id: int = field(default_factory=lambda: next(_ACTIVITY_IDS))
 
     def __post_init__(self) -> None:
         if not self.states:
