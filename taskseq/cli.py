@@ -41,9 +41,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _user_errors() -> tuple[type[BaseException], ...]:
+    """The errors a user's files cause: a log that is not valid (`LogError`), and a path that cannot be read or
+    written as given (`OSError`: a file or folder missing, a folder where a file goes, no permission)."""
     from .demonstrations.validate import LogError
 
-    return LogError, FileNotFoundError
+    return LogError, OSError
 
 
 def _stage(args: argparse.Namespace) -> int:
@@ -64,8 +66,18 @@ def _guarded(args: argparse.Namespace, body) -> int:
     """`body`'s exit code, with the errors a user can cause turned into one line and an exit code."""
     try:
         return body()
+    except BrokenPipeError:
+        raise  # not the user's files: a reader that left early (`| head`), which `main` ends quietly
     except _user_errors() as err:  # missing or bad inputs are found before a stage writes
-        print(f"error: {err}", file=sys.stderr)
+        # A path the system refuses (an output that is a folder, a file where a folder goes, no permission) is a
+        # bad file like a missing one: exit code 1 for a stage, after what it wrote, 2 for a tool. Its line is
+        # the system's reason and the path; a missing file keeps its message, which may be the command's own.
+        if isinstance(err, OSError) and not isinstance(err, FileNotFoundError) and err.strerror:
+            paths = " -> ".join(str(name) for name in (err.filename, err.filename2) if name is not None)
+            message = f"{err.strerror}: {paths}" if paths else err.strerror
+        else:
+            message = str(err)
+        print(f"error: {message}", file=sys.stderr)
         if args.command not in STAGES:
             return 2
         print(_written(), file=sys.stderr)

@@ -151,13 +151,13 @@ def test_write_arrays_refuses_an_object_array_and_keeps_the_old_file(tmp_path):
 def test_a_folder_is_replaced_whole_when_the_block_ends(tmp_path):
     target = tmp_path / "out"
     target.mkdir()
-    (target / "stale.txt").write_text("stale")
+    (target / "new.txt").write_text("stale")  # a previous output of the same writer: the same file names
     before = len(atomic.WRITTEN)
     with atomic_directory(target) as tmp:
         assert tmp.is_dir() and tmp.parent == tmp_path and tmp.name.startswith(".out.")
         assert listing(tmp) == []
         (tmp / "new.txt").write_text("new")
-        assert listing(target) == ["stale.txt"]  # the old folder until the block ends
+        assert (target / "new.txt").read_text() == "stale"  # the old folder until the block ends
     assert listing(target) == ["new.txt"] and (target / "new.txt").read_text() == "new"
     assert listing(tmp_path) == ["out"]  # neither the temporary folder nor the old one is left
     assert atomic.WRITTEN[before:] == [target]
@@ -193,8 +193,8 @@ def test_a_new_folder_is_made_where_there_was_none_even_under_missing_folders(tm
     assert listing(target) == ["x"]
     assert listing(target.parent) == ["out"]
     with atomic_directory(target) as tmp:  # the folder above exists now
-        (tmp / "y").write_text("y")
-    assert listing(target) == ["y"]
+        (tmp / "x").write_text("y")
+    assert listing(target) == ["x"] and (target / "x").read_text() == "y"
 
 
 def test_a_writer_that_raises_leaves_the_old_folder_and_no_temporary_folder(tmp_path):

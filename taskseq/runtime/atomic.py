@@ -53,28 +53,102 @@ def refuse_replacing_inputs(output: Path | str, **inputs: Path | str | None) -> 
                              "command reads: give another output folder")
 
 
+def _make_parent(path: Path, shown: Path | str) -> None:
+    """Make the folder `path` goes into. A file in the way of that folder (`--output notes.txt/sub`) is the
+    user's mistake, said in one line (ValueError) instead of the FileExistsError or NotADirectoryError that
+    `mkdir` raises for it."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError) as err:
+        blocker = next((p for p in (path.parent, *path.parent.parents) if p.exists() and not p.is_dir()), None)
+        if blocker is None:
+            raise
+        raise ValueError(f"{shown}: {blocker} is a file, not a folder, so nothing can be written under it: "
+                         "give another path") from err
+
+
+def _files(folder: Path, folders: bool = False) -> Iterator[str]:
+    """The relative paths of what `folder` holds, lazily: every file or link (a link is not followed), and every
+    empty folder (with a final `/`), which replacing `folder` would delete as surely as a file; `folders` True:
+    every folder, empty or not (what a replacement keeps)."""
+    for entry in sorted(os.scandir(folder), key=lambda e: e.name):
+        if entry.is_dir(follow_symlinks=False):
+            inner = _files(Path(entry.path), folders)
+            first = next(inner, None)
+            if folders or first is None:
+                yield f"{entry.name}/"
+            if first is not None:
+                yield f"{entry.name}/{first}"
+                yield from (f"{entry.name}/{name}" for name in inner)
+        else:
+            yield entry.name
+
+
+# how many of the files a replacement would delete its refusal names
+_NAMED = 3
+
+
+def _refuse_deleting(target: Path, new: Path, shown: Path | str) -> None:
+    """Refuse to replace the folder `target` with `new` when `target` holds a file `new` does not: the
+    replacement would delete it, and a command run by hand on a folder that holds other things (`--output .`,
+    `--output ~/results`) must not lose them. A previous output of the same command has the same files and is
+    replaced; under DVC a stage's outputs are removed before it runs, so the pipeline never meets this."""
+    kept = set(_files(new, folders=True))
+    lost = []
+    for name in _files(target):  # stops at the few it names: a folder such as `..` may hold a great many
+        if name not in kept:
+            lost.append(name)
+            if len(lost) > _NAMED:
+                break
+    if lost:
+        named = ", ".join(lost[:_NAMED]) + (", ..." if len(lost) > _NAMED else "")
+        raise ValueError(f"{shown} holds files this command does not write ({named}), which replacing the folder "
+                         "would delete: remove them or give another folder")
+
+
 @contextmanager
 def atomic_directory(target: Path | str, output: bool = True) -> Iterator[Path]:
     """Yield a fresh temporary folder that replaces `target` only if the block succeeds. `output` False: a folder
-    kept for the command's own use (a cache), which `WRITTEN` does not list."""
-    target = Path(target)
-    target.parent.mkdir(parents=True, exist_ok=True)
+    kept for the command's own use (a cache), which `WRITTEN` does not list.
+
+    `target` is resolved first, so `.` and `..` have a real name and parent (the temporary folder goes beside
+    the real folder, and a link to a folder has the folder it points to replaced). Refused (ValueError naming
+    the path): a target that exists and is not a folder, one under a file, the root, and an output whose folder
+    holds files the block did not write (`_refuse_deleting`; not a cache entry, which is the command's own and
+    may be a half-written one being written again). Whatever fails once the temporary folder exists removes it
+    and leaves the old folder where it was."""
+    shown = target
+    target = Path(target).resolve()
+    if target.parent == target:
+        raise ValueError(f"{shown} is the root folder, which a command's output cannot replace: give a folder in it")
+    if target.exists() and not target.is_dir():
+        raise ValueError(f"{shown} is a file, not a folder: give a folder to write into")
+    _make_parent(target, shown)
     tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
+    old = target.with_name(f".{target.name}.old.{os.getpid()}")
+    moved = False
     try:
         yield tmp
         stopping.check()  # a stop whose exception was dropped where it landed replaces nothing
         as_opened(tmp, target, directory=True)
+        if target.exists():
+            if not target.is_dir():  # made while the block ran
+                raise ValueError(f"{shown} is a file, not a folder: give a folder to write into")
+            if output:
+                _refuse_deleting(target, tmp, shown)
+            os.replace(target, old)
+            moved = True
+        os.replace(tmp, target)
     except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
+        try:
+            if moved and not target.exists():
+                os.replace(old, target)  # the new folder did not take its place: the old one goes back
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
         raise
-    old = None
-    if target.exists():
-        old = target.with_name(f".{target.name}.old.{os.getpid()}")
-        os.replace(target, old)
-    os.replace(tmp, target)
     if output:
-        WRITTEN.append(target)
-    if old is not None:
+        WRITTEN.append(Path(shown))
+    if moved:
         shutil.rmtree(old, ignore_errors=True)
 
 
@@ -82,9 +156,14 @@ def atomic_directory(target: Path | str, output: bool = True) -> Iterator[Path]:
 def atomic_file(path: Path | str, output: bool = True) -> Iterator[Path]:
     """Yield a temporary path beside `path` (same suffix, for writers that go by it) that replaces
     `path` only if the block succeeds: for files written by other libraries (models, figures). `output`
-    False: a file kept for the command's own use (a cache), which `WRITTEN` does not list."""
+    False: a file kept for the command's own use (a cache), which `WRITTEN` does not list.
+
+    Refused before anything is written (ValueError naming the path): a `path` that is a folder (`--model
+    models/`), which `os.replace` could not replace, only after the work is done, and one under a file."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    if path.is_dir():
+        raise ValueError(f"{path} is a folder; give a file name")
+    _make_parent(path, path)
     fd, name = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
     os.close(fd)
     tmp = Path(name)
