@@ -454,10 +454,12 @@ def test_assist_ranks_with_the_policy_the_model_file_records_and_proposes_only_s
 
 
 def proposal_rows(page: str) -> list[tuple[str, float, str]]:
-    """(step, score, why it is here) of each row of the assist table, as a person reads them."""
-    rows = re.findall(r'<td data-step="([^"]*)">.*?</td>\s*<td>(-?[0-9.]+)</td><td class="why">([^<]*)</td>', page,
+    """(step, score, why it is here) of each row of the assist table, as a person reads them: a long why's first
+    clause is the summary of a <details> holding the rest."""
+    rows = re.findall(r'<td data-step="([^"]*)">.*?</td>\s*<td>(-?[0-9.]+)</td><td class="why">(.*?)</td>', page,
                       re.S)
-    return [(step, float(score), html.unescape(why)) for step, score, why in rows]
+    return [(step, float(score), html.unescape(re.sub(r"<[^>]*>", "", why.replace("</summary>", "; "))))
+            for step, score, why in rows]
 
 
 def test_assist_shows_each_proposal_in_names_with_its_ids_as_a_hint(data, tmp_path):
@@ -489,8 +491,13 @@ def test_assist_says_why_each_proposal_is_where_it_is(data, tmp_path):
     client = create_app(data, path).test_client()
     start(client, Task("pour_to", ("obj27", "obj14")), mode="assist")
     client.post("/step", data={"n": "0", "choice": "0"})  # accept the first proposal: here the lookahead reorders
-    rows = proposal_rows(client.get("/assist").get_data(as_text=True))
+    page = client.get("/assist").get_data(as_text=True)
+    rows = proposal_rows(page)
     assert len(rows) == 3
+    # the first row's long why shows its first clause; the plan the lookahead imagined is folded under it
+    folded = re.search(r'<td class="why"><details><summary>([^<]*)</summary>([^<]*)</details></td>', page)
+    assert folded and rows[0][2] == f"{html.unescape(folded[1])}; {html.unescape(folded[2])}"
+    assert folded[1].startswith("moved up above ") and "; looking ahead (" in folded[2]
     swapped = [(i, j) for i in range(3) for j in range(i + 1, 3) if rows[i][1] < rows[j][1]]
     assert swapped, "this room and these weights were chosen for a proposal above a better-scored one"
     names = world_environment(0, "env01").state.specs

@@ -426,7 +426,7 @@ def test_a_task_and_a_step_of_assist_mode_are_chosen_in_the_picture(server, brow
     page.select_option("#task-form select[name=task]", "pour_to")
     click_object(page, "obj14")
     assert (first.input_value(), second.input_value()) == ("obj27", "obj14")
-    assert message.inner_text() == "pour_to(water, cup): start it with a button above the picture"
+    assert message.inner_text() == "pour_to(water, cup): start it with a button of the task form"
     page.screenshot(path=str(tmp_path / "task.png"), full_page=True)
     submit(page, "#task-form button[value=assist]")
     assert "Task: pour_to(water, cup) (pour_to(obj27,obj14))" in page.inner_text("#status")
@@ -482,7 +482,7 @@ def test_another_task_empties_the_objects_it_does_not_take(server, browser):
     page.select_option("#task-form select[name=task]", "throw_away")
     second = page.locator("#task-form select[name=arg2]")
     assert second.input_value() == "" and second.is_disabled()
-    assert page.inner_text("#pick-message") == "throw_away(cup): start it with a button above the picture"
+    assert page.inner_text("#pick-message") == "throw_away(cup): start it with a button of the task form"
     submit(page, "#task-form button[value=demonstrate]")
     assert "Task: throw_away(cup)" in page.inner_text("#status")
     page.goto(url + "/task")
@@ -502,3 +502,97 @@ def test_without_the_script_the_lists_work_as_before(server, browser):
     assert page.locator("#scene .picked").count() == 0 and page.inner_text("#pick-message") == ""
     click_step(page, Action("move_close", ("obj20",)))
     assert page.locator("#steps li").count() == 1
+
+
+NAME_SIZES = """() => Array.from(document.querySelectorAll('#scene g.object:not([data-kind=furniture]) > text'))
+    .map(t => { const m = t.getScreenCTM();
+                return parseFloat(getComputedStyle(t).fontSize) * Math.hypot(m.a, m.b); })"""
+
+
+def on_screen(page, selector: str) -> bool:
+    """Whether what `selector` finds lies wholly inside the window as it is scrolled now."""
+    box, view = page.locator(selector).bounding_box(), page.viewport_size
+    return (box is not None and box["x"] >= 0 and box["y"] >= 0 and box["x"] + box["width"] <= view["width"]
+            and box["y"] + box["height"] <= view["height"])
+
+
+def click_middle(page, selector: str) -> None:
+    """A click where the thing is on the screen now: Playwright's own click would scroll it into view first."""
+    box = page.locator(selector).bounding_box()
+    page.mouse.click(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+
+
+@pytest.mark.parametrize("mode", ["demonstrate", "assist"])
+def test_on_a_wide_window_the_picture_is_beside_the_rows_and_stays_in_view(server, browser, mode):
+    """At 1200x900 a person clicks the bottle in the picture and its row's "Do it" without scrolling: both are on
+    the screen as the page opens, the picture right of the rows, its names about 9.5 px; scrolled down to the last of
+    the rules, the picture is still in view (sticky)."""
+    url, _ = server
+    page = browser.new_page(viewport={"width": 1200, "height": 900})
+    choose(page, url, Task("pour", ("obj27",)), mode)
+    bottle, button = "#scene g[data-object=obj20] > rect", "#step-move_close button"
+    assert on_screen(page, bottle) and on_screen(page, button)
+    assert page.locator("#scene").bounding_box()["x"] > page.locator(button).bounding_box()["x"] + 49  # beside
+    assert min(page.evaluate(NAME_SIZES)) >= 9 and not page.locator("#scrolls").is_visible()
+    click_middle(page, bottle)
+    assert page.locator("#step-move_close select").input_value() == "obj20"
+    assert page.evaluate("window.scrollY") == 0
+    with page.expect_navigation():
+        click_middle(page, button)
+    assert page.locator("#steps li").first.inner_text().startswith("move_close(water_bottle)")
+    page.evaluate("document.getElementById('rules').scrollIntoView(false)")  # the rules' last line at the bottom
+    assert page.evaluate("window.scrollY") > 300 and on_screen(page, "#rules > ul:last-of-type > li:last-child")
+    assert on_screen(page, bottle) and on_screen(page, "#scene g[data-object=obj17] > rect")  # the picture too
+    page.screenshot(path=f"/tmp/web_layout/test_{mode}_1200_scrolled.png")
+
+
+def test_on_a_narrow_window_the_picture_keeps_names_legible_and_scrolls_sideways(server, browser):
+    """At 800 px the picture would draw names 7.5 px tall to fit: it keeps them 10 px or more, its smallest object
+    6.5 px or more, and scrolls sideways in its frame (the heading says so) while the page does not; an object out
+    of sight at the right is clicked after scrolling it into view."""
+    url, _ = server
+    page = browser.new_page(viewport={"width": 800, "height": 900})
+    choose(page, url, Task("pour", ("obj27",)), "demonstrate")
+    assert min(page.evaluate(NAME_SIZES)) >= 10
+    widths = page.locator("#scene g.object > rect").evaluate_all("rs => rs.map(r => r.getBoundingClientRect().width)")
+    assert min(widths) >= 6.5
+    frame = page.locator("#picture .frame")
+    assert frame.evaluate("f => f.scrollWidth > f.clientWidth + 50")
+    assert page.evaluate("document.documentElement.scrollWidth") <= 800 and page.locator("#scrolls").is_visible()
+    teacup = "#scene g[data-object=obj17] > rect"
+    assert not on_screen(page, teacup)  # at the shelf's right end, out of the frame until scrolled to
+    page.locator(teacup).scroll_into_view_if_needed()
+    assert frame.evaluate("f => f.scrollLeft") > 0 and on_screen(page, teacup)
+    click_middle(page, teacup)
+    assert page.locator("#step-move_close select").input_value() == "obj17"
+    page.screenshot(path="/tmp/web_layout/test_demonstrate_800_scrolled.png")
+
+
+def test_the_picture_is_cropped_to_what_is_drawn_and_keeps_all_of_it(server, browser):
+    """The top view's viewBox leaves out the empty margins the room was laid out on, but never a shape, a name (the
+    longest slanted ones, the robot's label while it holds something), the robot or the arm's reach: in the 13
+    benchmark rooms every one lies inside the picture as Chromium draws it."""
+    url, _ = server
+    page = browser.new_page(viewport={"width": 1700, "height": 1000})
+    inside = """() => { const s = document.getElementById('scene').getBoundingClientRect();
+        const drawn = document.querySelectorAll('#scene g.object > rect, #scene text, #scene > circle');
+        return Array.from(drawn).filter(e => {
+          const b = e.getBoundingClientRect();
+          return b.left < s.left - 0.5 || b.top < s.top - 0.5 || b.right > s.right + 0.5 || b.bottom > s.bottom + 0.5;
+        }).map(e => e.textContent || e.outerHTML.slice(0, 60)); }"""
+    spare = """() => { const s = document.getElementById('scene').getBoundingClientRect();
+        const all = Array.from(document.querySelectorAll('#scene g.object > rect, #scene text, #scene > circle'))
+          .map(e => e.getBoundingClientRect());
+        return (s.width * s.height) / ((Math.max(...all.map(b => b.right)) - Math.min(...all.map(b => b.left)))
+          * (Math.max(...all.map(b => b.bottom)) - Math.min(...all.map(b => b.top)))); }"""
+    for k in range(1, 14):
+        page.goto(url + "/")
+        page.select_option("#world-form select[name=env_id]", f"env{k:02d}")
+        submit(page, "#world-form button")
+        assert page.evaluate(inside) == [], f"env{k:02d}"
+        assert page.evaluate(spare) < 1.25, f"env{k:02d}"  # not much room to spare around what is drawn
+    choose(page, url, Task("pour", ("obj27",)), "demonstrate")
+    for action in demonstrated(Task("pour", ("obj27",)))[:3]:  # the bottle held above the cup
+        click_step(page, action)
+    assert "robot, holding water_bottle (water), above cup" in page.locator("#scene").text_content()
+    assert page.evaluate(inside) == []

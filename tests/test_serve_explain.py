@@ -72,6 +72,10 @@ def test_a_step_above_a_better_scored_one_says_the_lookahead_found_that_plan_uns
     assert actions[:2] == [f"grasp({GLASS})", f"grasp({CARTON})"] and ranked[0][1] < ranked[1][1]
     assert why[0].startswith(f"moved up above grasp({carton}) (0.00): the lookahead found its plan breaks")
     assert f"looking ahead (grasp({glass}), " in why[0] and "it breaks no safety rule" in why[0]
+    # its clauses, as the assist table folds them: the first shown, the imagined plan under it
+    assert why[0].parts[0] == (f"moved up above grasp({carton}) (0.00): the lookahead found its plan breaks a safety "
+                               "rule")
+    assert why[0].parts[1].startswith("looking ahead (") and "; ".join(why[0].parts) == why[0]
     assert why[1] == (f"demoted: its plan would take grasp({carton}), hold_above({carton}, {glass}), then "
                       f"follow_traj_pour({carton}, {glass}), where it breaks the safety rule \u201c"
                       f"{RULES['over_shelf']}\u201d: {glass} is on {shelf}; bring it to a table first")
@@ -160,3 +164,35 @@ def test_a_step_demoted_for_its_unsafe_plan_is_not_said_to_close_a_loop(tmp_path
     assert [str(c.action) for c in shown[:2]] == ["grasp(obj15)", "move_close(obj21)"]
     assert "the lookahead found its plan breaks a safety rule" in shown[0].why and "loop" not in shown[0].why
     assert shown[1].why.startswith("demoted: its plan would") and "loop" not in shown[1].why
+
+
+class ScoredScorer:
+    """Ranks the given steps first with the given scores, then every other candidate below them."""
+
+    def __init__(self, scores: list[tuple[str, float]]) -> None:
+        self.scores = scores
+
+    def ranked(self, ctx):
+        wanted = [(ctx.encode(Action.parse(a)), score) for a, score in self.scores]
+        low = min(score for _, score in self.scores) - 1
+        rest = [tuple(y) for y in zip(*(a.tolist() for a in candidate_index(ctx.n)), strict=True)
+                if tuple(y) not in {y for y, _ in wanted}]
+        return iter([*wanted, *((y, low - i) for i, y in enumerate(rest))])
+
+
+def test_a_proposal_scored_the_same_as_the_one_above_says_so():
+    """Two proposals of 1.40 and 1.40 (as the table shows them, to two decimals) are a tie, not "the next score
+    down"; a lower score still is."""
+    room = build_environment(ENVIRONMENTS_BY_ID["env02"])
+    ctx = step_context(room, TASK, [])
+    for scores, said in [
+        ([2.0, 1.4, 1.4], ["the best score of all the steps", "the next score down",
+                           "the same score as the step above"]),
+        ([1.4012, 1.3995, 0.7], ["the best score of all the steps", "the same score as the step above",
+                                 "the next score down"]),
+        ([2.0, 1.4, 1.39], ["the best score of all the steps", "the next score down", "the next score down"])]:
+        steps = list(zip(["move_close(obj15)", "move_close(obj21)", "move_close(obj03)"], scores, strict=True))
+        scorer = ScoredScorer(steps)
+        offered = [(ctx.encode(Action.parse(a)), score) for a, score in steps]
+        why = explain(scorer, "feasible", TASK, room, ctx, room, offered)
+        assert why == said and [w.parts for w in why] == [(w,) for w in said]

@@ -37,6 +37,18 @@ def _loop(leads: str) -> str:
             "would go round the same loop")
 
 
+class Why(str):
+    """Why a proposal is where it is: the text (its clauses joined by "; "), with the clauses themselves in `parts`,
+    so that a page can show the first and fold the rest (the assist table does, for a long one)."""
+
+    parts: tuple[str, ...]
+
+    def __new__(cls, parts: list[str]) -> Why:
+        why = super().__new__(cls, "; ".join(parts))
+        why.parts = tuple(parts)
+        return why
+
+
 @dataclass(frozen=True)
 class Imagined:
     """The plan the lookahead imagines after a step: each imagined step with the world before it (the step
@@ -97,7 +109,7 @@ def _why_not_runnable(task: Task, initial: WorldState, state: WorldState, action
 
 
 def explain(planner: StepScorer, policy: str, task: Task, initial: WorldState, ctx: StepContext, state: WorldState,
-            offered: Ranked, closes_loop: LeadsBack | None = None) -> list[str]:
+            offered: Ranked, closes_loop: LeadsBack | None = None) -> list[Why]:
     """For each proposal of `offered` (the policy's order, after `product.runnable_first` and
     `plan.planner.out_of_loops`), why it is where it is: its place in the model's scores, every better-scored step
     it stands above or in place of and why that step is not above it, and what the lookahead found for the steps
@@ -131,7 +143,7 @@ def explain(planner: StepScorer, policy: str, task: Task, initial: WorldState, c
 
     def loops(y: Y) -> bool:
         return looks_ahead and closes_loop is not None and closes_loop(ctx.action(y))
-    out: list[str] = []
+    out: list[Why] = []
     demoted: set[Y] = set()
     explained: set[Y] = set()
     rank = {y: k for k, (y, _) in enumerate(scored)}
@@ -151,8 +163,12 @@ def explain(planner: StepScorer, policy: str, task: Task, initial: WorldState, c
                 said.append(f"its plan would {found.text()}")
             parts.append(f"demoted: {'; and '.join(said)}" if said
                          else "placed below better-scored steps by the policy")
+        elif not above and rank[y] == 0:
+            parts.append("the best score of all the steps")
+        elif not below and not hidden and i > 0 and f"{score_of[y]:.2f}" == f"{score_of[shown[i - 1]]:.2f}":
+            parts.append("the same score as the step above")  # a tie, as the table shows the scores
         elif not above:
-            parts.append("the best score of all the steps" if rank[y] == 0 else "the next score down")
+            parts.append("the next score down")
         elif not below and not hidden:
             parts.append("the next score down of the steps that can be proposed")
         if below:
@@ -196,5 +212,5 @@ def explain(planner: StepScorer, policy: str, task: Task, initial: WorldState, c
                              f"would {found.text()}")
             elif len(found.steps) > 1:
                 parts.append(f"looking ahead ({found.text()}) it breaks no safety rule")
-        out.append("; ".join(parts))
+        out.append(Why(parts))
     return out

@@ -19,6 +19,10 @@ LABEL_GAP = 16.0  # pixels between two slanted labels' lines, measured along a r
 ROBOT_LABEL_AT = 16.0  # pixels from the robot's centre to where its label starts
 CHAR_WIDTH = 8.0  # pixels a character of the robot's bold label takes at most, about, in a sans-serif font
 LABEL_LIFT = 3.0  # pixels above its top edge where an item's slanted name starts (scene.html writes it there)
+TEXT_WIDTH = 7.5  # pixels a character of a 12 px name takes at most, about (DejaVu Sans: 'a' 7.4, 'm' 11.7, 'i' 3.3)
+TEXT_HEIGHT = 12.0  # pixels of a name's line across its baseline, halo and all
+WALL_LINE = 22.0  # pixels kept above everything drawn for the line saying where the wall is
+PAD = 10.0  # pixels between what is drawn and the edge of the picture
 
 
 @dataclass(frozen=True)
@@ -62,6 +66,31 @@ class TopView:
     def robot_label_x(self) -> float:
         """Where the robot's label starts, pixels."""
         return round(self.robot[0] + ROBOT_LABEL_AT, 1)
+
+    @property
+    def box(self) -> tuple[float, float, float, float]:
+        """The part of the picture anything is drawn in, as the SVG's viewBox (x, y, width, height), a line above it
+        left for the wall's caption: every shape, every name (a slanted one rises along its length from its start;
+        their lengths are reckoned from their characters, generously), the robot, its label and the whole of the arm's
+        reach. The room is drawn on `width` x `height`, with room to spare around it; this leaves that out, and
+        nothing drawn moves."""
+        xs: list[float] = [self.robot[0] - self.reach, self.robot[0] + self.reach,
+                           self.robot_label_x + CHAR_WIDTH * len(self.robot_label)]
+        ys: list[float] = [self.robot[1] - self.reach, self.robot[1] + self.reach]
+        rise = TEXT_HEIGHT / 2 ** 0.5  # a slanted name's line, across: up and to the left of its baseline
+        for s in self.shapes:
+            xs += [s.x, s.x + s.w]
+            ys += [s.y, s.y + s.h]
+            if s.kind in ("vessel", "item"):  # rises to the right at 45 degrees from (anchor, top - LABEL_LIFT)
+                run = TEXT_WIDTH * len(s.label) / 2 ** 0.5
+                xs += [s.anchor - rise, s.anchor + run + rise]
+                ys += [s.y - LABEL_LIFT - run - rise]
+            else:  # furniture and bins: bold, under the shape (scene.html writes it 15 px below)
+                xs += [s.x + 4 + CHAR_WIDTH * len(s.label)]
+                ys += [s.y + s.h + 15 + TEXT_HEIGHT / 3]
+        x0, x1 = min(xs) - PAD, max(xs) + PAD
+        y0, y1 = min(ys) - PAD - WALL_LINE, max(ys) + PAD
+        return round(x0, 1), round(y0, 1), round(x1 - x0, 1), round(y1 - y0, 1)
 
 
 @dataclass
