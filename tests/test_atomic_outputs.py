@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -108,20 +109,90 @@ def test_a_target_that_is_a_file_is_refused_before_the_block_runs(tmp_path):
 
 
 @pytest.mark.parametrize("where", [".", ".."])
-def test_the_current_folder_or_its_parent_is_refused_with_no_debris(tmp_path, monkeypatch, where):
-    """`--output .` left a hidden temporary folder behind, `--output ..` a traceback (EBUSY): the path is
-    resolved first, and a folder holding other files is refused."""
+@pytest.mark.parametrize("holding", ["other files", "a previous output"])
+def test_the_current_folder_or_its_parent_is_refused_with_no_debris(tmp_path, monkeypatch, where, holding):
+    """`--output .` left a hidden temporary folder behind, `--output ..` a traceback (EBUSY); resolved, `.` holding
+    only a previous output would be replaced and leave the command and its shell in a deleted folder. Both are
+    refused before the block runs, whatever they hold."""
     scratch = tmp_path / "scratch"
     here = scratch / "work"
     here.mkdir(parents=True)
-    (here / "precious.txt").write_text("mine")
+    (here / ("precious.txt" if holding == "other files" else "steps.csv")).write_text("mine")
     (scratch / "beside.txt").write_text("mine too")
     before = tree(scratch)
     monkeypatch.chdir(here)
-    with pytest.raises(ValueError, match=rf"^{where} holds files this command does not write"), \
+    ran = []
+    with pytest.raises(ValueError, match=rf"^{re.escape(where)} is the folder this command runs in, or holds it"), \
             atomic_directory(where) as tmp:
-        (tmp / "steps.csv").write_text("x")
-    assert tree(scratch) == before and sorted(p.name for p in tmp_path.iterdir()) == ["scratch"]
+        ran.append(tmp)
+    assert not ran and tree(scratch) == before and sorted(p.name for p in tmp_path.iterdir()) == ["scratch"]
+
+
+def test_a_loop_of_links_is_named_in_one_line(tmp_path):
+    (tmp_path / "a").symlink_to(tmp_path / "b")
+    (tmp_path / "b").symlink_to(tmp_path / "a")
+    with pytest.raises(ValueError, match=f"^{tmp_path / 'a'}: "), atomic_directory(tmp_path / "a"):
+        pass
+
+
+def test_another_writers_folder_put_in_place_between_the_moves_is_kept_and_no_old_copy_is_left(tmp_path, monkeypatch):
+    """Two processes writing one output: when the other one's folder takes the place between this one's two moves,
+    this one fails, and its copy of the old folder is removed, not left beside as `.out.old.PID`."""
+    target = tmp_path / "out"
+    target.mkdir()
+    (target / "a.csv").write_text("old")
+    real, calls = os.replace, []
+
+    def other_writer_first(src, dst):
+        calls.append(src)
+        if len(calls) == 2:  # this one's new folder about to go in: the other's is there already
+            Path(dst).mkdir()
+            (Path(dst) / "a.csv").write_text("theirs")
+            raise OSError(39, "Directory not empty", os.fspath(dst))
+        real(src, dst)
+
+    monkeypatch.setattr(atomic.os, "replace", other_writer_first)
+    with pytest.raises(OSError, match="not empty"), atomic_directory(target) as tmp:
+        (tmp / "a.csv").write_text("new")
+    assert tree(target) == {"a.csv": "theirs"} and sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def test_a_cache_entry_another_process_wrote_first_stands(tmp_path, monkeypatch):
+    """Two parallel jobs drawing the same rooms save the same cache entry: the one whose folder lands second finds
+    the other's in place (the move fails: not empty), and keeps it, with no error and nothing left behind (it
+    stopped a `choose_C` stage of the pipeline)."""
+    target = tmp_path / "key.steps"
+    real = os.replace
+
+    def other_job_first(src, dst):
+        Path(dst).mkdir()
+        (Path(dst) / "steps.parquet").write_text("theirs")
+        monkeypatch.setattr(atomic.os, "replace", real)
+        raise OSError(39, "Directory not empty", os.fspath(src))
+
+    monkeypatch.setattr(atomic.os, "replace", other_job_first)
+    with atomic_directory(target, output=False) as tmp:
+        (tmp / "steps.parquet").write_text("ours")
+    assert tree(tmp_path) == {"key.steps": None, "key.steps/steps.parquet": "theirs"}
+
+
+def test_a_stop_between_the_two_moves_puts_the_old_folder_back(tmp_path, monkeypatch):
+    """A signal can land after the old folder is moved aside and before anything says so: it goes back all the same."""
+    target = tmp_path / "out"
+    target.mkdir()
+    (target / "a.csv").write_text("old")
+    real, calls = os.replace, []
+
+    def stopped_after_the_first(src, dst):
+        calls.append(src)
+        real(src, dst)
+        if len(calls) == 1:
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(atomic.os, "replace", stopped_after_the_first)
+    with pytest.raises(KeyboardInterrupt), atomic_directory(target) as tmp:
+        (tmp / "a.csv").write_text("new")
+    assert tree(target) == {"a.csv": "old"} and sorted(p.name for p in tmp_path.iterdir()) == ["out"]
 
 
 def test_a_file_in_the_way_of_the_folder_is_named(tmp_path):

@@ -47,6 +47,7 @@ def layout(edit):
     (lambda d: d["furniture"].update(workbench="middle"), "layout: furniture.workbench: expected an x in metres, "
                                                           "got 'middle'"),
     (lambda d: d["items"][0].update(dx="left"), "items[0].dx: expected an offset in metres, got 'left'"),
+    (lambda d: d["items"][0].update(dx=float("nan")), "items[0].dx: expected an offset in metres, got nan"),
     (lambda d: d["items"][8].update(level=1.5), "items[8].level: expected a whole number, got 1.5"),
     (lambda d: d["items"][0].update(back="yes"), "items[0].back: expected true or false, got 'yes'"),
     (lambda d: d["objects"][3].update(category="spaceship"), "unknown category 'spaceship'"),
@@ -93,6 +94,14 @@ def test_the_layout_command_reports_a_bad_file_and_writes_nothing(tmp_path, caps
     err = capsys.readouterr().err
     assert err.startswith(f"error: {bad}: not valid YAML at line 3, column 1: ") and err.count("\n") == 1
     assert not (tmp_path / "out.json").exists()
+
+
+def test_a_number_yaml_reads_as_text_is_taken():
+    """PyYAML (YAML 1.1) reads `-6e-1` as text, its exponent form needing a dot: still the number it spells."""
+    data = yaml.safe_load(EXAMPLE.read_text().replace("{id: thermos, at: workbench, dx: -0.6}",
+                                                      "{id: thermos, at: workbench, dx: -6e-1}"))
+    assert data["items"][0]["dx"] == "-6e-1"
+    assert environment_from_layout(data) == environment_from_layout(yaml.safe_load(EXAMPLE.read_text()))
 
 
 def test_an_item_inside_a_container_may_be_wider_than_it():

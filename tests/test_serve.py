@@ -637,6 +637,23 @@ def test_choosing_another_environment_with_unsaved_steps_asks_first(client):
     assert refused.status_code == 400 and "no environment is waiting" in message(refused)
 
 
+def test_a_confirmation_for_an_environment_another_tab_replaced_changes_nothing(client):
+    """Two tabs with unsaved steps each choose an environment: the page asking about env02 must not switch to
+    env03, chosen since in the other tab (one environment waits per browser)."""
+    start(client)
+    client.post("/step", data=step_form(0, demonstrated()[0]))
+    tab_a = client.post("/environment", data={"source": "world", "seed": "0", "env_id": "env02"})
+    asked = dict(re.findall(r'name="(source|pending)" value="([^"]*)"', tab_a.get_data(as_text=True)))
+    assert asked == {"source": "pending", "pending": "w0-env02"}
+    client.post("/environment", data={"source": "world", "seed": "0", "env_id": "env03"})  # tab B
+    refused = client.post("/environment", data={**asked, "discard": "yes"})
+    assert refused.status_code == 409 and message(refused) == (
+        "this page asked about another environment than the one now waiting (env03 of world 0, chosen since in this "
+        "browser); nothing was changed: choose again")
+    assert "env01" in client.get("/task").get_data(as_text=True).split("</header>")[0]  # still in env01
+    assert client.get("/demonstrate").status_code == 200  # and the task with its step still under way
+
+
 def drawn_for(page: str) -> dict[str, str]:
     """The activity and step count a page's forms carry: what a form of that page, kept open in a tab, posts."""
     activity = re.search(r'name="activity" value="([^"]*)"', page).group(1)

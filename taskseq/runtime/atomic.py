@@ -113,20 +113,25 @@ def atomic_directory(target: Path | str, output: bool = True) -> Iterator[Path]:
 
     `target` is resolved first, so `.` and `..` have a real name and parent (the temporary folder goes beside
     the real folder, and a link to a folder has the folder it points to replaced). Refused (ValueError naming
-    the path): a target that exists and is not a folder, one under a file, the root, and an output whose folder
+    the path): a target that exists and is not a folder, one under a file, the root, the folder the command runs
+    in (or one holding it), and an output whose folder
     holds files the block did not write (`_refuse_deleting`; not a cache entry, which is the command's own and
     may be a half-written one being written again). Whatever fails once the temporary folder exists removes it
     and leaves the old folder where it was."""
     shown = target
-    target = Path(target).resolve()
+    try:
+        target = Path(target).resolve()
+    except (RuntimeError, OSError) as err:  # a loop of links (RuntimeError up to Python 3.12)
+        raise ValueError(f"{shown}: {err}") from None
     if target.parent == target:
         raise ValueError(f"{shown} is the root folder, which a command's output cannot replace: give a folder in it")
+    if holds(target, Path.cwd()):  # replaced, it would leave the command and its shell in a deleted folder
+        raise ValueError(f"{shown} is the folder this command runs in, or holds it: give another folder")
     if target.exists() and not target.is_dir():
         raise ValueError(f"{shown} is a file, not a folder: give a folder to write into")
     _make_parent(target, shown)
     tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
     old = target.with_name(f".{target.name}.old.{os.getpid()}")
-    moved = False
     try:
         yield tmp
         stopping.check()  # a stop whose exception was dropped where it landed replaces nothing
@@ -137,19 +142,27 @@ def atomic_directory(target: Path | str, output: bool = True) -> Iterator[Path]:
             if output:
                 _refuse_deleting(target, tmp, shown)
             os.replace(target, old)
-            moved = True
-        os.replace(tmp, target)
-    except BaseException:
         try:
-            if moved and not target.exists():
-                os.replace(old, target)  # the new folder did not take its place: the old one goes back
+            os.replace(tmp, target)
+        except OSError:
+            if output or not target.is_dir():
+                raise
+            # a cache entry that another process (a parallel job on the same key) put in place since the check
+            # above: the same key, so the same content; it stands, and this one is dropped
+            shutil.rmtree(tmp, ignore_errors=True)
+    except BaseException:
+        # whatever stopped it, even between the two moves: the old folder goes back where nothing took its place,
+        # and is removed where another writer's folder did
+        try:
+            if old.exists() and not target.exists():
+                os.replace(old, target)
+            shutil.rmtree(old, ignore_errors=True)
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
         raise
     if output:
         WRITTEN.append(Path(shown))
-    if moved:
-        shutil.rmtree(old, ignore_errors=True)
+    shutil.rmtree(old, ignore_errors=True)
 
 
 @contextmanager

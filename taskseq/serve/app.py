@@ -289,6 +289,11 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
                 if source == "pending":  # confirmed on the page that asked before dropping unsaved steps
                     if s.pending_env is None:
                         raise Refused("no environment is waiting to be used; choose one")
+                    asked = form.get("pending")  # the one the page asked about (a script may leave it out)
+                    if asked is not None and asked != s.pending_env.env_id:  # another tab chose another since
+                        raise Refused(f"this page asked about another environment than the one now waiting "
+                                      f"({s.pending_env.label}, chosen since in this browser); nothing was changed: "
+                                      "choose again", 409)
                     env = s.pending_env
                 elif source == "world":
                     seed_text = form.get("seed", "").strip()
@@ -315,7 +320,8 @@ def create_app(data: Path, model: Path, top_k: int = 3) -> Flask:
                 return choose_page(s, 400, str(err.args[0]) if isinstance(err, KeyError) and err.args else str(err))
             if unsaved(s):
                 s.pending_env = env
-                return confirm_page(s, "/environment", {"source": "pending"}, f"the environment {env.label}")
+                return confirm_page(s, "/environment", {"source": "pending", "pending": env.env_id},
+                                    f"the environment {env.label}")
             s.env, s.activity, s.pending_env = env, None, None
             return redirect("/task", 303)
 

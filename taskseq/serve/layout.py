@@ -12,6 +12,7 @@ containers, each item `at` what holds it. The result is the environment file `ta
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -39,10 +40,18 @@ def _fields(where: str, entry: Any, allowed: dict[str, bool]) -> dict[str, Any]:
 
 
 def _number(at: str, value: Any, what: str = "a number") -> float:
-    """A number of the layout (bools are not numbers here, though Python counts them as such)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ValueError(f"{at}: expected {what}, got {value!r}")
-    return float(value)
+    """A finite number of the layout. Text that reads as one is taken: YAML 1.1, which PyYAML reads, takes `-6e-1`
+    for text (its exponent form needs a dot). Bools are not numbers here, though Python counts them as such."""
+    if isinstance(value, str):
+        try:
+            number = float(value)
+        except ValueError:
+            number = math.nan
+        if math.isfinite(number):
+            return number
+    elif not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value):
+        return float(value)
+    raise ValueError(f"{at}: expected {what}, got {value!r}")
 
 
 def _numbers(at: str, value: Any, what: str, count: int | None = None) -> tuple[float, ...]:

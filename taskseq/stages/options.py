@@ -17,6 +17,8 @@ from pathlib import Path
 from typing import Any
 
 WORLD = Path("data/worlds/0")  # inputs default to the first reported world's data
+# what becomes of an output folder that exists (`runtime.atomic.atomic_directory`)
+REPLACED = "(replaced whole; refused if it holds a file this run does not write again)"
 
 
 def option(help: str, default: Any = MISSING, *, input: bool = False, kind: type = Path,
@@ -43,7 +45,7 @@ class WorldFolderOptions:
     (world.json, dataset.json)."""
 
     output: Path = option("folder for the world's raw, processed and features subfolders, world.json and "
-                          "dataset.json (replaced)")
+                          "dataset.json " + REPLACED)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -63,7 +65,7 @@ class SelectOptions:
 
 @dataclass(frozen=True, kw_only=True)
 class GenerateOptions:
-    output: Path = option("folder of *.jsonl logs (replaced)")
+    output: Path = option("folder of *.jsonl logs " + REPLACED)
     metrics: Path | None = option("what drawing the world cost: rooms, redraws by reason (JSON; default: not "
                                   "written)", None)
 
@@ -71,7 +73,7 @@ class GenerateOptions:
 @dataclass(frozen=True, kw_only=True)
 class IngestOptions:
     input: Path = option("folder of *.jsonl logs", WORLD / "raw", input=True)
-    output: Path = option("folder of Parquet tables (replaced)")
+    output: Path = option("folder of Parquet tables " + REPLACED)
     metrics: Path | None = option("dataset counts as JSON (default: not written)", None)
     people: bool = option("the folder holds people's demonstrations (`taskseq serve`): a file with a problem is "
                           "reported and left out, and an object id may mean different objects in different "
@@ -81,7 +83,7 @@ class IngestOptions:
 @dataclass(frozen=True, kw_only=True)
 class FeaturesOptions:
     input: Path = option("folder of Parquet tables", WORLD / "processed", input=True)
-    output: Path = option("feature folder (replaced)")
+    output: Path = option("feature folder " + REPLACED)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -101,7 +103,7 @@ class TrainOptions:
 @dataclass(frozen=True, kw_only=True)
 class PddlOptions:
     processed: Path = option("folder of Parquet tables", WORLD / "processed", input=True)
-    output: Path = option("folder to write (replaced)")
+    output: Path = option("folder to write " + REPLACED)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -115,7 +117,7 @@ class WorldOptions:
 
 @dataclass(frozen=True, kw_only=True)
 class FoldModelsOptions(WorldOptions):
-    output: Path = option("model store folder to write (replaced)")
+    output: Path = option("model store folder to write " + REPLACED)
     metrics: Path | None = option("training times and objectives (JSON; default: not written)", None)
 
 
@@ -147,9 +149,9 @@ class ScenesWorldOptions:
     drawn: Path = option("the drawn world's folder as `taskseq drawn_world` writes it", Path("data/drawn/0"),
                          input=True)
     paper_results: Path = option("folder for the paper-shaped world's fold models and results, rooms held out "
-                                 "(replaced)")
+                                 + REPLACED)
     drawn_results: Path = option("folder for the drawn world's fold models and results, rooms held out, noise and "
-                                 "feedback among them (replaced)")
+                                 "feedback among them " + REPLACED)
     transfer_results: Path = option("folder for the programs and steps of the models trained on the paper-shaped "
                                     "world and run in the drawn one, as a cross-validation writes them (replaced; "
                                     "empty when the reported worlds are drawn themselves)")
