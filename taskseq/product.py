@@ -116,6 +116,11 @@ def _check_environment(path: Path, env: Any) -> None:
     _check_physical(path, env)
 
 
+def name_and_id(name: str, obj: str) -> str:
+    """An object as an error names it: a person's word first, the records' id after it where the two differ."""
+    return name if name == obj else f"{name} ({obj})"
+
+
 def _check_physical(path: Path | str, env: dict[str, Any]) -> None:
     """What the simulator never makes, refused in a hand-written file: the robot holding what cannot be moved or a
     liquid itself, and a liquid anywhere but in a container (the planner would plan from a world that cannot be)."""
@@ -123,7 +128,7 @@ def _check_physical(path: Path | str, env: dict[str, Any]) -> None:
     state = env["state"]
 
     def called(obj: str) -> str:
-        return specs[obj]["name"] if specs[obj]["name"] == obj else f"{specs[obj]['name']} ({obj})"
+        return name_and_id(specs[obj]["name"], obj)
 
     held = state["held"]
     if held is not None and specs[held]["attributes"]["liquid"]:
@@ -282,8 +287,8 @@ def parse_task(task_text: str, state: WorldState) -> Task:
     task.check_objects(state)
     specs = state.specs
 
-    def named(obj: str) -> str:  # a person's word first, the records' after it where they differ
-        return f"{specs[obj].name} ({obj})" if specs[obj].name != obj else obj
+    def named(obj: str) -> str:
+        return name_and_id(specs[obj].name, obj)
 
     said = in_names(task, specs)
 

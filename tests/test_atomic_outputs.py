@@ -135,23 +135,40 @@ def test_a_loop_of_links_is_named_in_one_line(tmp_path):
         pass
 
 
-def test_another_writers_folder_put_in_place_between_the_moves_is_kept_and_no_old_copy_is_left(tmp_path, monkeypatch):
-    """Two processes writing one output: when the other one's folder takes the place between this one's two moves,
-    this one fails, and its copy of the old folder is removed, not left beside as `.out.old.PID`."""
+def an_old_output(tmp_path: Path) -> Path:
     target = tmp_path / "out"
     target.mkdir()
     (target / "a.csv").write_text("old")
+    return target
+
+
+def moves_go(monkeypatch, nth: int, instead) -> list[str]:
+    """`os.replace` in atomic.py as it is, but for its `nth` call, which runs `instead(src, dst, real)`: another
+    writer or a stop landing between the moves of a replacement. Returns the sources of the calls, in order."""
     real, calls = os.replace, []
 
-    def other_writer_first(src, dst):
+    def replace(src, dst):
         calls.append(src)
-        if len(calls) == 2:  # this one's new folder about to go in: the other's is there already
-            Path(dst).mkdir()
-            (Path(dst) / "a.csv").write_text("theirs")
-            raise OSError(39, "Directory not empty", os.fspath(dst))
-        real(src, dst)
+        if len(calls) == nth:
+            return instead(src, dst, real)
+        return real(src, dst)
 
-    monkeypatch.setattr(atomic.os, "replace", other_writer_first)
+    monkeypatch.setattr(atomic.os, "replace", replace)
+    return calls
+
+
+def their_folder_put_in_place(src, dst, real):
+    """Another process's folder lands where this one's was to go, and this one's move fails on it."""
+    Path(dst).mkdir()
+    (Path(dst) / "a.csv").write_text("theirs")
+    raise OSError(39, "Directory not empty", os.fspath(src))
+
+
+def test_another_writers_folder_put_in_place_between_the_moves_is_kept_and_no_old_copy_is_left(tmp_path, monkeypatch):
+    """Two processes writing one output: when the other one's folder takes the place between this one's two moves,
+    this one fails, and its copy of the old folder is removed, not left beside as `.out.old.PID`."""
+    target = an_old_output(tmp_path)
+    moves_go(monkeypatch, 2, their_folder_put_in_place)  # the old folder moved aside, then this one's new one fails
     with pytest.raises(OSError, match="not empty"), atomic_directory(target) as tmp:
         (tmp / "a.csv").write_text("new")
     assert tree(target) == {"a.csv": "theirs"} and sorted(p.name for p in tmp_path.iterdir()) == ["out"]
@@ -161,35 +178,22 @@ def test_a_cache_entry_another_process_wrote_first_stands(tmp_path, monkeypatch)
     """Two parallel jobs drawing the same rooms save the same cache entry: the one whose folder lands second finds
     the other's in place (the move fails: not empty), and keeps it, with no error and nothing left behind (it
     stopped a `choose_C` stage of the pipeline)."""
-    target = tmp_path / "key.steps"
-    real = os.replace
-
-    def other_job_first(src, dst):
-        Path(dst).mkdir()
-        (Path(dst) / "steps.parquet").write_text("theirs")
-        monkeypatch.setattr(atomic.os, "replace", real)
-        raise OSError(39, "Directory not empty", os.fspath(src))
-
-    monkeypatch.setattr(atomic.os, "replace", other_job_first)
+    target = tmp_path / "key"
+    moves_go(monkeypatch, 1, their_folder_put_in_place)  # nothing to move aside: the first move is this one's
     with atomic_directory(target, output=False) as tmp:
-        (tmp / "steps.parquet").write_text("ours")
-    assert tree(tmp_path) == {"key.steps": None, "key.steps/steps.parquet": "theirs"}
+        (tmp / "a.csv").write_text("ours")
+    assert tree(tmp_path) == {"key": None, "key/a.csv": "theirs"}
 
 
 def test_a_stop_between_the_two_moves_puts_the_old_folder_back(tmp_path, monkeypatch):
     """A signal can land after the old folder is moved aside and before anything says so: it goes back all the same."""
-    target = tmp_path / "out"
-    target.mkdir()
-    (target / "a.csv").write_text("old")
-    real, calls = os.replace, []
+    target = an_old_output(tmp_path)
 
-    def stopped_after_the_first(src, dst):
-        calls.append(src)
+    def then_stopped(src, dst, real):
         real(src, dst)
-        if len(calls) == 1:
-            raise KeyboardInterrupt
+        raise KeyboardInterrupt
 
-    monkeypatch.setattr(atomic.os, "replace", stopped_after_the_first)
+    moves_go(monkeypatch, 1, then_stopped)
     with pytest.raises(KeyboardInterrupt), atomic_directory(target) as tmp:
         (tmp / "a.csv").write_text("new")
     assert tree(target) == {"a.csv": "old"} and sorted(p.name for p in tmp_path.iterdir()) == ["out"]
@@ -207,18 +211,12 @@ def test_a_file_in_the_way_of_the_folder_is_named(tmp_path):
 def test_a_replacement_that_fails_half_way_puts_the_old_folder_back_and_removes_the_new_one(tmp_path, monkeypatch):
     """The old folder is moved aside, then the new one moved in: if that second move fails, the old one is put
     back and the temporary one removed, and the error comes out."""
-    target = tmp_path / "out"
-    target.mkdir()
-    (target / "a.csv").write_text("old")
-    real, calls = os.replace, []
+    target = an_old_output(tmp_path)
 
-    def second_fails(src, dst):
-        calls.append(src)
-        if len(calls) == 2:
-            raise OSError(16, "Device or resource busy", os.fspath(src))
-        real(src, dst)
+    def busy(src, dst, real):
+        raise OSError(16, "Device or resource busy", os.fspath(src))
 
-    monkeypatch.setattr(atomic.os, "replace", second_fails)
+    calls = moves_go(monkeypatch, 2, busy)
     with pytest.raises(OSError, match="busy"), atomic_directory(target) as tmp:
         (tmp / "a.csv").write_text("new")
     assert len(calls) == 3  # aside, in (failed), back

@@ -404,6 +404,25 @@ def test_plan_command_names_the_field_of_a_bad_environment_file(model_file, benc
     assert code == 2 and message in capsys.readouterr().err
 
 
+def test_an_object_whose_id_is_its_name_is_named_once(model_file, tmp_path, capsys):
+    """A hand-written room names its objects by words (`workbench` is both id and name): an error says it once."""
+    import yaml
+
+    from taskseq.serve.layout import environment_from_layout
+
+    env = environment_from_layout(yaml.safe_load((Path(__file__).resolve().parents[1] / "docs" / "examples"
+                                                  / "workshop.yaml").read_text()))
+    env["state"]["held"] = "workbench"
+    path = tmp_path / "held.json"
+    path.write_text(json.dumps(env))
+    assert main(["plan", "--model", str(model_file), "--env", str(path), "--task", "pour(oil)"]) == 2
+    assert f"{path}:1: state.held: workbench cannot be held: it is not movable" in capsys.readouterr().err
+    env["state"]["held"] = None
+    path.write_text(json.dumps(env))
+    assert main(["plan", "--model", str(model_file), "--env", str(path), "--task", "pour(workbench)"]) == 2
+    assert "task pour(workbench): workbench is not a liquid" in capsys.readouterr().err
+
+
 def test_plan_command_refuses_a_log_record_whose_objects_rest_in_a_loop(model_file, benchmark_logs, tmp_path, capsys):
     lines = (benchmark_logs / "env01.jsonl").read_text().splitlines()
     record = json.loads(lines[1])
